@@ -1,0 +1,81 @@
+"""The rounded rectangular obstacle as a Coal shape.
+
+The footprint is exactly L x W: x in [-L/2, L/2], y in [d - W, d]. Coal's swept-sphere
+radius r inflates a box in every direction, so the core box is (L - 2r, W - 2r, h - 2r)
+and the outer shape has rounded vertical edges (the corners of the footprint).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from .exceptions import InvalidParameterError
+from .scene import Scene
+from .validation import check_finite, check_non_negative, check_positive
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A rounded box standing on the arm's plane.
+
+    Attributes:
+        length_m: L, extent along x [m].
+        width_m: W, extent along y [m].
+        top_y_m: d, the y of the far edge [m].
+        corner_radius_m: Radius of the rounded corners [m]; at most min(L, W) / 2.
+        height_m: Extent along z, centred on z = 0 [m]; > 2 * corner radius.
+    """
+
+    length_m: float
+    width_m: float
+    top_y_m: float = 0.56
+    corner_radius_m: float = 0.01
+    height_m: float = 1.0
+
+    def __post_init__(self) -> None:
+        check_positive("L (length_m)", self.length_m)
+        check_positive("W (width_m)", self.width_m)
+        check_finite("top_y_m", self.top_y_m)
+        check_non_negative("corner_radius_m", self.corner_radius_m)
+        check_positive("height_m", self.height_m)
+        limit = min(self.length_m, self.width_m, self.height_m) / 2.0
+        if self.corner_radius_m > limit:
+            raise InvalidParameterError(
+                "corner_radius_m", self.corner_radius_m, f"at most min(L, W, height) / 2 = {limit:.4g} m"
+            )
+
+    @classmethod
+    def in_scene(cls, length_m: float, width_m: float, scene: Scene) -> Obstacle:
+        """The obstacle of size L x W placed as the scene says."""
+        return cls(length_m, width_m, scene.top_y_m, scene.corner_radius_m, scene.obstacle_height_m)
+
+    @property
+    def center_m(self) -> np.ndarray:
+        """Centre of the box [m]: (0, d - W/2, 0)."""
+        return np.array([0.0, self.top_y_m - self.width_m / 2.0, 0.0])
+
+    @property
+    def core_half_extents_m(self) -> np.ndarray:
+        """Half extents (x, y, z) of the box before rounding [m]."""
+        r = self.corner_radius_m
+        return np.array([self.length_m / 2 - r, self.width_m / 2 - r, self.height_m / 2 - r])
+
+    @property
+    def placement(self) -> pin.SE3:
+        """Pose of the box in the base frame (axis-aligned)."""
+        return pin.SE3(np.eye(3), self.center_m)
+
+    def coal_shape(self) -> coal.Box:
+        """A new Coal box with swept-sphere radius: the rounded obstacle in its own frame."""
+        box = coal.Box(*(2.0 * self.core_half_extents_m))
+        box.setSweptSphereRadius(self.corner_radius_m)
+        return box
+
+    def footprint_corners_m(self) -> np.ndarray:
+        """The four corners (x, y) of the outer L x W footprint [m], counter-clockwise."""
+        x, y0, y1 = self.length_m / 2, self.top_y_m - self.width_m, self.top_y_m
+        return np.array([[x, y0], [x, y1], [-x, y1], [-x, y0]])

@@ -1,0 +1,153 @@
+"""The paper's joint trajectory family (Eq. 1): theta_i(t) = A_i sin(w_i t + phi_i) + gamma_i.
+
+Parameters are handled as arrays of shape (..., 8) in the order of :data:`PARAMETER_NAMES`
+so that whole swarms evaluate in one NumPy expression. Units: A, phi, gamma in rad,
+w in rad/s, t in s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .exceptions import InvalidParameterError
+from .validation import check_finite, check_positive
+
+PARAMETER_NAMES: tuple[str, ...] = ("A1", "w1", "phi1", "gamma1", "A2", "w2", "phi2", "gamma2")
+PARAMETER_UNITS: dict[str, str] = {
+    name: ("rad/s" if name.startswith("w") else "rad") for name in PARAMETER_NAMES
+}
+
+
+def _split(params: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(A, w, phi, gamma), each of shape (..., 2), from parameters of shape (..., 8)."""
+    p = np.asarray(params, dtype=float).reshape(*np.shape(params)[:-1], 2, 4)
+    return p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+
+
+def joint_angles(params: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """theta(t) [rad] for parameters (..., 8) and times (m,): shape (..., m, 2)."""
+    a, w, phi, gamma = _split(params)
+    t = np.asarray(t_s, dtype=float)[:, None]
+    return a[..., None, :] * np.sin(w[..., None, :] * t + phi[..., None, :]) + gamma[..., None, :]
+
+
+def joint_velocities(params: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """dtheta/dt [rad/s], shape (..., m, 2)."""
+    a, w, phi, _ = _split(params)
+    t = np.asarray(t_s, dtype=float)[:, None]
+    return (a * w)[..., None, :] * np.cos(w[..., None, :] * t + phi[..., None, :])
+
+
+def joint_accelerations(params: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """d2theta/dt2 [rad/s^2], shape (..., m, 2)."""
+    a, w, phi, _ = _split(params)
+    t = np.asarray(t_s, dtype=float)[:, None]
+    return -(a * w * w)[..., None, :] * np.sin(w[..., None, :] * t + phi[..., None, :])
+
+
+def canonicalize(params: np.ndarray) -> np.ndarray:
+    """Map parameters to the canonical form of Eq. 8, so equal motions get equal parameters.
+
+    A sin(wt + phi) = (-A) sin(-wt - phi) = (-A) sin(wt + phi + pi). The canonical form
+    has w >= 0 and phi in [-pi/2, pi/2), A taking whatever sign that leaves. Table 2 of
+    the paper is already in this form.
+    """
+    p = np.array(params, dtype=float, copy=True)
+    q = p.reshape(*p.shape[:-1], 2, 4)
+    flip = q[..., 1] < 0
+    q[..., 0] = np.where(flip, -q[..., 0], q[..., 0])
+    q[..., 1] = np.abs(q[..., 1])
+    q[..., 2] = np.where(flip, -q[..., 2], q[..., 2])
+    half_turns = np.floor((q[..., 2] + np.pi / 2) / np.pi)
+    q[..., 2] = q[..., 2] - half_turns * np.pi
+    odd = np.mod(half_turns, 2) == 1
+    q[..., 0] = np.where(odd, -q[..., 0], q[..., 0])
+    return q.reshape(p.shape)
+
+
+def _peak_abs(amplitude: float, w: float, phase: float, duration_s: float, offset: float) -> float:
+    """max over t in [0, T] of |amplitude * sin(w t + phase + offset)| (closed form)."""
+    lo, hi = sorted((phase + offset, w * duration_s + phase + offset))
+    # A peak of |sin| sits at pi/2 + k pi; is one inside [lo, hi]?
+    k = math.ceil((lo - math.pi / 2) / math.pi)
+    if math.pi / 2 + k * math.pi <= hi:
+        return abs(amplitude)
+    return abs(amplitude) * max(abs(math.sin(lo)), abs(math.sin(hi)))
+
+
+@dataclass(frozen=True)
+class JointTrajectory:
+    """One joint-space trajectory of the paper's family over [0, T].
+
+    Attributes:
+        parameters: The 8 parameters in :data:`PARAMETER_NAMES` order.
+        duration_s: T [s].
+    """
+
+    parameters: tuple[float, ...]
+    duration_s: float
+
+    def __post_init__(self) -> None:
+        values = tuple(float(v) for v in np.asarray(self.parameters, dtype=float).ravel())
+        if len(values) != 8:
+            raise InvalidParameterError("parameters", self.parameters, "8 values " + str(PARAMETER_NAMES))
+        for name, value in zip(PARAMETER_NAMES, values, strict=True):
+            check_finite(name, value)
+        object.__setattr__(self, "parameters", values)
+        check_positive("duration_s", self.duration_s)
+
+    @classmethod
+    def from_mapping(cls, parameters: Mapping[str, float], duration_s: float) -> JointTrajectory:
+        """Build from a {name: value} mapping with the keys of :data:`PARAMETER_NAMES`."""
+        missing = [n for n in PARAMETER_NAMES if n not in parameters]
+        if missing:
+            raise InvalidParameterError("parameters", dict(parameters), f"keys {PARAMETER_NAMES}, missing {missing}")
+        return cls(tuple(float(parameters[n]) for n in PARAMETER_NAMES), duration_s)
+
+    def as_dict(self) -> dict[str, float]:
+        """{name: value} of the 8 parameters."""
+        return dict(zip(PARAMETER_NAMES, self.parameters, strict=True))
+
+    @property
+    def array(self) -> np.ndarray:
+        """The parameters as a (8,) array."""
+        return np.array(self.parameters)
+
+    def q(self, t_s: float | np.ndarray) -> np.ndarray:
+        """Joint angles [rad]: shape (2,) for a scalar t, (m, 2) for m times."""
+        t = np.asarray(t_s, dtype=float)
+        out = joint_angles(self.array, np.atleast_1d(t))
+        return out[0] if t.ndim == 0 else out
+
+    def dq(self, t_s: float | np.ndarray) -> np.ndarray:
+        """Joint velocities [rad/s], shaped like :meth:`q`."""
+        t = np.asarray(t_s, dtype=float)
+        out = joint_velocities(self.array, np.atleast_1d(t))
+        return out[0] if t.ndim == 0 else out
+
+    def ddq(self, t_s: float | np.ndarray) -> np.ndarray:
+        """Joint accelerations [rad/s^2], shaped like :meth:`q`."""
+        t = np.asarray(t_s, dtype=float)
+        out = joint_accelerations(self.array, np.atleast_1d(t))
+        return out[0] if t.ndim == 0 else out
+
+    def __call__(self, t_s: float | np.ndarray) -> np.ndarray:
+        return self.q(t_s)
+
+    def peak_velocity_rad_s(self) -> np.ndarray:
+        """max over [0, T] of |dtheta_i/dt| [rad/s] per joint, in closed form."""
+        p = self.parameters
+        return np.array(
+            [_peak_abs(p[4 * i] * p[4 * i + 1], p[4 * i + 1], p[4 * i + 2], self.duration_s, math.pi / 2) for i in (0, 1)]
+        )
+
+    def peak_acceleration_rad_s2(self) -> np.ndarray:
+        """max over [0, T] of |d2theta_i/dt2| [rad/s^2] per joint, in closed form."""
+        p = self.parameters
+        return np.array(
+            [_peak_abs(p[4 * i] * p[4 * i + 1] ** 2, p[4 * i + 1], p[4 * i + 2], self.duration_s, 0.0) for i in (0, 1)]
+        )
