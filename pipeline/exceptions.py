@@ -102,9 +102,7 @@ class NoCertifiedTrajectoryError(PipelineError):
         margin_m: Required margin [m].
     """
 
-    def __init__(
-        self, L_m: float, W_m: float, certified_clearance_m: float, margin_m: float, reason: str
-    ) -> None:
+    def __init__(self, L_m: float, W_m: float, certified_clearance_m: float, margin_m: float, reason: str) -> None:
         self.L_m = L_m
         self.W_m = W_m
         self.certified_clearance_m = certified_clearance_m

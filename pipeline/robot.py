@@ -72,9 +72,9 @@ class PlanarArm:
 
     @property
     def is_horizontal_xy(self) -> bool:
-        """True if the arm moves in the base frame's z = 0 plane with plane_x = x (the scene frame)."""
+        """True if the arm turns about +z in the base frame's z = 0 plane with plane_x = x (the scene frame)."""
         return bool(
-            np.allclose(np.abs(self.axis), [0, 0, 1], atol=1e-9)
+            np.allclose(self.axis, [0, 0, 1], atol=1e-9)
             and np.allclose(self.plane_x, [1, 0, 0], atol=1e-9)
             and np.allclose(self.origin_m, 0.0, atol=1e-9)
             and abs(self.elbow_offset_rad) < 1e-9
@@ -106,7 +106,7 @@ def _revolute_axis(joint: pin.JointModel) -> np.ndarray:
     if name in axes:
         return np.array(axes[name], dtype=float)
     if name == "JointModelRevoluteUnaligned":
-        return np.asarray(joint.axis, dtype=float).copy()
+        return np.asarray(joint.extract().axis, dtype=float).copy()
     raise RobotModelError(f"joint {joint.id} is a {name}, expected a revolute joint")
 
 
@@ -161,8 +161,7 @@ def load_planar_arm(urdf_path: str | Path | None = None, ee_frame: str | None = 
 
     if model.njoints != 3 or model.nq != 2 or model.nv != 2:
         raise RobotModelError(
-            f"{path}: expected exactly 2 actuated joints (nq = 2), found nq = {model.nq} "
-            f"in {model.njoints - 1} joints"
+            f"{path}: expected exactly 2 actuated joints (nq = 2), found nq = {model.nq} in {model.njoints - 1} joints"
         )
     if model.parents[2] != 1:
         raise RobotModelError(f"{path}: joint 2 must be the child of joint 1 (a serial chain)")

@@ -17,9 +17,7 @@ from .exceptions import InvalidParameterError
 from .validation import check_finite, check_positive
 
 PARAMETER_NAMES: tuple[str, ...] = ("A1", "w1", "phi1", "gamma1", "A2", "w2", "phi2", "gamma2")
-PARAMETER_UNITS: dict[str, str] = {
-    name: ("rad/s" if name.startswith("w") else "rad") for name in PARAMETER_NAMES
-}
+PARAMETER_UNITS: dict[str, str] = {name: ("rad/s" if name.startswith("w") else "rad") for name in PARAMETER_NAMES}
 
 
 def _split(params: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -66,6 +64,10 @@ def canonicalize(params: np.ndarray) -> np.ndarray:
     q[..., 2] = q[..., 2] - half_turns * np.pi
     odd = np.mod(half_turns, 2) == 1
     q[..., 0] = np.where(odd, -q[..., 0], q[..., 0])
+    # Rounding can leave phi a hair below -pi/2 or at +pi/2: fold once more.
+    low, high = q[..., 2] < -np.pi / 2, q[..., 2] >= np.pi / 2
+    q[..., 2] = np.where(low, q[..., 2] + np.pi, np.where(high, q[..., 2] - np.pi, q[..., 2]))
+    q[..., 0] = np.where(low | high, -q[..., 0], q[..., 0])
     return q.reshape(p.shape)
 
 
@@ -142,7 +144,10 @@ class JointTrajectory:
         """max over [0, T] of |dtheta_i/dt| [rad/s] per joint, in closed form."""
         p = self.parameters
         return np.array(
-            [_peak_abs(p[4 * i] * p[4 * i + 1], p[4 * i + 1], p[4 * i + 2], self.duration_s, math.pi / 2) for i in (0, 1)]
+            [
+                _peak_abs(p[4 * i] * p[4 * i + 1], p[4 * i + 1], p[4 * i + 2], self.duration_s, math.pi / 2)
+                for i in (0, 1)
+            ]
         )
 
     def peak_acceleration_rad_s2(self) -> np.ndarray:

@@ -1,0 +1,117 @@
+"""Trajectory families: which of the 8 sinusoid parameters are searched, and how the rest follow.
+
+* ``paper``: all 8 parameters are free (the paper's method).
+* ``exact-endpoints``: per joint, the end effector is pinned to P1 at t = 0 and to P5 at
+  t = T by construction. With theta_s, theta_e the joint angles of P1 and P5 (analytic
+  IK, one elbow branch), joint 1 keeps (w1, phi1) free and
+  A1 = (theta1_e - theta1_s) / (sin(w1 T + phi1) - sin(phi1)), gamma1 = theta1_s - A1 sin(phi1).
+  P1 and P5 are mirror images, so theta2_s = theta2_e: joint 2 keeps (A2, w2) free with
+  phi2 = (pi - w2 T) / 2 (so that sin(w2 T + phi2) = sin(phi2)) and
+  gamma2 = theta2_s - A2 sin(phi2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .exceptions import InvalidParameterError, UnreachableObstacleError
+from .trajectory import PARAMETER_NAMES, canonicalize
+
+FAMILY_NAMES: tuple[str, ...] = ("paper", "exact-endpoints")
+
+#: Free parameters of each family, in the order the PSO searches them.
+FREE_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "paper": PARAMETER_NAMES,
+    "exact-endpoints": ("w1", "phi1", "A2", "w2"),
+}
+
+# Search box per parameter name: A [rad], w [rad/s], phi [rad], gamma [rad].
+_BOUNDS = {"A": (-3.0, 3.0), "w": (0.2, 2.5), "phi": (-np.pi / 2, np.pi / 2), "gamma": (-np.pi, np.pi)}
+
+# Smallest |sin(w1 T + phi1) - sin(phi1)| allowed before A1 is clamped (A1 would blow up).
+_MIN_DENOMINATOR = 1e-3
+
+
+@dataclass(frozen=True)
+class EndpointContext:
+    """What an exact-endpoints trajectory needs to know about one obstacle.
+
+    Attributes:
+        theta_start_rad: Joint angles at P1 [rad], shape (2,).
+        theta_end_rad: Joint angles at P5 [rad], shape (2,).
+        duration_s: T [s].
+    """
+
+    theta_start_rad: tuple[float, float]
+    theta_end_rad: tuple[float, float]
+    duration_s: float
+
+
+def check_family(name: str) -> str:
+    """Return ``name`` if it is a known family, else raise InvalidParameterError."""
+    if name not in FAMILY_NAMES:
+        raise InvalidParameterError("family", name, f"one of {FAMILY_NAMES}")
+    return name
+
+
+def search_bounds(family: str) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) of the PSO search box over the family's free parameters."""
+    names = FREE_PARAMETERS[check_family(family)]
+    lower = np.array([_BOUNDS[n.rstrip("12")][0] for n in names])
+    upper = np.array([_BOUNDS[n.rstrip("12")][1] for n in names])
+    return lower, upper
+
+
+def inverse_kinematics(point_m: np.ndarray, link_lengths_m: tuple[float, float], elbow: int = 1) -> np.ndarray:
+    """Joint angles [rad] placing the tip at ``point_m`` (x, y) [m]; ``elbow`` = +1 or -1 picks the branch.
+
+    Raises:
+        UnreachableObstacleError: the point is outside the reachable annulus.
+    """
+    l1, l2 = link_lengths_m
+    x, y = float(point_m[0]), float(point_m[1])
+    radius = float(np.hypot(x, y))
+    cos2 = (radius**2 - l1**2 - l2**2) / (2 * l1 * l2)
+    if not -1.0 <= cos2 <= 1.0:
+        raise UnreachableObstacleError("target", radius, (abs(l1 - l2), l1 + l2))
+    theta2 = elbow * float(np.arccos(cos2))
+    theta1 = float(np.arctan2(y, x) - np.arctan2(l2 * np.sin(theta2), l1 + l2 * np.cos(theta2)))
+    return np.array([theta1, theta2])
+
+
+def expand(family: str, free: np.ndarray, context: EndpointContext | None) -> np.ndarray:
+    """The 8 parameters (..., 8) from the family's free parameters (..., k)."""
+    free = np.asarray(free, dtype=float)
+    if check_family(family) == "paper":
+        return free
+    if context is None:
+        raise InvalidParameterError("context", None, "an EndpointContext for the exact-endpoints family")
+    w1, phi1, a2, w2 = np.moveaxis(free, -1, 0)
+    t_end = context.duration_s
+    th_s, th_e = context.theta_start_rad, context.theta_end_rad
+    denominator = np.sin(w1 * t_end + phi1) - np.sin(phi1)
+    denominator = np.where(
+        np.abs(denominator) < _MIN_DENOMINATOR, np.copysign(_MIN_DENOMINATOR, denominator), denominator
+    )
+    a1 = (th_e[0] - th_s[0]) / denominator
+    gamma1 = th_s[0] - a1 * np.sin(phi1)
+    phi2 = (np.pi - w2 * t_end) / 2.0
+    gamma2 = th_s[1] - a2 * np.sin(phi2)
+    return np.stack([a1, w1, phi1, gamma1, a2, w2, phi2, gamma2], -1)
+
+
+def free_from_full(family: str, full: np.ndarray) -> np.ndarray:
+    """The free parameters of ``family`` picked out of canonical 8-parameter arrays (..., 8).
+
+    For exact-endpoints the free parameters are (w1, phi1, A2, w2) with w >= 0 and phi1 in
+    [-pi/2, pi/2) (joint 1 canonical as in Eq. 8; A2 keeps its sign since phi2 is pinned).
+    """
+    full = np.asarray(full, dtype=float)
+    if check_family(family) == "paper":
+        return canonicalize(full)
+    index = [PARAMETER_NAMES.index(n) for n in FREE_PARAMETERS[family]]
+    joint1 = canonicalize(np.concatenate([full[..., :4], full[..., :4]], -1))[..., :4]
+    merged = np.concatenate([joint1, full[..., 4:]], -1)
+    return merged[..., index]

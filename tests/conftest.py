@@ -1,0 +1,76 @@
+"""Shared fixtures of the test suite. Keep this small: put module-specific fixtures in the module."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.robot import PlanarArm, load_planar_arm
+from pipeline.scene import Scene
+
+_DOUBLE_PENDULUM = Path(
+    "cmeel.prefix/share/example-robot-data/robots/double_pendulum_description/urdf/double_pendulum_simple.urdf"
+)
+
+
+def _example_robot_data_file(relative: Path) -> Path:
+    """A file shipped by the installed example-robot-data distribution (it has no Python module)."""
+    candidates = [Path(importlib.metadata.distribution("example-robot-data").locate_file(relative))]
+    # Fallback: the cmeel prefix sits next to the ``cmeel`` package in site-packages.
+    spec = importlib.util.find_spec("cmeel")
+    if spec is not None and spec.origin is not None:
+        candidates.append(Path(spec.origin).resolve().parent.parent / relative)
+    for candidate in candidates:
+        if candidate.is_file():
+            return candidate
+    raise FileNotFoundError(f"example-robot-data file not found: {relative} (tried {candidates})")
+
+
+@pytest.fixture(scope="session")
+def arm() -> PlanarArm:
+    """The paper's arm from the shipped URDF (l1 = 0.30 m, l2 = 0.35 m).
+
+    Shared by the whole session: treat it as read-only.
+    """
+    return load_planar_arm()
+
+
+@pytest.fixture(scope="session")
+def double_pendulum_urdf() -> Path:
+    """example-robot-data's double_pendulum_simple.urdf (links of 0.1 m and 0.2 m, box geometry)."""
+    return _example_robot_data_file(_DOUBLE_PENDULUM)
+
+
+@pytest.fixture(scope="session")
+def scene() -> Scene:
+    """The paper's scene with the defaults of NOTES.md (d = 0.56, y1 = d, v = 0.2 m/s)."""
+    return Scene()
+
+
+# Table 2 of the paper: A1, w1, phi1, gamma1, A2, w2, phi2, gamma2, L, W for Test 1..9.
+_TABLE2 = (
+    (-0.816, 0.953, 0.378, 1.068, 1.633, 0.768, 0.131, 0.445, 0.30, 0.12),
+    (-0.768, 0.999, 0.389, 1.053, 1.474, 0.836, 0.103, 0.586, 0.25, 0.12),
+    (-0.736, 1.034, 0.408, 1.057, 1.362, 0.903, 0.090, 0.681, 0.20, 0.12),
+    (-0.795, 0.971, 0.440, 1.106, 1.497, 0.820, 0.106, 0.500, 0.30, 0.10),
+    (-0.781, 0.996, 0.467, 1.116, 1.449, 0.864, 0.131, 0.543, 0.25, 0.10),
+    (-0.766, 1.017, 0.500, 1.135, 1.389, 0.914, 0.152, 0.587, 0.20, 0.10),
+    (-0.801, 0.970, 0.504, 1.165, 1.522, 0.827, 0.158, 0.401, 0.30, 0.08),
+    (-0.786, 0.992, 0.549, 1.178, 1.397, 0.895, 0.153, 0.514, 0.25, 0.08),
+    (-0.797, 0.993, 0.602, 1.222, 1.323, 0.955, 0.167, 0.574, 0.20, 0.08),
+)
+
+
+@pytest.fixture(scope="session")
+def table2() -> np.ndarray:
+    """Table 2 of the paper, shape (9, 10): the 8 parameters (PARAMETER_NAMES order), then L, W [m].
+
+    Row i is Test i + 1. Read-only.
+    """
+    table = np.array(_TABLE2)
+    table.setflags(write=False)
+    return table
