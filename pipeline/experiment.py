@@ -191,3 +191,20 @@ def solve_experiment(
 def free_parameter_names(family: str) -> tuple[str, ...]:
     """Names of the parameters the family searches (and the regression fits)."""
     return FREE_PARAMETERS[family]
+
+
+def score_parameters(
+    arm: PlanarArm, length_m: float, width_m: float, scene: Scene, config: SolverConfig, parameters: np.ndarray
+) -> dict[str, float]:
+    """Our fitness, dense Coal clearance and endpoint errors of given 8 parameters (e.g. the
+    paper's Table 2 row) at the obstacle L x W, on the paper family's objective."""
+    problem = fitness_problem(arm, length_m, width_m, scene, config.fitness, "paper")
+    full = np.asarray(parameters, dtype=float)
+    clearance, _ = dense_coal_clearance(problem, full, config.verify_samples)
+    start_err, end_err = problem.endpoint_errors_m(full)
+    return {
+        "fitness": float(problem.evaluate(full)),
+        "clearance_m": clearance,
+        "endpoint_error_start_m": start_err,
+        "endpoint_error_end_m": end_err,
+    }

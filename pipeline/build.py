@@ -1,0 +1,202 @@
+"""``python -m pipeline.build``: DOE -> PSO per experiment -> regression -> coefficients.
+
+Writes ``DIR/doe.json`` and ``DIR/coefficients.json`` atomically (deterministic for a seed:
+no timestamps, independent of --jobs) and ``DIR/build_timing.json`` (wall times and query
+counts, which vary run to run). Prints our Table 2 and Eq. 9 beside the paper's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import sys
+import time
+from dataclasses import asdict
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from . import report
+from .coefficients import fit_coefficients, load_coefficients, paper_data_path, save_coefficients
+from .doe import Design, doe_document, load_doe, run_doe
+from .exceptions import PipelineError
+from .experiment import SolverConfig, score_parameters
+from .family import FAMILY_NAMES
+from .fitness import FitnessConfig
+from .jsonio import write_json_atomic
+from .pso import PsoConfig
+from .robot import DEFAULT_URDF, load_planar_arm
+from .scene import Scene
+from .trajectory import PARAMETER_NAMES
+
+PACKAGES = ("numpy", "scipy", "pin", "coal")
+
+
+def package_versions() -> dict[str, str]:
+    """Installed versions of the packages that shape the numbers."""
+    versions = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = "not installed"
+    return versions
+
+
+def parser() -> argparse.ArgumentParser:
+    defaults_pso, defaults_fit, defaults_scene = PsoConfig(), FitnessConfig(), Scene()
+    p = argparse.ArgumentParser(
+        prog="python -m pipeline.build",
+        description="Run the DOE (PSO + exact Coal clearance per obstacle) and regress the coefficients.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("--out", type=Path, default=Path("results"), help="output folder")
+    p.add_argument("--seed", type=int, default=0, help="master random seed")
+    p.add_argument("--levels", type=int, default=3, help="levels per factor (K x K design)")
+    p.add_argument("--L-range", nargs=2, type=float, default=[0.20, 0.30], metavar=("MIN", "MAX"), help="L range [m]")
+    p.add_argument("--W-range", nargs=2, type=float, default=[0.08, 0.12], metavar=("MIN", "MAX"), help="W range [m]")
+    p.add_argument("--family", choices=FAMILY_NAMES, default="paper", help="trajectory family")
+    p.add_argument("--jobs", type=int, default=1, help="worker processes (does not change the result)")
+    p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm")
+    p.add_argument("--swarm-size", type=int, default=defaults_pso.swarm_size, help="PSO particles")
+    p.add_argument("--iterations", type=int, default=defaults_pso.iterations, help="PSO iterations per restart")
+    p.add_argument("--restarts", type=int, default=defaults_pso.restarts, help="independent PSO swarms")
+    p.add_argument("--no-polish", action="store_true", help="skip the least_squares polish after PSO")
+    p.add_argument("--n-points", type=int, default=defaults_fit.n_points, help="path points n of Eq. 5")
+    p.add_argument("--endpoint-weight", type=float, default=defaults_fit.endpoint_weight, help="Eq. 5 end weight")
+    p.add_argument("--penalty-weight", type=float, default=defaults_fit.penalty_weight, help="clearance penalty weight")
+    p.add_argument("--margin", type=float, default=defaults_scene.margin_m, help="safety margin [m]")
+    p.add_argument("--margin-buffer", type=float, default=defaults_fit.margin_buffer_m, help="extra margin [m]")
+    p.add_argument("--corner-radius", type=float, default=defaults_scene.corner_radius_m, help="corner radius [m]")
+    p.add_argument("--speed", type=float, default=defaults_scene.speed_m_s, help="path speed v [m/s]")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or tables")
+    return p
+
+
+def build(args: argparse.Namespace, out=sys.stdout) -> int:
+    """Run the whole offline pipeline for parsed arguments; returns the exit status."""
+    started = time.perf_counter()
+    arm = load_planar_arm(args.urdf)
+    scene = Scene(margin_m=args.margin, corner_radius_m=args.corner_radius, speed_m_s=args.speed)
+    design = Design(args.levels, tuple(args.L_range), tuple(args.W_range))
+    config = SolverConfig(
+        family=args.family,
+        fitness=FitnessConfig(
+            n_points=args.n_points,
+            endpoint_weight=args.endpoint_weight,
+            penalty_weight=args.penalty_weight,
+            margin_buffer_m=args.margin_buffer,
+        ),
+        pso=PsoConfig(swarm_size=args.swarm_size, iterations=args.iterations, restarts=args.restarts),
+        polish=not args.no_polish,
+    )
+    # Check every experiment's geometry before spending minutes on PSO.
+    from .obstacle import Obstacle
+    from .path import desired_path
+
+    for L, W in design.points():
+        desired_path(Obstacle.in_scene(L, W, scene), scene, arm.reach_m)
+
+    bar = tqdm(total=len(design.points()), desc="DOE", unit="exp", disable=args.quiet, file=sys.stderr)
+    results = run_doe(arm, design, scene, config, args.seed, args.jobs, progress=lambda _: bar.update())
+    bar.close()
+
+    provenance = {
+        "seed": args.seed,
+        "levels": args.levels,
+        "family": args.family,
+        "urdf": arm.urdf_path.name,
+        "urdf_sha256": hashlib.sha256(arm.urdf_path.read_bytes()).hexdigest(),
+        "pso": asdict(config.pso),
+        "fitness": asdict(config.fitness),
+        "polish": config.polish,
+        "versions": package_versions(),
+    }
+    document = doe_document(results, design, scene, arm, config, provenance, config.fitness.elbow)
+    paper_rows = _paper_rows(arm, scene, config, design)
+    if paper_rows is not None:
+        for row, paper in zip(document["experiments"], paper_rows, strict=True):
+            row["paper_table2"] = {k: paper[k] for k in ("fitness", "clearance_m")}
+            row["beats_paper"] = bool(row["fitness"] < paper["fitness"])
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    doe_path, coefficients_path = args.out / "doe.json", args.out / "coefficients.json"
+    doe_replaced = write_json_atomic(doe_path, document)
+    doe = load_doe(doe_path)
+    coefficients, fit = fit_coefficients(
+        doe, {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_path.read_bytes()).hexdigest()}}
+    )
+    coefficients_replaced = save_coefficients(coefficients, coefficients_path)
+
+    total = time.perf_counter() - started
+    timing = {
+        "total_s": total,
+        "jobs": args.jobs,
+        "experiments": [
+            {
+                "test": i + 1,
+                "L": r.length_m,
+                "W": r.width_m,
+                "seconds": r.seconds,
+                "coal_queries": r.coal_queries,
+                "objective_evaluations": r.objective_evaluations,
+            }
+            for i, r in enumerate(results)
+        ],
+        "coal_queries": int(sum(r.coal_queries for r in results)),
+        "objective_evaluations": int(sum(r.objective_evaluations for r in results)),
+    }
+    write_json_atomic(args.out / "build_timing.json", timing)
+
+    if not args.quiet:
+        print("Table 2 (ours, with the paper's row below where the design matches it):", file=out)
+        print(report.table2(document["experiments"], paper_rows), file=out)
+        paper_eq9 = load_coefficients("paper").parameters if args.family == "paper" else None
+        print("\nEq. 9 (ours, paper below):", file=out)
+        print(report.equation9(coefficients.parameters, paper_eq9, coefficients.extra["fit"]), file=out)
+        print(
+            f"\nTiming: {total:.1f} s total, "
+            + ", ".join(f"{r.seconds:.1f}" for r in results)
+            + f" s per experiment; {timing['coal_queries']} Coal distance queries, "
+            f"{timing['objective_evaluations']} objective evaluations (analytic route)",
+            file=out,
+        )
+    for path, replaced in ((doe_path, doe_replaced), (coefficients_path, coefficients_replaced)):
+        print(f"{'replaced' if replaced else 'wrote'} {path}", file=out)
+    solvers = sorted({r.solver for r in results})
+    print(f"solver: {', '.join(solvers)}", file=out)
+    return 0
+
+
+def _paper_rows(arm, scene: Scene, config: SolverConfig, design: Design) -> list[dict] | None:
+    """The paper's Table 2 rows scored on our fitness, if our design is the paper's grid."""
+    if config.family != "paper":
+        paper = None
+    paper = load_doe(paper_data_path("paper_table2_doe.json"))
+    points = design.points()
+    if len(points) != len(paper.lengths_m) or not np.allclose(points, np.c_[paper.lengths_m, paper.widths_m]):
+        return None
+    rows = []
+    for (L, W), params in zip(points, paper.parameters, strict=True):
+        score = score_parameters(arm, L, W, scene, config, params)
+        rows.append({"L": L, "W": W, "parameters": dict(zip(PARAMETER_NAMES, params, strict=True)), **score})
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: parse ``argv``, run, print one line per error; returns the exit status."""
+    args = parser().parse_args(argv)
+    try:
+        return build(args)
+    except PipelineError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted: no output file was left half-written", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

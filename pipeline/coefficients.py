@@ -1,0 +1,218 @@
+"""Coefficients files: the closed-form parameters(L, W) the online generator evaluates.
+
+``coefficients.json`` holds, per free parameter of the trajectory family, the six
+coefficients of :data:`pipeline.regression.BASIS`, the (L, W) range they were fitted on,
+and the scene and arm they assume. ``"paper"`` names the paper's own Eq. 9, shipped with
+the package (``pipeline/data/paper_eq9_coefficients.json``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .exceptions import DataFileError, PipelineError
+from .family import FAMILY_NAMES, FREE_PARAMETERS
+from .jsonio import dumps, read_json, write_text_atomic
+from .regression import BASIS, predict
+from .scene import Scene
+
+FORMAT = "twolink-coefficients/1"
+PAPER = "paper"
+
+
+def paper_data_path(name: str) -> Path:
+    """Path of a data file shipped with the package (the paper's Table 2 and Eq. 9)."""
+    return Path(str(resources.files("pipeline") / "data" / name))
+
+
+@dataclass(frozen=True, eq=False)
+class Coefficients:
+    """Regression coefficients of one trajectory family.
+
+    Attributes:
+        family: "paper" or "exact-endpoints".
+        parameters: Free-parameter name -> (b0..b5) in BASIS order.
+        fitted_range_m: {"L": (lo, hi), "W": (lo, hi)} [m].
+        scene: The scene the coefficients were fitted in.
+        link_lengths_m: (l1, l2) of the arm [m].
+        link_radii_m: (r1, r2) link capsule radii [m].
+        elbow: Elbow branch (+1 / -1) of the exact-endpoints inverse kinematics.
+        extra: Everything else in the file (fit quality, provenance), kept as read.
+        source: Where the coefficients came from (a path or "paper").
+        source_sha256: SHA-256 of the file's bytes.
+    """
+
+    family: str
+    parameters: dict[str, tuple[float, ...]]
+    fitted_range_m: dict[str, tuple[float, float]]
+    scene: Scene
+    link_lengths_m: tuple[float, float]
+    link_radii_m: tuple[float, float]
+    elbow: int = 1
+    extra: dict = field(default_factory=dict)
+    source: str = ""
+    source_sha256: str = ""
+
+    @property
+    def provenance(self) -> dict:
+        """The file's provenance block (seed, levels, versions, ...), or {}."""
+        return dict(self.extra.get("provenance", {}))
+
+    def predict_free(self, length_m, width_m) -> np.ndarray:
+        """The family's free parameters at (L, W) [m]: shape (..., k), k as in FREE_PARAMETERS."""
+        ordered = {name: self.parameters[name] for name in FREE_PARAMETERS[self.family]}
+        return predict(ordered, length_m, width_m)
+
+    def in_range(self, length_m: float, width_m: float) -> bool:
+        """True if (L, W) lies in the fitted range (inclusive)."""
+        (l_lo, l_hi), (w_lo, w_hi) = self.fitted_range_m["L"], self.fitted_range_m["W"]
+        return l_lo <= length_m <= l_hi and w_lo <= width_m <= w_hi
+
+    def to_json(self) -> dict:
+        """The plain-JSON document of the coefficients file."""
+        document = {
+            "format": FORMAT,
+            "family": self.family,
+            "basis": list(BASIS),
+            "parameters": {name: list(values) for name, values in self.parameters.items()},
+            "fitted_range": {key: list(value) for key, value in self.fitted_range_m.items()},
+            "scene": {
+                **self.scene.to_dict(),
+                "link_lengths_m": list(self.link_lengths_m),
+                "link_radii_m": list(self.link_radii_m),
+                "elbow": self.elbow,
+            },
+        }
+        document.update({k: v for k, v in self.extra.items() if k not in document})
+        return document
+
+
+def save_coefficients(coefficients: Coefficients, path: str | Path, overwrite: bool = True) -> bool:
+    """Write atomically; returns True if a file was replaced."""
+    return write_text_atomic(path, dumps(coefficients.to_json()), overwrite)
+
+
+def _pair(document: dict, key: str, path: object) -> tuple[float, float]:
+    value = document.get(key)
+    if (
+        not isinstance(value, list)
+        or len(value) != 2
+        or not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    ):
+        raise DataFileError(path, f"{key!r} must be a list of two finite numbers, found {value!r}")
+    return float(value[0]), float(value[1])
+
+
+def coefficients_from_json(document: dict, source: str, sha256: str) -> Coefficients:
+    """Validate a parsed coefficients document.
+
+    Raises:
+        DataFileError: a field is missing or malformed.
+    """
+    if document.get("format") != FORMAT:
+        raise DataFileError(source, f"format is {document.get('format')!r}, expected {FORMAT!r}")
+    family = document.get("family")
+    if family not in FAMILY_NAMES:
+        raise DataFileError(source, f"family is {family!r}, expected one of {FAMILY_NAMES}")
+    if document.get("basis") != list(BASIS):
+        raise DataFileError(source, f"basis is {document.get('basis')!r}, expected {list(BASIS)}")
+    raw = document.get("parameters")
+    if not isinstance(raw, dict):
+        raise DataFileError(source, "'parameters' must be an object of name -> 6 coefficients")
+    parameters = {}
+    for name in FREE_PARAMETERS[family]:
+        values = raw.get(name)
+        if (
+            not isinstance(values, list)
+            or len(values) != len(BASIS)
+            or not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in values)
+        ):
+            raise DataFileError(source, f"parameter {name!r} must be {len(BASIS)} finite numbers, found {values!r}")
+        parameters[name] = tuple(float(v) for v in values)
+    fitted = document.get("fitted_range")
+    if not isinstance(fitted, dict):
+        raise DataFileError(source, "'fitted_range' must be an object with 'L' and 'W'")
+    fitted_range = {key: _pair(fitted, key, source) for key in ("L", "W")}
+    for key, (lo, hi) in fitted_range.items():
+        if not 0 < lo <= hi:
+            raise DataFileError(source, f"fitted_range {key} = [{lo}, {hi}] must satisfy 0 < lo <= hi")
+    scene_doc = document.get("scene")
+    if not isinstance(scene_doc, dict):
+        raise DataFileError(source, "'scene' must be an object")
+    try:
+        scene = Scene.from_dict(scene_doc)
+    except (PipelineError, TypeError) as exc:
+        raise DataFileError(source, f"scene: {exc}") from None
+    lengths = _pair(scene_doc, "link_lengths_m", source)
+    radii = _pair(scene_doc, "link_radii_m", source)
+    if min(lengths) <= 0 or min(radii) < 0:
+        raise DataFileError(source, f"link lengths {lengths} must be > 0 and radii {radii} >= 0")
+    elbow = scene_doc.get("elbow", 1)
+    if elbow not in (1, -1):
+        raise DataFileError(source, f"scene.elbow is {elbow!r}, expected 1 or -1")
+    known = {"format", "family", "basis", "parameters", "fitted_range", "scene"}
+    return Coefficients(
+        family=family,
+        parameters=parameters,
+        fitted_range_m=fitted_range,
+        scene=scene,
+        link_lengths_m=lengths,
+        link_radii_m=radii,
+        elbow=int(elbow),
+        extra={k: v for k, v in document.items() if k not in known},
+        source=source,
+        source_sha256=sha256,
+    )
+
+
+def load_coefficients(source: str | Path) -> Coefficients:
+    """Load a coefficients file, or the paper's Eq. 9 for ``"paper"``.
+
+    Raises:
+        DataFileError: the file is missing, unreadable, not JSON, or malformed.
+    """
+    path = paper_data_path("paper_eq9_coefficients.json") if str(source) == PAPER else Path(source)
+    document = read_json(path)
+    sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
+    label = PAPER if str(source) == PAPER else str(path)
+    return coefficients_from_json(document, label, sha256)
+
+
+def fit_coefficients(doe, extra: dict | None = None) -> tuple[Coefficients, object]:
+    """Regress a DOE (a :class:`pipeline.doe.DoeData`) into coefficients.
+
+    Every optimum is first mapped to the canonical form of Eq. 8, then each free
+    parameter of the family is fitted on the quadratic basis.
+
+    Returns:
+        (coefficients, the :class:`pipeline.regression.QuadraticFit` with R^2 and LOO errors).
+    """
+    from .regression import fit_quadratic
+
+    fit = fit_quadratic(doe.lengths_m, doe.widths_m, doe.free_parameters())
+    quality = {
+        "r_squared": fit.r_squared,
+        "loo_rmse": fit.loo_rmse,
+        "max_residual": fit.max_residual,
+        "experiments": len(doe.lengths_m),
+    }
+    coefficients = Coefficients(
+        family=doe.family,
+        parameters=fit.coefficients,
+        fitted_range_m={
+            "L": (float(doe.lengths_m.min()), float(doe.lengths_m.max())),
+            "W": (float(doe.widths_m.min()), float(doe.widths_m.max())),
+        },
+        scene=doe.scene,
+        link_lengths_m=doe.link_lengths_m,
+        link_radii_m=doe.link_radii_m,
+        elbow=doe.elbow,
+        extra={"fit": quality, **(extra or {})},
+    )
+    return coefficients, fit

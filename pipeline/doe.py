@@ -1,0 +1,235 @@
+"""Design of experiments: the paper's full factorial over (L, W), solved point by point.
+
+The design is K x K levels (K = 3 in the paper), ordered as Table 1: W descending by
+rows, L descending within a row (Test 1 = (L_max, W_max)). Each experiment gets its own
+random stream spawned from one seed, so the results do not depend on ``jobs`` (how many
+worker processes solve them) or on the order in which they finish.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .exceptions import DataFileError, InvalidParameterError
+from .experiment import ExperimentResult, SolverConfig, solve_experiment
+from .family import FAMILY_NAMES, FREE_PARAMETERS, free_from_full
+from .jsonio import read_json
+from .robot import PlanarArm, load_planar_arm
+from .scene import Scene
+from .trajectory import PARAMETER_NAMES, canonicalize
+from .validation import check_positive, check_positive_int
+
+FORMAT = "twolink-doe/1"
+PAPER_L_RANGE_M = (0.20, 0.30)
+PAPER_W_RANGE_M = (0.08, 0.12)
+
+
+@dataclass(frozen=True)
+class Design:
+    """A K x K full-factorial design over (L, W).
+
+    Attributes:
+        levels: K, levels per factor (>= 3 for a quadratic fit).
+        length_range_m: (L_min, L_max) [m].
+        width_range_m: (W_min, W_max) [m].
+    """
+
+    levels: int = 3
+    length_range_m: tuple[float, float] = PAPER_L_RANGE_M
+    width_range_m: tuple[float, float] = PAPER_W_RANGE_M
+
+    def __post_init__(self) -> None:
+        check_positive_int("levels", self.levels, minimum=3)
+        for name, (lo, hi) in (("L range", self.length_range_m), ("W range", self.width_range_m)):
+            check_positive(f"{name} min", lo)
+            check_positive(f"{name} max", hi)
+            if not lo < hi:
+                raise InvalidParameterError(name, (lo, hi), "min < max")
+
+    def points(self) -> list[tuple[float, float]]:
+        """(L, W) [m] of every experiment in Table 1 order."""
+        lengths = np.linspace(self.length_range_m[1], self.length_range_m[0], self.levels)
+        widths = np.linspace(self.width_range_m[1], self.width_range_m[0], self.levels)
+        return [(round(float(L), 12), round(float(W), 12)) for W in widths for L in lengths]
+
+    def to_json(self) -> dict:
+        return {
+            "levels": self.levels,
+            "L_range": list(self.length_range_m),
+            "W_range": list(self.width_range_m),
+            "order": "Table 1: W descending by rows, L descending within a row",
+        }
+
+
+def _solve_one(task: tuple) -> ExperimentResult:
+    urdf_path, length_m, width_m, scene, config, seed_sequence = task
+    arm = _worker_arm(urdf_path)
+    return solve_experiment(arm, length_m, width_m, scene, config, np.random.default_rng(seed_sequence))
+
+
+_ARMS: dict[str, PlanarArm] = {}
+
+
+def _worker_arm(urdf_path: str) -> PlanarArm:
+    # One load per worker process: a per-process cache, not shared state between calls' results.
+    if urdf_path not in _ARMS:
+        _ARMS[urdf_path] = load_planar_arm(urdf_path)
+    return _ARMS[urdf_path]
+
+
+def run_doe(
+    arm: PlanarArm,
+    design: Design,
+    scene: Scene,
+    config: SolverConfig,
+    seed: int,
+    jobs: int = 1,
+    progress: Callable[[ExperimentResult], None] | None = None,
+) -> list[ExperimentResult]:
+    """Solve every experiment of ``design``; results in design order.
+
+    Args:
+        arm: The arm (its URDF is reloaded in each worker process when jobs > 1).
+        design: The (L, W) grid.
+        scene: Scene settings.
+        config: Solver settings.
+        seed: Master seed; experiment i uses the i-th spawned child stream.
+        jobs: Worker processes (1 = in this process).
+        progress: Called with each result as it completes.
+    """
+    check_positive_int("jobs", jobs)
+    points = design.points()
+    streams = np.random.SeedSequence(seed).spawn(len(points))
+    tasks = [(str(arm.urdf_path), L, W, scene, config, stream) for (L, W), stream in zip(points, streams, strict=True)]
+    results: list[ExperimentResult | None] = [None] * len(tasks)
+    if jobs == 1:
+        for i, (L, W, stream) in enumerate((t[1], t[2], t[5]) for t in tasks):
+            results[i] = solve_experiment(arm, L, W, scene, config, np.random.default_rng(stream))
+            if progress:
+                progress(results[i])
+        return results  # type: ignore[return-value]
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        futures = {pool.submit(_solve_one, task): i for i, task in enumerate(tasks)}
+        for future in as_completed(futures):
+            results[futures[future]] = future.result()
+            if progress:
+                progress(results[futures[future]])
+    return results  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class DoeData:
+    """Experiments read from a DOE file (ours or the paper's Table 2).
+
+    Attributes:
+        family: Trajectory family of the parameters.
+        lengths_m, widths_m: (L, W) of each experiment [m].
+        parameters: (n, 8) canonical parameters in PARAMETER_NAMES order.
+        scene: Scene of the experiments.
+        link_lengths_m, link_radii_m, elbow: Arm data needed by the generator.
+        document: The whole parsed file.
+        source: File path.
+    """
+
+    family: str
+    lengths_m: np.ndarray
+    widths_m: np.ndarray
+    parameters: np.ndarray
+    scene: Scene
+    link_lengths_m: tuple[float, float]
+    link_radii_m: tuple[float, float]
+    elbow: int
+    document: dict
+    source: str
+
+    def free_parameters(self) -> dict[str, np.ndarray]:
+        """Homogenised (Eq. 8) free parameters of the family, name -> (n,)."""
+        free = free_from_full(self.family, self.parameters)
+        return {name: free[:, i] for i, name in enumerate(FREE_PARAMETERS[self.family])}
+
+
+def _number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def load_doe(path: str | Path) -> DoeData:
+    """Read and validate a DOE file.
+
+    Raises:
+        DataFileError: missing, unreadable, not JSON, or malformed.
+    """
+    document = read_json(path)
+    if document.get("format") != FORMAT:
+        raise DataFileError(path, f"format is {document.get('format')!r}, expected {FORMAT!r}")
+    family = document.get("family", "paper")
+    if family not in FAMILY_NAMES:
+        raise DataFileError(path, f"family is {family!r}, expected one of {FAMILY_NAMES}")
+    experiments = document.get("experiments")
+    if not isinstance(experiments, list) or not experiments:
+        raise DataFileError(path, "'experiments' must be a non-empty list")
+    lengths, widths, rows = [], [], []
+    for i, experiment in enumerate(experiments):
+        if not isinstance(experiment, dict):
+            raise DataFileError(path, f"experiment {i} is not an object")
+        L, W, params = experiment.get("L"), experiment.get("W"), experiment.get("parameters")
+        if not (_number(L) and _number(W) and L > 0 and W > 0):
+            raise DataFileError(path, f"experiment {i}: L = {L!r}, W = {W!r}; expected positive numbers")
+        if not isinstance(params, dict) or not all(_number(params.get(n)) for n in PARAMETER_NAMES):
+            raise DataFileError(path, f"experiment {i}: 'parameters' needs finite {', '.join(PARAMETER_NAMES)}")
+        lengths.append(float(L))
+        widths.append(float(W))
+        rows.append([float(params[n]) for n in PARAMETER_NAMES])
+    scene_doc = document.get("scene", {})
+    if not isinstance(scene_doc, dict):
+        raise DataFileError(path, "'scene' must be an object")
+    try:
+        scene = Scene.from_dict(scene_doc)
+    except Exception as exc:
+        raise DataFileError(path, f"scene: {exc}") from None
+    lengths_link = tuple(scene_doc.get("link_lengths_m", (0.30, 0.35)))
+    radii_link = tuple(scene_doc.get("link_radii_m", (0.005, 0.005)))
+    if len(lengths_link) != 2 or len(radii_link) != 2 or not all(map(_number, lengths_link + radii_link)):
+        raise DataFileError(path, "scene.link_lengths_m and scene.link_radii_m must be two numbers each")
+    return DoeData(
+        family=family,
+        lengths_m=np.array(lengths),
+        widths_m=np.array(widths),
+        parameters=canonicalize(np.array(rows)),
+        scene=scene,
+        link_lengths_m=(float(lengths_link[0]), float(lengths_link[1])),
+        link_radii_m=(float(radii_link[0]), float(radii_link[1])),
+        elbow=int(scene_doc.get("elbow", 1)),
+        document=document,
+        source=str(path),
+    )
+
+
+def doe_document(
+    results: Sequence[ExperimentResult],
+    design: Design,
+    scene: Scene,
+    arm: PlanarArm,
+    config: SolverConfig,
+    provenance: dict,
+    elbow: int,
+) -> dict:
+    """The doe.json document (deterministic: no wall times)."""
+    return {
+        "format": FORMAT,
+        "family": config.family,
+        "design": design.to_json(),
+        "scene": {
+            **scene.to_dict(),
+            "link_lengths_m": list(arm.link_lengths_m),
+            "link_radii_m": list(arm.link_radii_m),
+            "elbow": elbow,
+        },
+        "experiments": [{"test": i + 1, **r.to_json()} for i, r in enumerate(results)],
+        "provenance": provenance,
+    }

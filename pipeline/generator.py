@@ -1,0 +1,125 @@
+"""The online generator: coefficients + (L, W) -> the trajectory, in microseconds.
+
+Evaluating the regression is a 6-term polynomial per parameter; the only other work is
+the path's duration T (a Gauss-Legendre arc length of the quartic). No URDF, Pinocchio or
+Coal is needed here: the arm's link lengths come from the coefficients file.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .coefficients import Coefficients
+from .exceptions import InvalidParameterError, OutOfFittedRangeError, OutOfFittedRangeWarning
+from .family import EndpointContext, expand, inverse_kinematics
+from .obstacle import Obstacle
+from .path import QuarticPath, desired_path
+from .scene import Scene
+from .trajectory import JointTrajectory, canonicalize
+
+OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
+
+
+@dataclass(frozen=True, eq=False)
+class GeneratedTrajectory:
+    """What the generator returns for one obstacle.
+
+    Attributes:
+        length_m, width_m: The obstacle's L, W [m].
+        family: Trajectory family of the coefficients.
+        scene: Scene of the coefficients.
+        obstacle: The obstacle.
+        path: The desired path (P1..P5, T).
+        trajectory: The joint trajectory; ``trajectory.q(t)`` gives joint angles [rad].
+        extrapolated: True if (L, W) lies outside the fitted range.
+    """
+
+    length_m: float
+    width_m: float
+    family: str
+    scene: Scene
+    obstacle: Obstacle
+    path: QuarticPath
+    trajectory: JointTrajectory
+    extrapolated: bool
+
+    @property
+    def duration_s(self) -> float:
+        """T [s]."""
+        return self.trajectory.duration_s
+
+    def q(self, t_s):
+        """Joint angles [rad] at t [s] (see :meth:`JointTrajectory.q`)."""
+        return self.trajectory.q(t_s)
+
+
+def _check_range(coefficients: Coefficients, length_m: float, width_m: float, policy: str) -> bool:
+    if policy not in OUT_OF_RANGE_POLICIES:
+        raise InvalidParameterError("out_of_range", policy, f"one of {OUT_OF_RANGE_POLICIES}")
+    for name, value in (("L", length_m), ("W", width_m)):
+        lo, hi = coefficients.fitted_range_m[name]
+        if not lo <= value <= hi:
+            if policy == "error":
+                raise OutOfFittedRangeError(name, value, (lo, hi))
+            if policy == "warn":
+                warnings.warn(str(OutOfFittedRangeError(name, value, (lo, hi))), OutOfFittedRangeWarning, stacklevel=3)
+    return not coefficients.in_range(length_m, width_m)
+
+
+def endpoint_context_for(coefficients: Coefficients, path: QuarticPath) -> EndpointContext:
+    """P1 / P5 joint angles (analytic IK with the coefficients' arm and elbow) and T."""
+    start = inverse_kinematics(path.points_m[0], coefficients.link_lengths_m, coefficients.elbow)
+    end = inverse_kinematics(path.points_m[-1], coefficients.link_lengths_m, coefficients.elbow)
+    return EndpointContext((float(start[0]), float(start[1])), (float(end[0]), float(end[1])), path.duration_s)
+
+
+def generate(
+    coefficients: Coefficients, length_m: float, width_m: float, *, out_of_range: str = "warn"
+) -> GeneratedTrajectory:
+    """The trajectory for the obstacle L x W [m] from regression coefficients.
+
+    Args:
+        coefficients: Loaded with :func:`pipeline.coefficients.load_coefficients`.
+        length_m, width_m: Obstacle size [m].
+        out_of_range: What to do outside the fitted range: "warn" (an
+            OutOfFittedRangeWarning), "error" (OutOfFittedRangeError) or "ignore".
+
+    Raises:
+        InvalidParameterError: non-positive or NaN L or W.
+        UnreachableObstacleError: the path around this obstacle leaves the arm's reach.
+        OutOfFittedRangeError: outside the fitted range with ``out_of_range="error"``.
+    """
+    scene = coefficients.scene
+    obstacle = Obstacle.in_scene(length_m, width_m, scene)
+    l1, l2 = coefficients.link_lengths_m
+    path = desired_path(obstacle, scene, (abs(l1 - l2), l1 + l2))
+    extrapolated = _check_range(coefficients, obstacle.length_m, obstacle.width_m, out_of_range)
+    free = coefficients.predict_free(obstacle.length_m, obstacle.width_m)
+    context = endpoint_context_for(coefficients, path) if coefficients.family != "paper" else None
+    full = expand(coefficients.family, free, context)
+    return GeneratedTrajectory(
+        length_m=obstacle.length_m,
+        width_m=obstacle.width_m,
+        family=coefficients.family,
+        scene=scene,
+        obstacle=obstacle,
+        path=path,
+        trajectory=JointTrajectory(tuple(full), path.duration_s),
+        extrapolated=extrapolated,
+    )
+
+
+def generate_parameters(coefficients: Coefficients, lengths_m: np.ndarray, widths_m: np.ndarray) -> np.ndarray:
+    """Batched generator: the 8 parameters (n, 8) for n obstacles, canonical form, no checks
+    beyond the regression itself (use :func:`generate` for validated single queries)."""
+    free = coefficients.predict_free(np.asarray(lengths_m, float), np.asarray(widths_m, float))
+    if coefficients.family == "paper":
+        return free
+    rows = []
+    for L, W, f in zip(np.atleast_1d(lengths_m), np.atleast_1d(widths_m), np.atleast_2d(free), strict=True):
+        path = desired_path(Obstacle.in_scene(float(L), float(W), coefficients.scene), coefficients.scene)
+        rows.append(canonicalize(expand(coefficients.family, f, endpoint_context_for(coefficients, path))))
+    return np.array(rows)

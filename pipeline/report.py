@@ -1,0 +1,55 @@
+"""Text tables the CLIs print: our Table 2 and Eq. 9 beside the paper's."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .regression import BASIS
+from .trajectory import PARAMETER_NAMES
+
+
+def table2(rows: Sequence[Mapping], paper_rows: Sequence[Mapping] | None) -> str:
+    """Our Table 2 (one line per experiment), with the paper's row below each when given."""
+    header = f"{'Test':>4} {'src':>5} " + " ".join(f"{n:>7}" for n in PARAMETER_NAMES) + f" {'L':>5} {'W':>5}"
+    extra = f" {'fitness':>9} {'clear_mm':>8} {'end0_mm':>7} {'endT_mm':>7}"
+    lines = [header + extra]
+    for i, row in enumerate(rows):
+        values = " ".join(f"{row['parameters'][n]:7.3f}" for n in PARAMETER_NAMES)
+        lines.append(
+            f"{i + 1:>4} {'ours':>5} {values} {row['L']:5.3f} {row['W']:5.3f} {row['fitness']:9.3e} "
+            f"{row['clearance_m'] * 1e3:8.2f} {row['endpoint_error_start_m'] * 1e3:7.2f} "
+            f"{row['endpoint_error_end_m'] * 1e3:7.2f}"
+        )
+        if paper_rows is not None:
+            paper = paper_rows[i]
+            values = " ".join(f"{paper['parameters'][n]:7.3f}" for n in PARAMETER_NAMES)
+            fitness = paper.get("fitness")
+            tail = ""
+            if fitness is not None:
+                tail = (
+                    f" {fitness:9.3e} {paper['clearance_m'] * 1e3:8.2f} "
+                    f"{paper['endpoint_error_start_m'] * 1e3:7.2f} {paper['endpoint_error_end_m'] * 1e3:7.2f}"
+                )
+            lines.append(f"{'':>4} {'paper':>5} {values} {paper['L']:5.3f} {paper['W']:5.3f}{tail}")
+    return "\n".join(lines)
+
+
+def equation9(
+    ours: Mapping[str, Sequence[float]], paper: Mapping[str, Sequence[float]] | None, quality: Mapping | None = None
+) -> str:
+    """Our Eq. 9 coefficients beside the paper's, with R^2 and LOO RMSE per parameter."""
+    header = f"{'param':>7} {'src':>5} " + " ".join(f"{b:>9}" for b in BASIS)
+    if quality:
+        header += f" {'R^2':>7} {'LOO_rmse':>9}"
+    lines = [header]
+    for name, values in ours.items():
+        line = f"{name:>7} {'ours':>5} " + " ".join(f"{v:9.4g}" for v in values)
+        if quality:
+            r2, loo = quality["r_squared"][name], quality["loo_rmse"][name]
+            line += f" {r2:7.4f} {loo:9.2e}" if np.isfinite(loo) else f" {r2:7.4f} {'n/a':>9}"
+        lines.append(line)
+        if paper is not None and name in paper:
+            lines.append(f"{'':>7} {'paper':>5} " + " ".join(f"{v:9.4g}" for v in paper[name]))
+    return "\n".join(lines)

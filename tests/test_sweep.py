@@ -1,0 +1,327 @@
+"""The acceptance verifier's command line and library (verify.sweep): bad input gives one clear
+line and exit status 2, the JSON schema, determinism under a seed, and results independent of
+--jobs."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.exceptions import InvalidParameterError
+from verify import sweep
+from verify.metrics import MeasureSettings
+from verify.sweep import (
+    EXIT_FAILED,
+    EXIT_OK,
+    EXIT_USAGE,
+    SweepRange,
+    build_parser,
+    case_study_sizes,
+    main,
+    on_doe_grid,
+    run_cases,
+    run_sweep,
+    sample_cases,
+    write_json_atomic,
+)
+
+FAST = ["--samples", "200", "--no-progress"]
+CASE_KEYS = (
+    "L",
+    "W",
+    "T_s",
+    "clearance_m",
+    "certified_clearance_m",
+    "endpoint_error_start_m",
+    "endpoint_error_end_m",
+    "tracking_max_m",
+    "tracking_rms_m",
+    "passed",
+    "extrapolated",
+    "peak_velocity_rad_s",
+    "peak_acceleration_rad_s2",
+)
+
+
+def needs_coefficients() -> None:
+    pytest.importorskip("pipeline.coefficients")
+    pytest.importorskip("pipeline.generator")
+
+
+def run_main(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    status = main(list(argv))
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+# --------------------------------------------------------------------------------------------
+# Command line: help and bad input.
+
+
+def test_help_lists_every_option_with_units_and_defaults(capsys: pytest.CaptureFixture[str]) -> None:
+    status, out, _ = run_main(capsys, "--help")
+    assert status == 0
+    for action in build_parser()._actions:
+        for option in action.option_strings:
+            assert option in out
+    for text in ("[m]", "default: results/coefficients.json", "default: 1000", "default: 0.005", "[rad/s^2]"):
+        assert text in " ".join(out.split())
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--n", "0"], "--n"),
+        (["--n", "-5"], "--n"),
+        (["--seed", "-1"], "--seed"),
+        (["--jobs", "-2"], "--jobs"),
+        (["--samples", "1"], "--samples"),
+        (["--range", "0.30", "0.20", "0.08", "0.12"], "LMIN <= LMAX"),
+        (["--range", "0.20", "0.30", "0.12", "0.08"], "WMIN <= WMAX"),
+        (["--range", "-0.1", "0.30", "0.08", "0.12"], "LMIN"),
+        (["--range", "0.2", "0.30", "0", "0.12"], "WMIN"),
+        (["--range", "nan", "0.30", "0.08", "0.12"], "LMIN"),
+        (["--range", "0.2", "0.3"], "--range"),
+        (["--n", "ten"], "--n"),
+        (["--bogus"], "unrecognized"),
+        (["--coefficients", "/nonexistent/coefficients.json"], "not found"),
+        (["--json", "/nonexistent/dir/out.json"], "--json"),
+        (["--resolution", "0"], "--resolution"),
+        (["--tolerance", "-1e-5"], "--tolerance"),
+        (["--max-endpoint-error", "-1"], "--max-endpoint-error"),
+        (["--min-clearance", "inf"], "--min-clearance"),
+        (["--max-acceleration", "1", "0"], "--max-acceleration"),
+    ],
+)
+def test_bad_input_is_one_clear_line_and_status_2(
+    capsys: pytest.CaptureFixture[str], argv: list[str], message: str
+) -> None:
+    status, out, err = run_main(capsys, *argv, "--no-progress")
+    assert status == EXIT_USAGE
+    assert "Traceback" not in err + out
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "error" in lines[0] and message in lines[0], err
+
+
+def test_missing_default_file_says_what_to_do(capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    status, _, err = run_main(capsys, "--no-progress")
+    assert status == EXIT_USAGE
+    assert "results/coefficients.json" in err and "--coefficients paper" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("content", ["{not json", "[]", '{"family": "paper"}', ""])
+def test_malformed_coefficients_file(capsys: pytest.CaptureFixture[str], tmp_path: Path, content: str) -> None:
+    pytest.importorskip("pipeline.coefficients")
+    bad = tmp_path / "coefficients.json"
+    bad.write_text(content)
+    status, _, err = run_main(capsys, "--coefficients", str(bad), "--n", "2", *FAST)
+    assert status == EXIT_USAGE
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1 and str(bad) in err
+
+
+def test_bad_input_in_a_real_process_has_no_traceback() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "verify.sweep", "--range", "0.3", "0.2", "0.08", "0.12"],
+        cwd=Path(__file__).resolve().parents[1],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == EXIT_USAGE
+    assert "Traceback" not in done.stderr and "LMIN <= LMAX" in done.stderr
+
+
+def test_viewer_flags_fail_clearly_when_the_viewer_is_unavailable(capsys, monkeypatch) -> None:
+    real_import = sweep.importlib.import_module
+
+    def no_viewer(name: str, *args, **kwargs):
+        if name.startswith("verify.viewer"):
+            raise ImportError(f"No module named {name!r}")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(sweep.importlib, "import_module", no_viewer)
+    for flag in (["--meshcat"], ["--html", "view.html"]):
+        status, _, err = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST, *flag)
+        assert status == EXIT_USAGE and "viewer" in err and "Traceback" not in err
+
+
+def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: Path) -> None:
+    """--html calls verify.viewer.sweep_view.sweep_html(cases, regenerate, path, arm=...) after the sweep."""
+    needs_coefficients()
+    calls = []
+
+    class FakeViewer:
+        @staticmethod
+        def sweep_html(cases, regenerate, path, *, arm=None):
+            generated = regenerate(cases[0]["L"], cases[0]["W"])
+            calls.append((cases, generated, path, arm))
+
+        @staticmethod
+        def show_sweep(cases, regenerate, *, arm=None):  # pragma: no cover - not called here
+            raise AssertionError("--meshcat was not given")
+
+    real_import = sweep.importlib.import_module
+    monkeypatch.setattr(
+        sweep.importlib,
+        "import_module",
+        lambda name, *a, **k: FakeViewer if name == "verify.viewer.sweep_view" else real_import(name, *a, **k),
+    )
+    page = tmp_path / "view.html"
+    status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "2", *FAST, "--html", str(page))
+    assert status in (EXIT_OK, EXIT_FAILED) and len(calls) == 1
+    cases, generated, path, arm = calls[0]
+    assert path == page and arm is not None and len(cases) == 2
+    assert {"L", "W", "clearance_m", "certified_clearance_m", "passed"} <= set(cases[0])
+    assert generated.obstacle.length_m == cases[0]["L"]
+    assert f"wrote {page}" in out
+
+
+def test_coefficients_for_another_arm_are_refused(capsys: pytest.CaptureFixture[str], double_pendulum_urdf) -> None:
+    needs_coefficients()
+    status, _, err = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST, "--urdf", str(double_pendulum_urdf))
+    assert status == EXIT_USAGE and "link_lengths_m" in err and "Traceback" not in err
+
+
+# --------------------------------------------------------------------------------------------
+# Library pieces.
+
+
+def test_sample_cases_is_seeded_and_inside_the_range() -> None:
+    chosen = SweepRange((0.2, 0.3), (0.08, 0.12))
+    a, b = sample_cases(chosen, 50, 4), sample_cases(chosen, 50, 4)
+    assert np.array_equal(a, b) and not np.array_equal(a, sample_cases(chosen, 50, 5))
+    assert np.all((a[:, 0] >= 0.2) & (a[:, 0] <= 0.3) & (a[:, 1] >= 0.08) & (a[:, 1] <= 0.12))
+    single = sample_cases(SweepRange((0.25, 0.25), (0.1, 0.1)), 3, 0)
+    assert np.all(single == [0.25, 0.1])
+    with pytest.raises(InvalidParameterError):
+        SweepRange((0.3, 0.2), (0.08, 0.12))
+    with pytest.raises(InvalidParameterError):
+        sample_cases(chosen, 0, 0)
+
+
+def test_case_studies_are_inside_the_range_and_off_the_grid() -> None:
+    fitted = SweepRange((0.2, 0.3), (0.08, 0.12))
+    sizes = case_study_sizes(fitted)
+    assert sizes == [(0.27, 0.11), (0.22, 0.09), (0.28, 0.085), (0.23, 0.115)]
+    for length, width in sizes:
+        assert fitted.contains(SweepRange((length, length), (width, width)))
+        assert not on_doe_grid(length, width)
+    assert on_doe_grid(0.25, 0.10)
+
+
+def test_write_json_atomic_replaces_and_leaves_no_temporary(tmp_path: Path) -> None:
+    target = tmp_path / "out.json"
+    target.write_text("old")
+    write_json_atomic(target, {"a": float("nan"), "b": (1, 2), "c": np.float64(0.5)})
+    assert json.loads(target.read_text()) == {"a": None, "b": [1, 2], "c": 0.5}
+    assert sorted(os.listdir(tmp_path)) == ["out.json"]
+
+
+# --------------------------------------------------------------------------------------------
+# Runs on the paper's Eq. 9 (needs pipeline.coefficients and pipeline.generator).
+
+
+def test_json_schema_and_summary(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    needs_coefficients()
+    out_file = tmp_path / "sweep.json"
+    status, out, _ = run_main(
+        capsys, "--coefficients", "paper", "--n", "5", "--seed", "3", *FAST, "--json", str(out_file)
+    )
+    data = json.loads(out_file.read_text())
+    assert set(data) >= {"cases", "summary", "provenance"}
+    assert len(data["cases"]) == 5
+    for case in data["cases"]:
+        for key in CASE_KEYS:
+            assert key in case
+        assert case["certified_clearance_m"] <= case["clearance_m"]
+    summary = data["summary"]
+    assert summary["n_cases"] == 5 and summary["n_passed"] == sum(c["passed"] for c in data["cases"])
+    for key in (
+        "pass_rate",
+        "clearance_min_m",
+        "clearance_median_m",
+        "endpoint_error_median_m",
+        "endpoint_error_p99_m",
+        "endpoint_error_max_m",
+        "tracking_max_m",
+        "keep_margin_fraction",
+        "worst_clearance",
+        "failing",
+    ):
+        assert key in summary
+    provenance = data["provenance"]
+    assert provenance["seed"] == 3 and len(provenance["coefficients"]["sha256"]) == 64
+    assert provenance["packages"]["pin"] and provenance["packages"]["coal"] and provenance["packages"]["numpy"]
+    assert status == (EXIT_OK if summary["all_passed"] else EXIT_FAILED)
+    assert "PASSED" in out and "endpoint error" in out and "clearance" in out
+    if status == EXIT_FAILED:  # failing cases are listed with their (L, W)
+        for case in (c for c in data["cases"] if not c["passed"]):
+            assert f"L = {case['L']:.4f} m, W = {case['W']:.4f} m" in out
+
+
+def test_failing_cases_are_listed_and_exit_1(capsys: pytest.CaptureFixture[str]) -> None:
+    needs_coefficients()
+    status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "3", *FAST, "--max-endpoint-error", "1e-6")
+    assert status == EXIT_FAILED
+    assert "FAILED: 3 case(s)" in out and out.count("endpoint error at") >= 3 and "verdict: FAIL" in out
+
+
+def test_determinism_with_seed() -> None:
+    needs_coefficients()
+    settings = MeasureSettings(time_samples=200)
+    a = run_sweep("paper", n=4, seed=11, settings=settings, case_studies=False).to_json()
+    b = run_sweep("paper", n=4, seed=11, settings=settings, case_studies=False).to_json()
+    c = run_sweep("paper", n=4, seed=12, settings=settings, case_studies=False).to_json()
+    assert a["cases"] == b["cases"] and a["summary"] == b["summary"]
+    assert [x["L"] for x in a["cases"]] != [x["L"] for x in c["cases"]]
+
+
+def test_results_do_not_depend_on_jobs() -> None:
+    needs_coefficients()
+    cases = sample_cases(SweepRange((0.2, 0.3), (0.08, 0.12)), 6, 21)
+    settings = MeasureSettings(time_samples=200)
+    serial = run_cases("paper", cases, settings, jobs=1)
+    parallel = run_cases("paper", cases, settings, jobs=2)
+    assert [r.to_json() for r in serial] == [r.to_json() for r in parallel]
+    assert [r.index for r in parallel] == list(range(6))
+
+
+def test_extrapolation_is_reported(capsys: pytest.CaptureFixture[str]) -> None:
+    needs_coefficients()
+    status, out, _ = run_main(
+        capsys, "--coefficients", "paper", "--n", "3", *FAST, "--range", "0.31", "0.33", "0.13", "0.14"
+    )
+    assert "EXTRAPOLATION" in out and "3 / 3 cases outside the fitted range" in out
+    assert status in (EXIT_OK, EXIT_FAILED)
+
+
+def test_compare_prints_both_on_the_same_cases(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    needs_coefficients()
+    out_file = tmp_path / "compare.json"
+    status, out, _ = run_main(
+        capsys,
+        "--compare",
+        "paper",
+        "paper",
+        "--n",
+        "2",
+        *FAST,
+        "--json",
+        str(out_file),
+        "--plots",
+        str(tmp_path / "p"),
+    )
+    assert "comparison on the same 2 cases" in out and "verdicts:" in out
+    runs = json.loads(out_file.read_text())["runs"]
+    assert len(runs) == 2 and runs[0]["cases"] == runs[1]["cases"]
+    pngs = sorted(p.name for p in (tmp_path / "p").rglob("*.png"))
+    assert pngs.count("clearance_map.png") == 2 and pngs.count("case_studies.png") == 2
+    assert status in (EXIT_OK, EXIT_FAILED)

@@ -1,0 +1,267 @@
+"""PNG plots of a sweep (matplotlib, Agg backend): clearance and endpoint error over the (L, W)
+plane, and the paper's four case studies redone like its Fig. 5 (arm snapshots, obstacle,
+desired and actual end-effector paths). All lengths are converted to mm only for display.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.colors import Normalize, TwoSlopeNorm
+from matplotlib.patches import FancyBboxPatch, Rectangle
+
+from pipeline.clearance import link_segments
+from pipeline.exceptions import PipelineError
+from pipeline.obstacle import Obstacle
+from pipeline.path import QuarticPath
+from pipeline.robot import PlanarArm, load_planar_arm
+from pipeline.trajectory import JointTrajectory
+
+from .metrics import CaseResult
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .sweep import SweepRange, SweepRun
+
+_DPI = 120
+
+
+@dataclass(frozen=True)
+class CaseStudy:
+    """One case study: its measured result and what is needed to draw it.
+
+    Attributes:
+        result: The measured case.
+        trajectory: The generated joint trajectory.
+        path: The desired path.
+        obstacle: The obstacle.
+    """
+
+    result: CaseResult
+    trajectory: JointTrajectory
+    path: QuarticPath
+    obstacle: Obstacle
+
+
+def _range_box(ax: plt.Axes, fitted: SweepRange) -> None:
+    ax.add_patch(
+        Rectangle(
+            (fitted.L_m[0] * 1e3, fitted.W_m[0] * 1e3),
+            (fitted.L_m[1] - fitted.L_m[0]) * 1e3,
+            (fitted.W_m[1] - fitted.W_m[0]) * 1e3,
+            fill=False,
+            linestyle="--",
+            edgecolor="0.3",
+            label="fitted range",
+        )
+    )
+
+
+def plot_map(
+    cases: Sequence[CaseResult],
+    value: Callable[[CaseResult], float | None],
+    path: Path,
+    *,
+    title: str,
+    colorbar_label: str,
+    fitted: SweepRange | None = None,
+    center_mm: float | None = None,
+    doe_grid: tuple[Sequence[float], Sequence[float]] | None = None,
+    case_studies: Sequence[CaseResult] = (),
+    cmap: str = "viridis",
+) -> Path:
+    """Scatter of a per-case value [m] (shown in mm) over the (L, W) plane; failing cases ringed red.
+
+    Args:
+        cases: The sweep's cases.
+        value: Which number to colour by [m] (None: the case has no value, drawn as a grey cross).
+        path: PNG file to write.
+        title, colorbar_label: Texts.
+        fitted: The fitted range, drawn as a dashed rectangle.
+        center_mm: If given, a diverging colour scale centred on this value [mm].
+        doe_grid: (L levels, W levels) [m] of the DOE grid, drawn as black plus signs.
+        case_studies: Case studies, drawn as stars.
+        cmap: Matplotlib colour map.
+    """
+    fig, ax = plt.subplots(figsize=(7.0, 5.2))
+    good = [c for c in cases if value(c) is not None]
+    missing = [c for c in cases if value(c) is None]
+    if good:
+        lw = np.array([[c.L_m, c.W_m] for c in good]) * 1e3
+        values = np.array([value(c) for c in good]) * 1e3
+        lo, hi = float(values.min()), float(values.max())
+        if center_mm is not None and lo < center_mm < hi:
+            norm: Normalize = TwoSlopeNorm(vcenter=center_mm, vmin=lo, vmax=hi)
+        else:
+            norm = Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1e-9)
+        points = ax.scatter(lw[:, 0], lw[:, 1], c=values, cmap=cmap, norm=norm, s=14, linewidths=0)
+        fig.colorbar(points, ax=ax, label=colorbar_label)
+        failing = np.array([not c.passed for c in good])
+        if np.any(failing):
+            ax.scatter(
+                lw[failing, 0],
+                lw[failing, 1],
+                s=40,
+                facecolors="none",
+                edgecolors="red",
+                linewidths=0.8,
+                label=f"failing ({int(failing.sum())})",
+            )
+    if missing:
+        m = np.array([[c.L_m, c.W_m] for c in missing]) * 1e3
+        ax.scatter(m[:, 0], m[:, 1], marker="x", color="0.5", s=20, label=f"not generated ({len(missing)})")
+    if fitted is not None:
+        _range_box(ax, fitted)
+    if doe_grid is not None:
+        grid = np.array([[a, b] for a in doe_grid[0] for b in doe_grid[1]]) * 1e3
+        ax.scatter(grid[:, 0], grid[:, 1], marker="+", color="black", s=60, label="DOE grid")
+    if case_studies:
+        cs = np.array([[c.L_m, c.W_m] for c in case_studies]) * 1e3
+        ax.scatter(cs[:, 0], cs[:, 1], marker="*", color="magenta", s=90, edgecolors="black", label="case studies")
+    ax.set_xlabel("obstacle length L [mm]")
+    ax.set_ylabel("obstacle width W [mm]")
+    ax.set_title(title)
+    ax.legend(loc="upper left", fontsize=8, framealpha=0.8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=_DPI)
+    plt.close(fig)
+    return path
+
+
+def draw_case_study(ax: plt.Axes, study: CaseStudy, arm: PlanarArm, *, snapshots: int = 7, title: str = "") -> None:
+    """Draw one case like the paper's Fig. 5: obstacle, desired and actual paths, arm snapshots."""
+    obstacle, trajectory = study.obstacle, study.trajectory
+    r = obstacle.corner_radius_m
+    x0, y0 = -obstacle.length_m / 2, obstacle.top_y_m - obstacle.width_m
+    ax.add_patch(
+        FancyBboxPatch(
+            (x0 + r, y0 + r),
+            obstacle.length_m - 2 * r,
+            obstacle.width_m - 2 * r,
+            boxstyle=f"round,pad={r}",
+            facecolor="0.75",
+            edgecolor="0.2",
+            label="obstacle",
+        )
+    )
+    times = np.linspace(0.0, trajectory.duration_s, 400)
+    desired = study.path.position_at_time(times)
+    actual = arm.end_effector_planar(trajectory.q(times))
+    for k, t in enumerate(np.linspace(0.0, trajectory.duration_s, snapshots)):
+        elbow, tip = link_segments(trajectory.q(float(t)), arm.link_lengths_m)
+        alpha = 0.25 + 0.75 * k / max(1, snapshots - 1)
+        ax.plot([0, elbow[0]], [0, elbow[1]], color="tab:blue", lw=2.2, alpha=alpha, solid_capstyle="round")
+        ax.plot([elbow[0], tip[0]], [elbow[1], tip[1]], color="tab:green", lw=2.2, alpha=alpha, solid_capstyle="round")
+        ax.plot(*elbow, "o", color="black", ms=2.5, alpha=alpha)
+    ax.plot(desired[:, 0], desired[:, 1], "--", color="black", lw=1.2, label="desired path")
+    ax.plot(actual[:, 0], actual[:, 1], "-", color="tab:red", lw=1.2, label="actual path")
+    points = study.path.points_m
+    ax.plot(points[:, 0], points[:, 1], "s", color="black", ms=3.5, label="P1..P5")
+    ax.plot(0.0, 0.0, "^", color="black", ms=6)
+    ax.set_aspect("equal")
+    ax.set_xlim(points[:, 0].min() - 0.12, points[:, 0].max() + 0.12)
+    ax.set_ylim(-0.05, obstacle.top_y_m + 0.08)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, lw=0.3)
+
+
+def plot_case_studies(studies: Sequence[CaseStudy], arm: PlanarArm, path: Path, *, suptitle: str = "") -> Path:
+    """The four case studies in a 2 x 2 figure (the paper's Fig. 5 redone)."""
+    cols = 2
+    rows = max(1, (len(studies) + cols - 1) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(11.0, 4.8 * rows), squeeze=False)
+    for ax, (k, study) in zip(axes.ravel(), enumerate(studies), strict=False):
+        res = study.result
+        verdict = "PASS" if res.passed else "FAIL"
+        title = (
+            f"case {k + 1}: L = {res.L_m:.3f} m, W = {res.W_m:.3f} m (off the DOE grid) - {verdict}\n"
+            f"certified clearance {_mm(res.certified_clearance_m)}, endpoint error {_mm(res.endpoint_error_m)}, "
+            f"tracking max {_mm(res.tracking_max_m)}"
+        )
+        draw_case_study(ax, study, arm, title=title)
+    for ax in axes.ravel()[len(studies) :]:
+        ax.axis("off")
+    handles, labels = axes.ravel()[0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
+    if suptitle:
+        fig.suptitle(suptitle)
+    fig.tight_layout(rect=(0, 0.04, 1, 0.97))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=_DPI)
+    plt.close(fig)
+    return path
+
+
+def _mm(value: float | None) -> str:
+    return "n/a" if value is None else f"{value * 1e3:.2f} mm"
+
+
+def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None) -> list[Path]:
+    """Write clearance_map.png, endpoint_error_map.png and case_studies.png for ``run`` into ``directory``.
+
+    The case studies' trajectories are regenerated from the run's coefficients (as an online
+    user would); cases that cannot be generated are left out of the figure.
+    """
+    from pipeline.coefficients import load_coefficients
+    from pipeline.generator import generate
+
+    from .sweep import DOE_L_M, DOE_W_M
+
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    margin_mm = run.settings.thresholds.margin_m * 1e3
+    written = [
+        plot_map(
+            run.cases,
+            lambda c: c.certified_clearance_m,
+            directory / "clearance_map.png",
+            title=f"{run.label}: certified clearance over (L, W) ({len(run.cases)} cases)",
+            colorbar_label=f"certified clearance [mm] (centre: {margin_mm:g} mm margin)",
+            fitted=run.fitted_range,
+            center_mm=margin_mm,
+            doe_grid=(DOE_L_M, DOE_W_M),
+            case_studies=run.case_studies,
+            cmap="RdYlGn",
+        ),
+        plot_map(
+            run.cases,
+            lambda c: c.endpoint_error_m,
+            directory / "endpoint_error_map.png",
+            title=f"{run.label}: endpoint error (max of start, end) over (L, W)",
+            colorbar_label=(f"endpoint error [mm] (limit {run.settings.thresholds.max_endpoint_error_m * 1e3:g} mm)"),
+            fitted=run.fitted_range,
+            doe_grid=(DOE_L_M, DOE_W_M),
+            case_studies=run.case_studies,
+        ),
+    ]
+    if run.case_studies:
+        coefficients = load_coefficients(run.source)
+        arm = load_planar_arm(urdf_path)
+        studies = []
+        for result in run.case_studies:
+            try:
+                generated = generate(coefficients, result.L_m, result.W_m, out_of_range="ignore")
+            except PipelineError:
+                continue
+            studies.append(CaseStudy(result, generated.trajectory, generated.path, generated.obstacle))
+        written.append(
+            plot_case_studies(
+                studies,
+                arm,
+                directory / "case_studies.png",
+                suptitle=f"{run.label}: four case studies inside the fitted range, off the DOE grid (cf. Fig. 5)",
+            )
+        )
+    return written
