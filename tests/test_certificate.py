@@ -1,4 +1,4 @@
-"""The continuous-time clearance certificate (verify.certificate) is sound.
+"""The continuous-time clearance certificate (pipeline.certificate) is sound.
 
 * Trajectories built to graze the obstacle exactly between two samples: the sampled clearance
   is positive, yet the certificate refuses to certify (true minimum < 0), and it certifies a
@@ -27,7 +27,7 @@ from pipeline.path import desired_path
 from pipeline.robot import PlanarArm, load_planar_arm
 from pipeline.scene import Scene
 from pipeline.trajectory import JointTrajectory
-from verify.certificate import (
+from pipeline.certificate import (
     COAL_DISTANCE_ERROR_M,
     LinkReach,
     _max_abs_cos,

@@ -7,7 +7,7 @@ For one case the verifier measures
   box (Coal); ``n`` defaults to the number of samples at which no point of either link moves
   more than ``resolution_m`` (1 mm) between two samples;
 * **certified clearance** [m]: a rigorous lower bound on the clearance over the whole continuous
-  time interval (:mod:`verify.certificate`); the case is collision-free only if it is > 0;
+  time interval (:mod:`pipeline.certificate`); the case is collision-free only if it is > 0;
 * **endpoint errors** [m]: end effector (Pinocchio frame) against P1 at t = 0 and P5 at t = T;
 * **tracking errors** [m]: max and RMS distance between the end effector and the desired path
   at matched times (t = S / v) over the same time samples;
@@ -34,7 +34,7 @@ from pipeline.robot import PlanarArm
 from pipeline.trajectory import JointTrajectory
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 
-from .certificate import (
+from pipeline.certificate import (
     COAL_DISTANCE_ERROR_M,
     DEFAULT_MAX_EVALUATIONS,
     DEFAULT_RESOLUTION_M,

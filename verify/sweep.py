@@ -4,7 +4,7 @@ For ``n`` obstacle sizes (L, W) drawn uniformly (seeded) from the coefficients' 
 (or ``--range``), the trajectory is generated from the coefficients exactly as an online user
 would (:func:`pipeline.generator.generate`) and measured by :func:`verify.metrics.measure_case`:
 sampled and certified clearance (Pinocchio + Coal, continuous-time certificate of
-:mod:`verify.certificate`), endpoint errors, tracking errors, joint peaks against the URDF.
+:mod:`pipeline.certificate`), endpoint errors, tracking errors, joint peaks against the URDF.
 
 Exit status: 0 if every case passes, 1 if any case fails (they are listed with their (L, W)),
 2 on bad input (one line on stderr, no traceback), 130 if interrupted.
@@ -43,7 +43,7 @@ from pipeline.obstacle import Obstacle
 from pipeline.robot import PlanarArm, load_planar_arm
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 
-from .certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M, LinkReach
+from pipeline.certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M, LinkReach
 from .metrics import AcceptanceThresholds, CaseResult, MeasureSettings, check_arm_matches, measure_case
 
 #: Default coefficients file (relative to the working directory).

@@ -68,12 +68,12 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from pipeline.clearance import CoalClearance, analytic_link_clearance, check_fast_route
-from pipeline.exceptions import InvalidParameterError
-from pipeline.obstacle import Obstacle
-from pipeline.robot import PlanarArm
-from pipeline.trajectory import JointTrajectory
-from pipeline.validation import check_non_negative, check_positive, check_positive_int
+from .clearance import CoalClearance, analytic_link_clearance, check_fast_route
+from .exceptions import InvalidParameterError
+from .obstacle import Obstacle
+from .robot import PlanarArm
+from .trajectory import JointTrajectory
+from .validation import check_non_negative, check_positive, check_positive_int
 
 #: Error bound [m] on Coal's distances (GJK upper estimate; measured <= 1.2e-6 m, bound 10x that).
 COAL_DISTANCE_ERROR_M = 1e-5

@@ -1,0 +1,362 @@
+"""A sweep's results in Meshcat: a map of the (L, W) plane and the worst cases animated.
+
+Left, the map: every sampled (L, W) is a dot coloured by its clearance (red at 0 mm or
+less, through yellow, to green at the sweep's largest clearance; grey if unknown), failed
+cases are crossed out in black, and the worst cases are tagged "A" and "B". To its right,
+each worst case (A: lowest certified clearance, B: largest endpoint error; one panel if
+they coincide) is regenerated and drawn as in :mod:`verify.viewer.trajectory_view`: arm,
+obstacle, both paths, constraint points, minimum clearance, and the motion in the page's
+animation (all cases play together).
+
+A sweep case is a mapping with the keys of :data:`CASE_KEYS` (the sweep's per-case dicts):
+lengths in metres, ``passed`` a bool; a clearance may be None or NaN if unknown.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+import meshcat
+import meshcat.geometry as mg
+import meshcat.transformations as mtf
+import numpy as np
+
+from pipeline.exceptions import InvalidParameterError, PipelineError
+from pipeline.robot import PlanarArm, load_planar_arm
+
+from .browser import BrowserConfig
+from .scene import (
+    DrawnCase,
+    TopDownCamera,
+    TrajectoryCase,
+    ViewStyle,
+    case_bounds,
+    draw_case,
+    draw_label,
+    label_height_m,
+    new_animation,
+    send_animation,
+    setup_view,
+    tube_mesh,
+)
+from .server import MeshcatServer, ServerConfig, serve_until_interrupted
+from .trajectory_view import (
+    GeneratedLike,
+    RenderedView,
+    case_from_generated,
+    export_html,
+    screenshot_page,
+    write_html,
+)
+
+#: Keys every sweep case must have.
+CASE_KEYS = (
+    "L",
+    "W",
+    "clearance_m",
+    "certified_clearance_m",
+    "endpoint_error_start_m",
+    "endpoint_error_end_m",
+    "passed",
+)
+
+#: A callable that regenerates the trajectory for (L [m], W [m]), or generator coefficients.
+TrajectorySource = Callable[[float, float], GeneratedLike] | object
+
+_RED, _YELLOW, _GREEN, _GREY = (215, 48, 39), (254, 224, 139), (26, 152, 80), (150, 150, 150)
+
+
+@dataclass(frozen=True)
+class MapLayout:
+    """Size of the (L, W) map in the scene.
+
+    Attributes:
+        size_m: Side of the square plotting area [m].
+        dot_radius_m: Radius of a case's dot [m].
+        gap_m: Space between the map and the case panels, and between panels [m].
+    """
+
+    size_m: float = 0.6
+    dot_radius_m: float = 0.012
+    gap_m: float = 0.12
+
+
+@dataclass(frozen=True)
+class WorstCase:
+    """A case picked for display.
+
+    Attributes:
+        tag: "A", "B" or "A+B".
+        reason: Why it was picked, with its value.
+        L_m, W_m: The obstacle [m].
+    """
+
+    tag: str
+    reason: str
+    L_m: float
+    W_m: float
+
+
+def _number(case: Mapping[str, Any], key: str) -> float:
+    value = case.get(key)
+    try:
+        return float("nan") if value is None else float(value)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(key, value, "a number or None") from None
+
+
+def check_cases(cases: Sequence[Mapping[str, Any]]) -> None:
+    """Raise InvalidParameterError unless ``cases`` is non-empty, each with :data:`CASE_KEYS`
+    and a finite positive L and W."""
+    if len(cases) == 0:
+        raise InvalidParameterError("cases", list(cases), "at least one sweep case")
+    for index, case in enumerate(cases):
+        missing = [key for key in CASE_KEYS if key not in case]
+        if missing:
+            raise InvalidParameterError(f"cases[{index}]", dict(case), f"the keys {CASE_KEYS}; missing {missing}")
+        for key in ("L", "W"):
+            value = _number(case, key)
+            if not math.isfinite(value) or value <= 0:
+                raise InvalidParameterError(f"cases[{index}][{key!r}]", case[key], "a positive finite length [m]")
+
+
+def clearance_color(clearance_m: float, top_m: float) -> int:
+    """0xRRGGBB of a clearance [m] on a red (<= 0) - yellow - green (>= top_m) scale; grey
+    if unknown (NaN)."""
+    if not math.isfinite(clearance_m):
+        rgb = _GREY
+    else:
+        c = min(max(clearance_m / top_m, 0.0), 1.0) if top_m > 0 else 1.0
+        low, high, u = (_RED, _YELLOW, 2 * c) if c < 0.5 else (_YELLOW, _GREEN, 2 * c - 1)
+        rgb = tuple(round(a + (b - a) * u) for a, b in zip(low, high, strict=True))
+    return (rgb[0] << 16) | (rgb[1] << 8) | rgb[2]
+
+
+def worst_cases(cases: Sequence[Mapping[str, Any]]) -> list[WorstCase]:
+    """A: the lowest certified clearance; B: the largest endpoint error (max of start and
+    end). One entry tagged "A+B" if both are the same case; none for a criterion that no
+    case has a value for."""
+    check_cases(cases)
+    picks: list[tuple[str, str, int]] = []
+    certified = np.array([_number(c, "certified_clearance_m") for c in cases])
+    if np.isfinite(certified).any():
+        i = int(np.nanargmin(certified))
+        picks.append(("A", f"lowest certified clearance {certified[i] * 1e3:.2f} mm", i))
+    errors = np.array(
+        [np.fmax(_number(c, "endpoint_error_start_m"), _number(c, "endpoint_error_end_m")) for c in cases]
+    )
+    if np.isfinite(errors).any():
+        i = int(np.nanargmax(errors))
+        picks.append(("B", f"largest endpoint error {errors[i] * 1e3:.2f} mm", i))
+    if len(picks) == 2 and picks[0][2] == picks[1][2]:
+        picks = [("A+B", f"{picks[0][1]}\n{picks[1][1]}", picks[0][2])]
+    return [WorstCase(tag, reason, _number(cases[i], "L"), _number(cases[i], "W")) for tag, reason, i in picks]
+
+
+def _regenerator(source: TrajectorySource) -> Callable[[float, float], GeneratedLike]:
+    if callable(source):
+        return source
+    from pipeline.generator import generate  # the coefficients route; imported only when used
+
+    return lambda length_m, width_m: generate(source, length_m, width_m)
+
+
+def _cross(vis: meshcat.Visualizer, center_m: np.ndarray, size_m: float, material: mg.Material) -> None:
+    for name, angle in (("a", math.pi / 4), ("b", -math.pi / 4)):
+        vis[name].set_object(mg.Box([size_m, size_m / 5, 0.002]), material)
+        vis[name].set_transform(mtf.translation_matrix(center_m) @ mtf.rotation_matrix(angle, [0, 0, 1]))
+
+
+def draw_map(
+    vis: meshcat.Visualizer,
+    cases: Sequence[Mapping[str, Any]],
+    worst: Sequence[WorstCase],
+    style: ViewStyle,
+    layout: MapLayout,
+    origin_m: tuple[float, float] = (0.0, 0.0),
+) -> tuple[float, float, float, float]:
+    """Draw the (L, W) map with its lower-left plotting corner at ``origin_m`` [m]; return
+    the bounds (x_min, x_max, y_min, y_max) [m] of what was drawn."""
+    check_cases(cases)
+    root = vis["sweep_map"]
+    root.set_transform(mtf.translation_matrix([origin_m[0], origin_m[1], 0.0]))
+    size, dot = layout.size_m, layout.dot_radius_m
+    lengths = np.array([_number(c, "L") for c in cases])
+    widths = np.array([_number(c, "W") for c in cases])
+    clearances = np.array([_number(c, "clearance_m") for c in cases])
+    top = float(np.nanmax(clearances)) if np.isfinite(clearances).any() else 0.0
+
+    def span(values: np.ndarray) -> tuple[float, float]:
+        lo, hi = float(values.min()), float(values.max())
+        return (lo - 0.01, hi + 0.01) if hi - lo < 1e-9 else (lo, hi)
+
+    (l0, l1), (w0, w1) = span(lengths), span(widths)
+    inner = size - 4 * dot
+
+    def place(length: float, width: float) -> np.ndarray:
+        return np.array(
+            [2 * dot + (length - l0) / (l1 - l0) * inner, 2 * dot + (width - w0) / (w1 - w0) * inner, 0.004]
+        )
+
+    frame = np.array([[0, 0, 0], [size, 0, 0], [size, size, 0], [0, size, 0], [0, 0, 0]], dtype=float)
+    for k in range(4):
+        root["frame"][str(k)].set_object(tube_mesh(frame[k : k + 2], 0.0015, sides=6), style.material(0x333333))
+    failure = style.material(style.palette.failure)
+    for k, case in enumerate(cases):
+        node = root["cases"][f"{k:04d}_L{lengths[k]:.4f}_W{widths[k]:.4f}"]
+        center = place(lengths[k], widths[k])
+        node["dot"].set_object(mg.Sphere(dot), style.material(clearance_color(clearances[k], top)))
+        node["dot"].set_transform(mtf.translation_matrix(center))
+        if not bool(case["passed"]):
+            _cross(node["failed"], center + [0, 0, dot + 0.003], 2.6 * dot, failure)
+    failed = sum(not bool(c["passed"]) for c in cases)
+    bounds = [0.0, size, 0.0, size]
+    if style.show_labels:
+        for pick in worst:
+            tag_xy = place(pick.L_m, pick.W_m)[:2] + [0.0, 2.6 * dot]
+            draw_label(root["tags"][pick.tag], pick.tag, [*tag_xy, 0.02], style, height_m=0.022)
+        draw_label(root["x_label"], f"L [m]: {l0:.3f} (left) to {l1:.3f} (right)", [size / 2, -0.035, 0.02], style)
+        draw_label(root["y_label"], f"W [m]: {w0:.3f} (bottom) to {w1:.3f} (top)", [0, 0, 0.02], style)
+        root["y_label"].set_transform(
+            mtf.translation_matrix([-0.035, size / 2, 0.02]) @ mtf.rotation_matrix(math.pi / 2, [0, 0, 1])
+        )
+        title = f"sweep: {len(cases)} cases, {failed} failed (x)\ncolour: clearance 0 (red) to {top * 1e3:.1f} mm (green)"
+        draw_label(root["title"], title, [size / 2, size + 0.01 + label_height_m(title) / 2, 0.02], style)
+        bounds = [-0.06, size, -0.06, size + 0.01 + label_height_m(title)]
+    return (bounds[0] + origin_m[0], bounds[1] + origin_m[0], bounds[2] + origin_m[1], bounds[3] + origin_m[1])
+
+
+def draw_sweep_view(
+    vis: meshcat.Visualizer,
+    cases: Sequence[Mapping[str, Any]],
+    trajectory_for: TrajectorySource,
+    style: ViewStyle,
+    arm: PlanarArm | None = None,
+    layout: MapLayout | None = None,
+) -> RenderedView:
+    """Draw the map and the worst cases side by side, animate them, frame the camera.
+
+    A worst case whose trajectory cannot be regenerated (a PipelineError) is shown as a
+    one-line label instead.
+    """
+    check_cases(cases)
+    arm = arm if arm is not None else load_planar_arm()
+    layout = layout if layout is not None else MapLayout()
+    regenerate = _regenerator(trajectory_for)
+    worst = worst_cases(cases)
+    map_bounds = draw_map(vis, cases, worst, style, layout)
+    cursor = map_bounds[1] + layout.gap_m
+    y_min, y_max = map_bounds[2], map_bounds[3]
+    animation = new_animation(style)
+    drawn: list[DrawnCase] = []
+    for pick in worst:
+        title = f"{pick.tag}: L = {pick.L_m:.3f} m, W = {pick.W_m:.3f} m\n{pick.reason}"
+        node = f"worst_{pick.tag.replace('+', '_')}"
+        try:
+            case = case_from_generated(regenerate(pick.L_m, pick.W_m), arm, title)
+        except PipelineError as exc:
+            draw_label(vis[node], f"{title}\nnot regenerated:\n{exc}", [cursor + 0.3, 0.3, 0.02], style)
+            cursor += 0.6 + layout.gap_m
+            continue
+        x0, x1, _, _ = case_bounds(case)
+        drawn_case = draw_case(vis, case, style, animation, node=node, offset_m=(cursor - x0, 0.0))
+        drawn.append(drawn_case)
+        cursor += x1 - x0 + layout.gap_m
+        y_min, y_max = min(y_min, drawn_case.bounds_m[2]), max(y_max, drawn_case.bounds_m[3])
+    x_max = max([map_bounds[1], *(d.bounds_m[1] for d in drawn)])
+    camera = TopDownCamera.fit((map_bounds[0], x_max, y_min, y_max), style.aspect, style.margin_m)
+    setup_view(vis, style, camera)
+    if drawn:
+        send_animation(vis, animation, style)
+    return RenderedView(camera, tuple(drawn))
+
+
+def sweep_page(
+    cases: Sequence[Mapping[str, Any]],
+    trajectory_for: TrajectorySource,
+    *,
+    arm: PlanarArm | None = None,
+    style: ViewStyle | None = None,
+    server_config: ServerConfig | None = None,
+) -> tuple[str, RenderedView]:
+    """The self-contained HTML page of the sweep view and what it shows."""
+    style = style if style is not None else ViewStyle(aspect=2.0)
+    return export_html(lambda vis: draw_sweep_view(vis, cases, trajectory_for, style, arm), server_config)
+
+
+def sweep_html(
+    cases: Sequence[Mapping[str, Any]],
+    trajectory_for: TrajectorySource,
+    html_path: str | Path,
+    *,
+    arm: PlanarArm | None = None,
+    style: ViewStyle | None = None,
+) -> RenderedView:
+    """Write the sweep view as one self-contained HTML file (opens offline).
+
+    Args:
+        cases: The sweep's per-case dicts (keys :data:`CASE_KEYS`).
+        trajectory_for: ``f(L_m, W_m)`` returning an object with ``.obstacle``, ``.path``
+            and ``.trajectory`` (e.g. ``pipeline.generator.generate`` bound to
+            coefficients), or a ``Coefficients`` object (then ``generate`` is used).
+        html_path: Output file; its directory is created.
+        arm: The arm; default the project's URDF.
+        style: Look of the scene; default lit, camera framed for a 2:1 window.
+    """
+    html, view = sweep_page(cases, trajectory_for, arm=arm, style=style)
+    write_html(html_path, html)
+    return view
+
+
+def show_sweep(
+    cases: Sequence[Mapping[str, Any]],
+    trajectory_for: TrajectorySource,
+    *,
+    arm: PlanarArm | None = None,
+    style: ViewStyle | None = None,
+    hold_s: float | None = None,
+    out: TextIO | None = None,
+) -> RenderedView:
+    """Serve the sweep view live on a loopback Meshcat server, print its URL, and wait
+    (``hold_s`` seconds, or until Ctrl-C / SIGTERM if None); the server is then stopped.
+
+    Arguments as :func:`sweep_html`.
+    """
+    style = style if style is not None else ViewStyle(aspect=2.0)
+    with MeshcatServer() as server:
+        view = draw_sweep_view(server.visualizer(), cases, trajectory_for, style, arm)
+        serve_until_interrupted(server, hold_s, out)
+    return view
+
+
+def screenshot_sweep(
+    cases: Sequence[Mapping[str, Any]],
+    trajectory_for: TrajectorySource,
+    png_path: str | Path,
+    *,
+    arm: PlanarArm | None = None,
+    browser: BrowserConfig | None = None,
+    style: ViewStyle | None = None,
+) -> RenderedView:
+    """Screenshot of the sweep page in headless Chromium, after the animations played."""
+    browser = browser if browser is not None else BrowserConfig(width_px=1800, height_px=800)
+    regenerate = _regenerator(trajectory_for)
+    generated: dict[tuple[float, float], GeneratedLike] = {}
+    for pick in worst_cases(cases):
+        try:
+            generated[(pick.L_m, pick.W_m)] = regenerate(pick.L_m, pick.W_m)
+        except PipelineError:
+            continue  # draw_sweep_view labels it
+
+    def cached(length_m: float, width_m: float) -> GeneratedLike:
+        found = generated.get((length_m, width_m))
+        return found if found is not None else regenerate(length_m, width_m)
+
+    longest = max((g.trajectory.duration_s for g in generated.values()), default=0.0)
+    return screenshot_page(
+        lambda vis, s: draw_sweep_view(vis, cases, cached, s, arm), png_path, browser, style or ViewStyle(), longest
+    )
