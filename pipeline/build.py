@@ -26,6 +26,8 @@ from .experiment import SolverConfig, score_parameters
 from .family import FAMILY_NAMES
 from .fitness import FitnessConfig
 from .jsonio import write_json_atomic
+from .obstacle import Obstacle
+from .path import desired_path
 from .pso import PsoConfig
 from .robot import DEFAULT_URDF, load_planar_arm
 from .scene import Scene
@@ -93,9 +95,6 @@ def build(args: argparse.Namespace, out=sys.stdout) -> int:
         polish=not args.no_polish,
     )
     # Check every experiment's geometry before spending minutes on PSO.
-    from .obstacle import Obstacle
-    from .path import desired_path
-
     for L, W in design.points():
         desired_path(Obstacle.in_scene(L, W, scene), scene, arm.reach_m)
 
@@ -125,7 +124,7 @@ def build(args: argparse.Namespace, out=sys.stdout) -> int:
     doe_path, coefficients_path = args.out / "doe.json", args.out / "coefficients.json"
     doe_replaced = write_json_atomic(doe_path, document)
     doe = load_doe(doe_path)
-    coefficients, fit = fit_coefficients(
+    coefficients, _ = fit_coefficients(
         doe, {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_path.read_bytes()).hexdigest()}}
     )
     coefficients_replaced = save_coefficients(coefficients, coefficients_path)
@@ -171,9 +170,9 @@ def build(args: argparse.Namespace, out=sys.stdout) -> int:
 
 
 def _paper_rows(arm, scene: Scene, config: SolverConfig, design: Design) -> list[dict] | None:
-    """The paper's Table 2 rows scored on our fitness, if our design is the paper's grid."""
-    if config.family != "paper":
-        paper = None
+    """The paper's Table 2 rows scored on our fitness, if our design is the paper's grid.
+
+    The fitness is a function of the 8 parameters, so the comparison holds for either family."""
     paper = load_doe(paper_data_path("paper_table2_doe.json"))
     points = design.points()
     if len(points) != len(paper.lengths_m) or not np.allclose(points, np.c_[paper.lengths_m, paper.widths_m]):

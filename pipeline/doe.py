@@ -18,7 +18,7 @@ import numpy as np
 
 from .exceptions import DataFileError, InvalidParameterError
 from .experiment import ExperimentResult, SolverConfig, solve_experiment
-from .family import FAMILY_NAMES, FREE_PARAMETERS, free_from_full
+from .family import FAMILY_NAMES, FREE_PARAMETERS, canonical_free
 from .jsonio import read_json
 from .robot import PlanarArm, load_planar_arm
 from .scene import Scene
@@ -130,7 +130,8 @@ class DoeData:
     Attributes:
         family: Trajectory family of the parameters.
         lengths_m, widths_m: (L, W) of each experiment [m].
-        parameters: (n, 8) canonical parameters in PARAMETER_NAMES order.
+        parameters: (n, 8) parameters in PARAMETER_NAMES order (canonical for the paper family).
+        free: (n, k) the family's free parameters in FREE_PARAMETERS order.
         scene: Scene of the experiments.
         link_lengths_m, link_radii_m, elbow: Arm data needed by the generator.
         document: The whole parsed file.
@@ -141,6 +142,7 @@ class DoeData:
     lengths_m: np.ndarray
     widths_m: np.ndarray
     parameters: np.ndarray
+    free: np.ndarray
     scene: Scene
     link_lengths_m: tuple[float, float]
     link_radii_m: tuple[float, float]
@@ -150,7 +152,7 @@ class DoeData:
 
     def free_parameters(self) -> dict[str, np.ndarray]:
         """Homogenised (Eq. 8) free parameters of the family, name -> (n,)."""
-        free = free_from_full(self.family, self.parameters)
+        free = canonical_free(self.family, self.free)
         return {name: free[:, i] for i, name in enumerate(FREE_PARAMETERS[self.family])}
 
 
@@ -173,7 +175,7 @@ def load_doe(path: str | Path) -> DoeData:
     experiments = document.get("experiments")
     if not isinstance(experiments, list) or not experiments:
         raise DataFileError(path, "'experiments' must be a non-empty list")
-    lengths, widths, rows = [], [], []
+    lengths, widths, rows, free_rows = [], [], [], []
     for i, experiment in enumerate(experiments):
         if not isinstance(experiment, dict):
             raise DataFileError(path, f"experiment {i} is not an object")
@@ -185,6 +187,14 @@ def load_doe(path: str | Path) -> DoeData:
         lengths.append(float(L))
         widths.append(float(W))
         rows.append([float(params[n]) for n in PARAMETER_NAMES])
+        free_names = FREE_PARAMETERS[family]
+        if family == "paper":
+            free_rows.append(rows[-1])
+        else:
+            free = experiment.get("free_parameters")
+            if not isinstance(free, dict) or not all(_number(free.get(n)) for n in free_names):
+                raise DataFileError(path, f"experiment {i}: 'free_parameters' needs finite {', '.join(free_names)}")
+            free_rows.append([float(free[n]) for n in free_names])
     scene_doc = document.get("scene", {})
     if not isinstance(scene_doc, dict):
         raise DataFileError(path, "'scene' must be an object")
@@ -200,7 +210,8 @@ def load_doe(path: str | Path) -> DoeData:
         family=family,
         lengths_m=np.array(lengths),
         widths_m=np.array(widths),
-        parameters=canonicalize(np.array(rows)),
+        parameters=canonicalize(np.array(rows)) if family == "paper" else np.array(rows),
+        free=np.array(free_rows),
         scene=scene,
         link_lengths_m=(float(lengths_link[0]), float(lengths_link[1])),
         link_radii_m=(float(radii_link[0]), float(radii_link[1])),

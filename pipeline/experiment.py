@@ -18,12 +18,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .clearance import CoalClearance
-from .family import FREE_PARAMETERS, expand, free_from_full, search_bounds
+from .family import FREE_PARAMETERS, canonical_free, search_bounds
 from .fitness import FitnessConfig, FitnessProblem, fitness_problem
 from .pso import PsoConfig, minimize
 from .robot import PlanarArm
 from .scene import Scene
-from .trajectory import PARAMETER_NAMES, canonicalize, joint_angles
+from .trajectory import PARAMETER_NAMES, joint_angles
 from .validation import check_non_negative, check_positive_int
 
 
@@ -59,7 +59,9 @@ class ExperimentResult:
     Attributes:
         length_m, width_m: The obstacle L, W [m].
         family: Trajectory family.
-        parameters: The 8 canonical sinusoid parameters (rad, rad/s).
+        parameters: The 8 sinusoid parameters (rad, rad/s); canonical (Eq. 8) for the paper
+            family; for exact-endpoints, joint 2's phase is the pinned (pi - w2 T) / 2.
+        free_parameters: The family's free parameters, canonical (what the regression fits).
         fitness: Objective at the optimum (Eq. 5 + penalties) [m^2].
         tracking_fitness: Eq. 5 alone at the optimum [m^2].
         clearance_m: Minimum Coal clearance over ``verify_samples`` times [m].
@@ -77,6 +79,7 @@ class ExperimentResult:
     width_m: float
     family: str
     parameters: dict[str, float]
+    free_parameters: dict[str, float]
     fitness: float
     tracking_fitness: float
     clearance_m: float
@@ -95,6 +98,7 @@ class ExperimentResult:
             "L": self.length_m,
             "W": self.width_m,
             "parameters": dict(self.parameters),
+            "free_parameters": dict(self.free_parameters),
             "fitness": self.fitness,
             "tracking_fitness": self.tracking_fitness,
             "clearance_m": self.clearance_m,
@@ -152,7 +156,8 @@ def solve_experiment(
         if polished_f < best_f:
             best_x, best_f, solver = polished_x, polished_f, "pso+least_squares"
 
-    full = canonicalize(problem.full_parameters(best_x))
+    free = canonical_free(config.family, best_x)
+    full = problem.full_parameters(free)
     clearance, queries = dense_coal_clearance(problem, full, config.verify_samples)
     coal_queries = queries
     for _ in range(config.margin_retries):
@@ -160,13 +165,12 @@ def solve_experiment(
         if shortfall <= 0 or not config.polish:
             break
         problem = replace(problem, penalty_margin_m=problem.penalty_margin_m + shortfall + 1e-4)
-        best_x, _ = _polish(problem, best_x[None, :], evaluations)
-        full = canonicalize(problem.full_parameters(best_x))
+        best_x, _ = _polish(problem, free[None, :], evaluations)
+        free = canonical_free(config.family, best_x)
+        full = problem.full_parameters(free)
         clearance, queries = dense_coal_clearance(problem, full, config.verify_samples)
         coal_queries += queries
 
-    free = free_from_full(config.family, full)
-    full = canonicalize(expand(config.family, free, problem.context))
     errors = problem.tracking_errors(full)
     start_err, end_err = problem.endpoint_errors_m(full)
     return ExperimentResult(
@@ -174,6 +178,7 @@ def solve_experiment(
         width_m=float(width_m),
         family=config.family,
         parameters=dict(zip(PARAMETER_NAMES, (float(v) for v in full), strict=True)),
+        free_parameters=dict(zip(FREE_PARAMETERS[config.family], (float(v) for v in free), strict=True)),
         fitness=float(problem.evaluate(free)),
         tracking_fitness=float(np.sum(problem.weights * np.sum(errors * errors, axis=-1))),
         clearance_m=clearance,

@@ -102,16 +102,18 @@ def expand(family: str, free: np.ndarray, context: EndpointContext | None) -> np
     return np.stack([a1, w1, phi1, gamma1, a2, w2, phi2, gamma2], -1)
 
 
-def free_from_full(family: str, full: np.ndarray) -> np.ndarray:
-    """The free parameters of ``family`` picked out of canonical 8-parameter arrays (..., 8).
+def canonical_free(family: str, free: np.ndarray) -> np.ndarray:
+    """Map free parameters (..., k) to one canonical form (Eq. 8), keeping the motion.
 
-    For exact-endpoints the free parameters are (w1, phi1, A2, w2) with w >= 0 and phi1 in
-    [-pi/2, pi/2) (joint 1 canonical as in Eq. 8; A2 keeps its sign since phi2 is pinned).
+    paper: the 8 parameters as :func:`pipeline.trajectory.canonicalize`. exact-endpoints:
+    (w1, phi1) get w1 >= 0 and phi1 in [-pi/2, pi/2) (A1 follows from them, so it flips by
+    itself); (A2, w2) are left as they are, since phi2 is pinned by w2 and A2's sign matters.
     """
-    full = np.asarray(full, dtype=float)
+    free = np.asarray(free, dtype=float)
     if check_family(family) == "paper":
-        return canonicalize(full)
-    index = [PARAMETER_NAMES.index(n) for n in FREE_PARAMETERS[family]]
-    joint1 = canonicalize(np.concatenate([full[..., :4], full[..., :4]], -1))[..., :4]
-    merged = np.concatenate([joint1, full[..., 4:]], -1)
-    return merged[..., index]
+        return canonicalize(free)
+    out = free.copy()
+    joint1 = np.stack([np.ones_like(free[..., 0]), free[..., 0], free[..., 1], np.zeros_like(free[..., 0])], -1)
+    joint1 = canonicalize(np.concatenate([joint1, joint1], -1))[..., :4]
+    out[..., 0], out[..., 1] = joint1[..., 1], joint1[..., 2]
+    return out

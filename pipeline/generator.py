@@ -18,7 +18,7 @@ from .family import EndpointContext, expand, inverse_kinematics
 from .obstacle import Obstacle
 from .path import QuarticPath, desired_path
 from .scene import Scene
-from .trajectory import JointTrajectory, canonicalize
+from .trajectory import JointTrajectory
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
 
@@ -113,13 +113,13 @@ def generate(
 
 
 def generate_parameters(coefficients: Coefficients, lengths_m: np.ndarray, widths_m: np.ndarray) -> np.ndarray:
-    """Batched generator: the 8 parameters (n, 8) for n obstacles, canonical form, no checks
-    beyond the regression itself (use :func:`generate` for validated single queries)."""
+    """Batched generator: the 8 parameters (n, 8) for n obstacles, equal to :func:`generate`'s,
+    without its checks (use :func:`generate` for validated single queries)."""
     free = coefficients.predict_free(np.asarray(lengths_m, float), np.asarray(widths_m, float))
     if coefficients.family == "paper":
         return free
     rows = []
     for L, W, f in zip(np.atleast_1d(lengths_m), np.atleast_1d(widths_m), np.atleast_2d(free), strict=True):
         path = desired_path(Obstacle.in_scene(float(L), float(W), coefficients.scene), coefficients.scene)
-        rows.append(canonicalize(expand(coefficients.family, f, endpoint_context_for(coefficients, path))))
+        rows.append(expand(coefficients.family, f, endpoint_context_for(coefficients, path)))
     return np.array(rows)

@@ -1,0 +1,166 @@
+"""Certify-or-repair: the online generator that never returns an uncertified trajectory as safe.
+
+1. Generate the trajectory from the regression (:func:`pipeline.generator.generate`).
+2. Certify it (:func:`pipeline.certificate.certify_trajectory`): a rigorous lower bound on
+   the clearance over the whole of [0, T].
+3. If the certified clearance is below the margin, repair: a short
+   ``scipy.optimize.least_squares`` on the build's objective (Eq. 5 + clearance penalty),
+   warm-started from the regression's parameters and bounded in wall time and evaluations;
+   then certify again.
+4. Return the trajectory with its certificate, or raise NoCertifiedTrajectoryError saying why.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .certificate import Certificate, certify_trajectory
+from .coefficients import Coefficients
+from .exceptions import NoCertifiedTrajectoryError
+from .family import canonical_free
+from .fitness import FitnessConfig, fitness_problem
+from .generator import GeneratedTrajectory, generate
+from .robot import PlanarArm
+from .trajectory import JointTrajectory
+from .validation import check_non_negative, check_positive, check_positive_int
+
+
+@dataclass(frozen=True)
+class RepairConfig:
+    """Settings of certify-or-repair.
+
+    Attributes:
+        margin_m: Certified clearance required [m]; None means the coefficients' scene margin.
+        route: Clearance route of the certificate: "coal" (canonical) or "analytic".
+        repair: Try a local repair when certification fails (else refuse at once).
+        max_seconds: Wall-time budget of the repair's optimisation [s].
+        max_evaluations: Budget of objective evaluations of the repair.
+        fitness: Objective of the repair (the build's, by default).
+    """
+
+    margin_m: float | None = None
+    route: str = "coal"
+    repair: bool = True
+    max_seconds: float = 0.5
+    max_evaluations: int = 400
+    fitness: FitnessConfig = field(default_factory=FitnessConfig)
+
+    def __post_init__(self) -> None:
+        if self.margin_m is not None:
+            check_non_negative("margin_m", self.margin_m)
+        check_positive("max_seconds", self.max_seconds)
+        check_positive_int("max_evaluations", self.max_evaluations)
+
+
+@dataclass(frozen=True, eq=False)
+class CertifiedTrajectory:
+    """A trajectory with a certified clearance of at least the margin.
+
+    Attributes:
+        generated: The generator's output (obstacle, path, trajectory); after a repair its
+            ``trajectory`` holds the repaired parameters.
+        certificate: The certificate of ``generated.trajectory``.
+        margin_m: The margin that was required [m].
+        repaired: True if the regression's answer failed and a repair succeeded.
+        regression_certificate: The certificate of the regression's own answer.
+        repair_seconds: Wall time spent repairing [s] (0 if none).
+    """
+
+    generated: GeneratedTrajectory
+    certificate: Certificate
+    margin_m: float
+    repaired: bool
+    regression_certificate: Certificate
+    repair_seconds: float
+
+    @property
+    def trajectory(self) -> JointTrajectory:
+        """The certified joint trajectory."""
+        return self.generated.trajectory
+
+    @property
+    def certified_clearance_m(self) -> float:
+        """Certified lower bound on the clearance over [0, T] [m]."""
+        return self.certificate.certified_clearance_m
+
+
+class _OutOfTime(Exception):
+    pass
+
+
+def _repair(
+    generated: GeneratedTrajectory, arm: PlanarArm, coefficients: Coefficients, config: RepairConfig
+) -> JointTrajectory:
+    problem = fitness_problem(
+        arm, generated.length_m, generated.width_m, coefficients.scene, config.fitness, coefficients.family
+    )
+    start = coefficients.predict_free(generated.length_m, generated.width_m)
+    deadline = time.perf_counter() + config.max_seconds
+    best = {"x": start, "cost": float(problem.evaluate(start))}
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        if time.perf_counter() > deadline:
+            raise _OutOfTime
+        r = problem.residuals(x)
+        cost = float(r @ r)
+        if cost < best["cost"]:
+            best["x"], best["cost"] = np.array(x), cost
+        return r
+
+    try:
+        least_squares(residuals, start, method="trf", x_scale="jac", max_nfev=config.max_evaluations)
+    except _OutOfTime:
+        pass
+    full = problem.full_parameters(canonical_free(coefficients.family, best["x"]))
+    return JointTrajectory(tuple(full), generated.duration_s)
+
+
+def generate_certified(
+    coefficients: Coefficients,
+    length_m: float,
+    width_m: float,
+    arm: PlanarArm,
+    *,
+    out_of_range: str = "warn",
+    config: RepairConfig | None = None,
+) -> CertifiedTrajectory:
+    """Generate, certify and if needed repair the trajectory for the obstacle L x W [m].
+
+    Raises:
+        NoCertifiedTrajectoryError: neither the regression's answer nor its repair has a
+            certified clearance of at least the margin.
+        InvalidParameterError, UnreachableObstacleError, OutOfFittedRangeError: as
+            :func:`pipeline.generator.generate`.
+    """
+    config = config if config is not None else RepairConfig()
+    margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
+    generated = generate(coefficients, length_m, width_m, out_of_range=out_of_range)
+
+    def certify(trajectory: JointTrajectory) -> Certificate:
+        return certify_trajectory(trajectory, arm, generated.obstacle, route=config.route, decide_above_m=margin)
+
+    first = certify(generated.trajectory)
+    if first.certified_clearance_m >= margin:
+        return CertifiedTrajectory(generated, first, margin, False, first, 0.0)
+    if not config.repair:
+        raise NoCertifiedTrajectoryError(
+            generated.length_m, generated.width_m, first.certified_clearance_m, margin, "repair disabled"
+        )
+    started = time.perf_counter()
+    repaired = _repair(generated, arm, coefficients, config)
+    seconds = time.perf_counter() - started
+    second = certify(repaired)
+    if second.certified_clearance_m >= margin:
+        fixed = GeneratedTrajectory(**{**generated.__dict__, "trajectory": repaired})
+        return CertifiedTrajectory(fixed, second, margin, True, first, seconds)
+    raise NoCertifiedTrajectoryError(
+        generated.length_m,
+        generated.width_m,
+        max(first.certified_clearance_m, second.certified_clearance_m),
+        margin,
+        f"repair ran {seconds:.3f} s and did not reach the margin",
+    )
