@@ -121,9 +121,12 @@ def dense_coal_clearance(problem: FitnessProblem, full: np.ndarray, samples: int
 
 
 def _polish(problem: FitnessProblem, starts: np.ndarray, evaluations: list[int]) -> tuple[np.ndarray, float]:
+    """least_squares from each start, inside the PSO's search box; the best result."""
+    lower, upper = search_bounds(problem.family)
     best_x, best_f = None, np.inf
     for start in starts:
-        result = least_squares(problem.residuals, start, method="trf", x_scale="jac")
+        start = np.clip(start, lower, upper)
+        result = least_squares(problem.residuals, start, method="trf", x_scale="jac", bounds=(lower, upper))
         evaluations.append(int(result.nfev) * (1 + start.size))
         value = float(problem.evaluate(result.x))
         if value < best_f:

@@ -21,7 +21,7 @@ from scipy.optimize import least_squares
 from .certificate import Certificate, certify_trajectory
 from .coefficients import Coefficients
 from .exceptions import NoCertifiedTrajectoryError
-from .family import canonical_free
+from .family import canonical_free, search_bounds
 from .fitness import FitnessConfig, fitness_problem
 from .generator import GeneratedTrajectory, generate
 from .robot import PlanarArm
@@ -111,8 +111,16 @@ def _repair(
             best["x"], best["cost"] = np.array(x), cost
         return r
 
+    lower, upper = search_bounds(coefficients.family)
     try:
-        least_squares(residuals, start, method="trf", x_scale="jac", max_nfev=config.max_evaluations)
+        least_squares(
+            residuals,
+            np.clip(start, lower, upper),
+            method="trf",
+            x_scale="jac",
+            bounds=(lower, upper),
+            max_nfev=config.max_evaluations,
+        )
     except _OutOfTime:
         pass
     full = problem.full_parameters(canonical_free(coefficients.family, best["x"]))
