@@ -6,7 +6,11 @@ PSO (:mod:`pipeline.pso`) searches the family's free parameters on the fitness o
 polished point wins. The winner is mapped to the canonical form of Eq. 8 and checked on a
 dense time grid with the canonical Pinocchio + Coal route. If that dense clearance falls
 below the scene's margin, the polish is repeated with the penalty margin raised by the
-shortfall (at most ``margin_retries`` times).
+shortfall and the penalty weight multiplied by 100 (at most ``margin_retries`` times),
+kept only if the clearance improves: where the margin is geometrically out of reach (with
+exact endpoints, the pose at P5 itself can be closer than the margin) the result says so in
+``clearance_m`` instead of trading tracking for nothing. The reported fitness is always on
+the configured objective.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .clearance import CoalClearance
-from .family import FREE_PARAMETERS, canonical_free, search_bounds
+from .family import FREE_PARAMETERS, canonical_free, polish_bounds, search_bounds
 from .fitness import FitnessConfig, FitnessProblem, fitness_problem
 from .pso import PsoConfig, minimize
 from .robot import PlanarArm
@@ -121,8 +125,8 @@ def dense_coal_clearance(problem: FitnessProblem, full: np.ndarray, samples: int
 
 
 def _polish(problem: FitnessProblem, starts: np.ndarray, evaluations: list[int]) -> tuple[np.ndarray, float]:
-    """least_squares from each start, inside the PSO's search box; the best result."""
-    lower, upper = search_bounds(problem.family)
+    """least_squares from each start, inside the search box but for the phases; the best result."""
+    lower, upper = polish_bounds(problem.family)
     best_x, best_f = None, np.inf
     for start in starts:
         start = np.clip(start, lower, upper)
@@ -163,16 +167,21 @@ def solve_experiment(
     full = problem.full_parameters(free)
     clearance, queries = dense_coal_clearance(problem, full, config.verify_samples)
     coal_queries = queries
+    retry = problem
     for _ in range(config.margin_retries):
         shortfall = scene.margin_m - clearance
         if shortfall <= 0 or not config.polish:
             break
-        problem = replace(problem, penalty_margin_m=problem.penalty_margin_m + shortfall + 1e-4)
-        best_x, _ = _polish(problem, free[None, :], evaluations)
-        free = canonical_free(config.family, best_x)
-        full = problem.full_parameters(free)
-        clearance, queries = dense_coal_clearance(problem, full, config.verify_samples)
+        stiffer = replace(retry.config, penalty_weight=retry.config.penalty_weight * 100.0)
+        retry = replace(retry, config=stiffer, penalty_margin_m=retry.penalty_margin_m + shortfall + 1e-4)
+        retry_x, _ = _polish(retry, free[None, :], evaluations)
+        retry_free = canonical_free(config.family, retry_x)
+        retry_full = retry.full_parameters(retry_free)
+        retry_clearance, queries = dense_coal_clearance(retry, retry_full, config.verify_samples)
         coal_queries += queries
+        if retry_clearance <= clearance + 1e-6:
+            break  # the margin is out of reach here (e.g. the endpoint pose itself is closer)
+        free, full, clearance = retry_free, retry_full, retry_clearance
 
     errors = problem.tracking_errors(full)
     start_err, end_err = problem.endpoint_errors_m(full)

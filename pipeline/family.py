@@ -64,6 +64,17 @@ def search_bounds(family: str) -> tuple[np.ndarray, np.ndarray]:
     return lower, upper
 
 
+def polish_bounds(family: str) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of the local polish: the search box, except that phases are unbounded.
+
+    A phase is 2 pi periodic (and pi periodic with A's sign flip, Eq. 8): a bound on it would
+    stop a local solver at +-pi/2 when the optimum lies just across, in the same motion family.
+    """
+    lower, upper = search_bounds(family)
+    phases = np.array([name.startswith("phi") for name in FREE_PARAMETERS[family]])
+    return np.where(phases, -np.inf, lower), np.where(phases, np.inf, upper)
+
+
 def inverse_kinematics(point_m: np.ndarray, link_lengths_m: tuple[float, float], elbow: int = 1) -> np.ndarray:
     """Joint angles [rad] placing the tip at ``point_m`` (x, y) [m]; ``elbow`` = +1 or -1 picks the branch.
 

@@ -21,7 +21,7 @@ from scipy.optimize import least_squares
 from .certificate import Certificate, certify_trajectory
 from .coefficients import Coefficients
 from .exceptions import NoCertifiedTrajectoryError
-from .family import canonical_free, search_bounds
+from .family import canonical_free, polish_bounds
 from .fitness import FitnessConfig, fitness_problem
 from .generator import GeneratedTrajectory, generate
 from .robot import PlanarArm
@@ -111,7 +111,7 @@ def _repair(
             best["x"], best["cost"] = np.array(x), cost
         return r
 
-    lower, upper = search_bounds(coefficients.family)
+    lower, upper = polish_bounds(coefficients.family)
     try:
         least_squares(
             residuals,
