@@ -5,8 +5,9 @@
    the clearance over the whole of [0, T].
 3. If the certified clearance is below the margin, repair: a short
    ``scipy.optimize.least_squares`` on the build's objective (Eq. 5 + clearance penalty),
-   warm-started from the regression's parameters and bounded in wall time and evaluations;
-   then certify again.
+   warm-started from the regression's parameters, stopped at the first point whose sampled
+   clearance exceeds the margin by half the build's buffer, and bounded in wall time and evaluations; then
+   certify again.
 4. Return the trajectory with its certificate, or raise NoCertifiedTrajectoryError saying why.
 """
 
@@ -88,8 +89,8 @@ class CertifiedTrajectory:
         return self.certificate.certified_clearance_m
 
 
-class _OutOfTime(Exception):
-    pass
+class _Stop(Exception):
+    """Ends the repair's optimisation early (time budget spent, or the margin is cleared)."""
 
 
 def _repair(
@@ -100,15 +101,23 @@ def _repair(
     )
     start = coefficients.predict_free(generated.length_m, generated.width_m)
     deadline = time.perf_counter() + config.max_seconds
+    slack = 0.5 * config.fitness.margin_buffer_m
     best = {"x": start, "cost": float(problem.evaluate(start))}
 
     def residuals(x: np.ndarray) -> np.ndarray:
         if time.perf_counter() > deadline:
-            raise _OutOfTime
+            raise _Stop
         r = problem.residuals(x)
         cost = float(r @ r)
         if cost < best["cost"]:
             best["x"], best["cost"] = np.array(x), cost
+        full = problem.full_parameters(x)
+        violation = problem.violations(full)
+        if violation[..., :2].max() <= slack and not np.any(violation[..., 2]):
+            # First point whose sampled clearance is within half the buffer of the penalty
+            # margin (so above the margin itself): the certificate decides if it is enough.
+            best["x"] = np.array(x)
+            raise _Stop
         return r
 
     lower, upper = polish_bounds(coefficients.family)
@@ -121,7 +130,7 @@ def _repair(
             bounds=(lower, upper),
             max_nfev=config.max_evaluations,
         )
-    except _OutOfTime:
+    except _Stop:
         pass
     full = problem.full_parameters(canonical_free(coefficients.family, best["x"]))
     return JointTrajectory(tuple(full), generated.duration_s)

@@ -1,0 +1,99 @@
+"""Certify-or-repair (pipeline.online) never returns an uncertified trajectory as safe."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from pipeline.clearance import analytic_link_clearance
+from pipeline.coefficients import load_coefficients
+from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError
+from pipeline.generator import generate
+from pipeline.online import RepairConfig, generate_certified
+from verify import online_sweep
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return load_coefficients("paper")
+
+
+def dense_min_clearance(arm, answer, samples: int = 20001) -> float:
+    t = np.linspace(0.0, answer.trajectory.duration_s, samples)
+    return float(analytic_link_clearance(answer.trajectory.q(t), arm, answer.generated.obstacle).min())
+
+
+def test_regression_answer_below_margin_is_repaired_and_certified(arm, paper):
+    # Eq. 9 at (0.30, 0.12) passes 2.4 mm from the obstacle: below the 1 cm margin.
+    answer = generate_certified(paper, 0.30, 0.12, arm)
+    assert answer.regression_certificate.certified_clearance_m < paper.scene.margin_m
+    assert answer.repaired
+    assert answer.certified_clearance_m >= paper.scene.margin_m
+    # Independent dense check (analytic distance, 20001 samples) agrees with the certificate.
+    assert dense_min_clearance(arm, answer) >= answer.certified_clearance_m - 1e-9
+    # The repair is local: the endpoints stay where the regression put them, to a few mm.
+    before = generate(paper, 0.30, 0.12).trajectory
+    tips = arm.end_effector_planar(np.stack([before.q(0.0), answer.trajectory.q(0.0)]))
+    assert np.linalg.norm(tips[0] - tips[1]) < 0.02
+
+
+def test_certified_regression_answer_is_returned_unchanged(arm, paper):
+    answer = generate_certified(paper, 0.22, 0.085, arm)
+    assert not answer.repaired
+    assert answer.repair_seconds == 0.0
+    assert_allclose(answer.trajectory.parameters, generate(paper, 0.22, 0.085).trajectory.parameters, rtol=0, atol=0)
+    assert answer.certified_clearance_m >= paper.scene.margin_m
+
+
+def test_repair_disabled_refuses_with_reason(arm, paper):
+    with pytest.raises(NoCertifiedTrajectoryError, match="repair disabled") as info:
+        generate_certified(paper, 0.30, 0.12, arm, config=RepairConfig(repair=False))
+    assert info.value.certified_clearance_m < info.value.margin_m
+    assert (info.value.L_m, info.value.W_m) == (0.30, 0.12)
+
+
+def test_unreachable_margin_is_refused_not_returned(arm, paper):
+    with pytest.raises(NoCertifiedTrajectoryError, match="did not reach the margin"):
+        generate_certified(paper, 0.25, 0.10, arm, config=RepairConfig(margin_m=0.2, max_seconds=0.2))
+
+
+def test_bad_config_is_refused():
+    with pytest.raises(InvalidParameterError):
+        RepairConfig(max_seconds=0.0)
+    with pytest.raises(InvalidParameterError):
+        RepairConfig(margin_m=float("nan"))
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.floats(0.18, 0.32), st.floats(0.07, 0.13))
+def test_every_answer_is_certified_above_margin_or_refused(arm, paper, length_m, width_m):
+    try:
+        answer = generate_certified(paper, length_m, width_m, arm, out_of_range="ignore")
+    except NoCertifiedTrajectoryError as exc:
+        assert exc.reason
+        return
+    assert answer.certified_clearance_m >= paper.scene.margin_m
+    assert dense_min_clearance(arm, answer, 4001) >= answer.certified_clearance_m - 1e-9
+
+
+def test_online_sweep_cli_reports_and_writes_json(tmp_path, capsys):
+    out = tmp_path / "online.json"
+    status = online_sweep.main(["--coefficients", "paper", "--n", "6", "--no-progress", "--json", str(out)])
+    assert status == 0
+    summary = json.loads(out.read_text())["summary"]
+    assert summary["cases"] == 6
+    assert summary["answers_below_margin"] == 0
+    assert summary["certified_from_regression"] + summary["repaired"] + summary["refused"] == 6
+    assert "certify-or-repair on paper" in capsys.readouterr().out
+
+
+def test_online_sweep_cli_bad_input(capsys):
+    assert online_sweep.main(["--coefficients", "/nonexistent.json", "--n", "3"]) == 2
+    assert online_sweep.main(["--coefficients", "paper", "--n", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "Traceback" not in err
