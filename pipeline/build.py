@@ -8,11 +8,9 @@ counts, which vary run to run). Prints our Table 2 and Eq. 9 beside the paper's.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import sys
 import time
 from dataclasses import asdict
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -28,23 +26,11 @@ from .fitness import FitnessConfig
 from .jsonio import write_json_atomic
 from .obstacle import Obstacle
 from .path import desired_path
+from .provenance import package_versions, sha256_file
 from .pso import PsoConfig
 from .robot import DEFAULT_URDF, load_planar_arm
 from .scene import Scene
 from .trajectory import PARAMETER_NAMES
-
-PACKAGES = ("numpy", "scipy", "pin", "coal")
-
-
-def package_versions() -> dict[str, str]:
-    """Installed versions of the packages that shape the numbers."""
-    versions = {}
-    for name in PACKAGES:
-        try:
-            versions[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            versions[name] = "not installed"
-    return versions
 
 
 def parser() -> argparse.ArgumentParser:
@@ -107,7 +93,7 @@ def build(args: argparse.Namespace, out=sys.stdout) -> int:
         "levels": args.levels,
         "family": args.family,
         "urdf": arm.urdf_path.name,
-        "urdf_sha256": hashlib.sha256(arm.urdf_path.read_bytes()).hexdigest(),
+        "urdf_sha256": sha256_file(arm.urdf_path),
         "pso": asdict(config.pso),
         "fitness": asdict(config.fitness),
         "polish": config.polish,
@@ -124,9 +110,7 @@ def build(args: argparse.Namespace, out=sys.stdout) -> int:
     doe_path, coefficients_path = args.out / "doe.json", args.out / "coefficients.json"
     doe_replaced = write_json_atomic(doe_path, document)
     doe = load_doe(doe_path)
-    coefficients, _ = fit_coefficients(
-        doe, {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_path.read_bytes()).hexdigest()}}
-    )
+    coefficients, _ = fit_coefficients(doe, {"provenance": {**provenance, "doe_sha256": sha256_file(doe_path)}})
     coefficients_replaced = save_coefficients(coefficients, coefficients_path)
 
     total = time.perf_counter() - started

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from .exceptions import DataFileError, OutputExistsError
 
@@ -32,19 +36,37 @@ def read_json(path: str | Path) -> dict:
     return data
 
 
-def dumps(data: dict) -> str:
-    """The canonical text of a JSON document: sorted-free, indented, NaN as null, newline-terminated."""
-    return json.dumps(_nan_to_none(data), indent=2, allow_nan=False) + "\n"
-
-
-def _nan_to_none(value):
-    if isinstance(value, float) and value != value:
-        return None
+def json_safe(value: Any) -> Any:
+    """Recursively make ``value`` JSON-serialisable (tuples -> lists, non-finite -> None,
+    NumPy scalars and arrays -> Python numbers and lists, paths and others -> str)."""
     if isinstance(value, dict):
-        return {k: _nan_to_none(v) for k, v in value.items()}
+        return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_nan_to_none(v) for v in value]
-    return value
+        return [json_safe(v) for v in value]
+    if isinstance(value, bool | None | str | int):
+        return value
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.ndarray):
+        return json_safe(value.tolist())
+    return str(value)
+
+
+def dumps(data: Any) -> str:
+    """The canonical text of a JSON document: indented, NaN as null, newline-terminated."""
+    return json.dumps(json_safe(data), indent=2, allow_nan=False) + "\n"
+
+
+def _new_file_mode(path: Path) -> int:
+    """Mode for a file replacing ``path``: the existing file's, else 0o666 minus the umask."""
+    try:
+        return path.stat().st_mode & 0o777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
 
 
 def write_text_atomic(path: str | Path, text: str, overwrite: bool = True) -> bool:
@@ -60,6 +82,7 @@ def write_text_atomic(path: str | Path, text: str, overwrite: bool = True) -> bo
     """
     path = Path(path)
     existed = path.exists()
+    mode = _new_file_mode(path)
     if existed and not overwrite:
         raise OutputExistsError(f"{path} exists; pass --force to overwrite it")
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -69,6 +92,7 @@ def write_text_atomic(path: str | Path, text: str, overwrite: bool = True) -> bo
             handle.write(text)
             handle.flush()
             os.fsync(handle.fileno())
+        os.chmod(tmp, mode)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -76,6 +100,6 @@ def write_text_atomic(path: str | Path, text: str, overwrite: bool = True) -> bo
     return existed
 
 
-def write_json_atomic(path: str | Path, data: dict, overwrite: bool = True) -> bool:
+def write_json_atomic(path: str | Path, data: Any, overwrite: bool = True) -> bool:
     """:func:`write_text_atomic` of :func:`dumps` (data)."""
     return write_text_atomic(path, dumps(data), overwrite)

@@ -17,18 +17,13 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
-import contextlib
 import datetime
-import hashlib
 import importlib
 import importlib.metadata
-import json
 import math
 import multiprocessing
 import os
-import platform
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -38,12 +33,14 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from pipeline.certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M, LinkReach
 from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
+from pipeline.jsonio import json_safe, write_json_atomic
 from pipeline.obstacle import Obstacle
+from pipeline.provenance import package_versions, sha256_file
 from pipeline.robot import PlanarArm, load_planar_arm
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 
-from pipeline.certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M, LinkReach
 from .metrics import AcceptanceThresholds, CaseResult, MeasureSettings, check_arm_matches, measure_case
 
 #: Default coefficients file (relative to the working directory).
@@ -60,7 +57,6 @@ DOE_W_M = (0.08, 0.10, 0.12)
 #: and (0.230, 0.115) m.
 CASE_STUDY_FRACTIONS = ((0.70, 0.75), (0.20, 0.25), (0.80, 0.125), (0.30, 0.875))
 
-_PACKAGES = ("twolink-obstacle", "pin", "coal", "numpy", "scipy", "matplotlib", "tqdm")
 
 Pair = tuple[float, float]
 
@@ -338,43 +334,6 @@ def summarize(cases: Sequence[CaseResult], thresholds: AcceptanceThresholds, wor
     }
 
 
-def _sha256_file(path: Path) -> str | None:
-    try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
-    except OSError:
-        return None
-
-
-def package_versions() -> dict[str, str | None]:
-    """Versions of Python and of the packages the verdict depends on."""
-    versions: dict[str, str | None] = {"python": platform.python_version()}
-    for name in _PACKAGES:
-        try:
-            versions[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            versions[name] = None
-    return versions
-
-
-def _json_safe(value: Any) -> Any:
-    """Recursively make ``value`` JSON-serialisable (tuples -> lists, non-finite -> None, other -> str)."""
-    if isinstance(value, dict):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, bool | None | str | int):
-        return value
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.ndarray):
-        return _json_safe(value.tolist())
-    if isinstance(value, Path):
-        return str(value)
-    return str(value)
-
-
 @dataclass(frozen=True)
 class SweepRun:
     """One coefficients set judged on one set of cases.
@@ -419,7 +378,7 @@ class SweepRun:
 
     def to_json(self) -> dict[str, Any]:
         """{"cases": [...], "summary": {...}, "provenance": {...}, "case_studies": [...], "timing": {...}}."""
-        return _json_safe(
+        return json_safe(
             {
                 "label": self.label,
                 "cases": [c.to_json() for c in self.cases],
@@ -516,7 +475,7 @@ def run_sweep(
         "range_is_fitted_range": sweep_range is None,
         "extrapolating": not fitted.contains(chosen),
         "settings": settings.to_dict(),
-        "urdf": {"path": str(urdf), "sha256": _sha256_file(urdf)},
+        "urdf": {"path": str(urdf), "sha256": sha256_file(urdf)},
         "scene": coefficients.scene.to_dict(),
         "packages": package_versions(),
         "command": list(argv) if argv is not None else None,
@@ -528,43 +487,13 @@ def run_sweep(
         cases=results,
         case_studies=studies,
         summary=summarize(results, settings.thresholds),
-        provenance=_json_safe(provenance),
+        provenance=json_safe(provenance),
         sweep_range=chosen,
         fitted_range=fitted,
         elapsed_s=elapsed,
         jobs=resolve_jobs(jobs),
         settings=settings,
     )
-
-
-def _new_file_mode(path: Path) -> int:
-    """Mode for a file replacing ``path``: the existing file's, else 0o666 minus the umask."""
-    try:
-        return path.stat().st_mode & 0o777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        return 0o666 & ~mask
-
-
-def write_json_atomic(path: Path, data: Any) -> None:
-    """Write ``data`` as JSON to ``path`` atomically (temporary file in the same directory, then rename)."""
-    path = Path(path)
-    text = json.dumps(_json_safe(data), indent=1, allow_nan=False)
-    handle = tempfile.NamedTemporaryFile(
-        "w", dir=path.parent, prefix=f".{path.name}.", suffix=".tmp", delete=False, encoding="utf-8"
-    )
-    try:
-        with handle:
-            handle.write(text + "\n")
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(handle.name, _new_file_mode(path))
-        os.replace(handle.name, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(handle.name)
-        raise
 
 
 # --------------------------------------------------------------------------------------------
