@@ -8,6 +8,9 @@ counts, which vary run to run). Prints our Table 2 and Eq. 9 beside the paper's.
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
+import os
 import sys
 import time
 from dataclasses import asdict
@@ -17,13 +20,13 @@ import numpy as np
 from tqdm import tqdm
 
 from . import report
-from .coefficients import fit_coefficients, load_coefficients, paper_data_path, save_coefficients
-from .doe import Design, doe_document, load_doe, run_doe
-from .exceptions import PipelineError
+from .coefficients import fit_coefficients, load_coefficients, paper_data_path
+from .doe import Design, doe_document, doe_from_json, load_doe, run_doe
+from .exceptions import OutputExistsError, PipelineError
 from .experiment import SolverConfig, score_parameters
 from .family import FAMILY_NAMES
 from .fitness import FitnessConfig
-from .jsonio import write_json_atomic
+from .jsonio import dumps, write_json_atomic, write_text_atomic
 from .obstacle import Obstacle
 from .path import desired_path
 from .provenance import package_versions, sha256_file
@@ -63,9 +66,43 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def build(args: argparse.Namespace, out=sys.stdout) -> int:
+def write_pair(first: Path, first_text: str, second: Path, second_text: str) -> tuple[bool, bool]:
+    """Write two files atomically as a pair: if the second write fails, the first file is put
+    back as it was (or removed if it was new), so doe.json and coefficients.json always match.
+
+    Returns:
+        Whether each file replaced an existing one.
+    """
+    previous = first.read_bytes() if first.is_file() else None
+    first_replaced = write_text_atomic(first, first_text)
+    try:
+        second_replaced = write_text_atomic(second, second_text)
+    except BaseException:
+        if previous is None:
+            first.unlink(missing_ok=True)
+        else:
+            write_text_atomic(first, previous.decode("utf-8"))
+        raise
+    return first_replaced, second_replaced
+
+
+def check_output_folder(folder: Path) -> None:
+    """Fail early (before minutes of PSO) if ``folder`` cannot hold the outputs."""
+    if folder.exists() and not folder.is_dir():
+        raise OutputExistsError(f"--out {folder} exists and is not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputExistsError(f"--out {folder} cannot be created ({exc.strerror})") from None
+    if not os.access(folder, os.W_OK):
+        raise OutputExistsError(f"--out {folder} is not writable")
+
+
+def build(args: argparse.Namespace, out=None) -> int:
     """Run the whole offline pipeline for parsed arguments; returns the exit status."""
+    out = sys.stdout if out is None else out
     started = time.perf_counter()
+    check_output_folder(args.out)
     arm = load_planar_arm(args.urdf)
     scene = Scene(margin_m=args.margin, corner_radius_m=args.corner_radius, speed_m_s=args.speed)
     design = Design(args.levels, tuple(args.L_range), tuple(args.W_range))
@@ -106,12 +143,15 @@ def build(args: argparse.Namespace, out=sys.stdout) -> int:
             row["paper_table2"] = {k: paper[k] for k in ("fitness", "clearance_m")}
             row["beats_paper"] = bool(row["fitness"] < paper["fitness"])
 
-    args.out.mkdir(parents=True, exist_ok=True)
     doe_path, coefficients_path = args.out / "doe.json", args.out / "coefficients.json"
-    doe_replaced = write_json_atomic(doe_path, document)
-    doe = load_doe(doe_path)
-    coefficients, _ = fit_coefficients(doe, {"provenance": {**provenance, "doe_sha256": sha256_file(doe_path)}})
-    coefficients_replaced = save_coefficients(coefficients, coefficients_path)
+    doe_text = dumps(document)
+    doe = doe_from_json(json.loads(doe_text), str(doe_path))
+    coefficients, _ = fit_coefficients(
+        doe, {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_text.encode()).hexdigest()}}
+    )
+    doe_replaced, coefficients_replaced = write_pair(
+        doe_path, doe_text, coefficients_path, dumps(coefficients.to_json())
+    )
 
     total = time.perf_counter() - started
     timing = {
@@ -177,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("interrupted: no output file was left half-written", file=sys.stderr)
+        print("interrupted: outputs are either the previous pair or the new pair, never half-written", file=sys.stderr)
         return 130
 
 

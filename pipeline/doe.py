@@ -166,7 +166,15 @@ def load_doe(path: str | Path) -> DoeData:
     Raises:
         DataFileError: missing, unreadable, not JSON, or malformed.
     """
-    document = read_json(path)
+    return doe_from_json(read_json(path), str(path))
+
+
+def doe_from_json(document: dict, path: str) -> DoeData:
+    """Validate a parsed DOE document (``path`` names it in error messages).
+
+    Raises:
+        DataFileError: malformed.
+    """
     if document.get("format") != FORMAT:
         raise DataFileError(path, f"format is {document.get('format')!r}, expected {FORMAT!r}")
     family = document.get("family", "paper")

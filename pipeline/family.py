@@ -85,8 +85,9 @@ def inverse_kinematics(point_m: np.ndarray, link_lengths_m: tuple[float, float],
     x, y = float(point_m[0]), float(point_m[1])
     radius = float(np.hypot(x, y))
     cos2 = (radius**2 - l1**2 - l2**2) / (2 * l1 * l2)
-    if not -1.0 <= cos2 <= 1.0:
+    if not -1.0 - 1e-12 <= cos2 <= 1.0 + 1e-12:
         raise UnreachableObstacleError("target", radius, (abs(l1 - l2), l1 + l2))
+    cos2 = min(1.0, max(-1.0, cos2))
     theta2 = elbow * float(np.arccos(cos2))
     theta1 = float(np.arctan2(y, x) - np.arctan2(l2 * np.sin(theta2), l1 + l2 * np.cos(theta2)))
     return np.array([theta1, theta2])
@@ -118,7 +119,8 @@ def canonical_free(family: str, free: np.ndarray) -> np.ndarray:
 
     paper: the 8 parameters as :func:`pipeline.trajectory.canonicalize`. exact-endpoints:
     (w1, phi1) get w1 >= 0 and phi1 in [-pi/2, pi/2) (A1 follows from them, so it flips by
-    itself); (A2, w2) are left as they are, since phi2 is pinned by w2 and A2's sign matters.
+    itself); w2 -> |w2|, since with phi2 pinned joint 2 moves as A2 cos(w2 (t - T/2)) + const,
+    even in w2; A2 keeps its sign, which matters.
     """
     free = np.asarray(free, dtype=float)
     if check_family(family) == "paper":
@@ -127,4 +129,5 @@ def canonical_free(family: str, free: np.ndarray) -> np.ndarray:
     joint1 = np.stack([np.ones_like(free[..., 0]), free[..., 0], free[..., 1], np.zeros_like(free[..., 0])], -1)
     joint1 = canonicalize(np.concatenate([joint1, joint1], -1))[..., :4]
     out[..., 0], out[..., 1] = joint1[..., 1], joint1[..., 2]
+    out[..., 3] = np.abs(free[..., 3])
     return out

@@ -9,7 +9,10 @@ link-to-rounded-box distance at ``clearance_samples`` times uniform in [0, T]: t
 sampled points on link 2 (Eq. 6) are replaced by the exact distance of both links.
 
 Two routes compute the clearance: ``"analytic"`` (vectorised, for the PSO's hot loop) and
-``"coal"`` (Pinocchio geometry model + Coal, the canonical one); tests prove them equal.
+``"coal"`` (Pinocchio geometry model + Coal, the canonical one); tests prove them equal
+wherever every link clears the obstacle. Where a link overlaps it, Coal reports a
+penetration depth and the analytic route minus the radii: both are <= 0, so both routes
+penalise, by different amounts.
 """
 
 from __future__ import annotations

@@ -81,6 +81,10 @@ def write_text_atomic(path: str | Path, text: str, overwrite: bool = True) -> bo
         OutputExistsError: the file exists and ``overwrite`` is False.
     """
     path = Path(path)
+    if path.is_dir():
+        raise OutputExistsError(f"{path} is a directory; expected a file name to write")
+    if path.parent.exists() and not path.parent.is_dir():
+        raise OutputExistsError(f"{path.parent} is not a directory")
     existed = path.exists()
     mode = _new_file_mode(path)
     if existed and not overwrite:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .exceptions import UnreachableObstacleError
+from .exceptions import InvalidParameterError, UnreachableObstacleError
 from .obstacle import Obstacle
 from .scene import Scene
 from .validation import check_positive_int
@@ -146,8 +146,15 @@ def desired_path(obstacle: Obstacle, scene: Scene, reach_m: tuple[float, float] 
 
     Raises:
         UnreachableObstacleError: a constraint point is outside the reach.
+        InvalidParameterError: the obstacle covers the arm's base (d - W <= 0 <= d).
     """
     points = constraint_points(obstacle, scene)
+    if obstacle.top_y_m - obstacle.width_m <= 0.0 <= obstacle.top_y_m:
+        raise InvalidParameterError(
+            "W (width_m)",
+            obstacle.width_m,
+            f"less than d = {obstacle.top_y_m} m: at this width the obstacle covers the arm's base",
+        )
     if reach_m is not None:
         for name, point in zip(("P1", "P2", "P3", "P4", "P5"), points, strict=True):
             radius = float(np.hypot(*point))

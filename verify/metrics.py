@@ -26,14 +26,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pipeline.clearance import CoalClearance
-from pipeline.exceptions import InvalidParameterError, PipelineError
-from pipeline.obstacle import Obstacle
-from pipeline.path import QuarticPath
-from pipeline.robot import PlanarArm
-from pipeline.trajectory import JointTrajectory
-from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
-
 from pipeline.certificate import (
     COAL_DISTANCE_ERROR_M,
     DEFAULT_MAX_EVALUATIONS,
@@ -43,6 +35,13 @@ from pipeline.certificate import (
     certify,
     samples_for_resolution,
 )
+from pipeline.clearance import CoalClearance
+from pipeline.exceptions import InvalidParameterError, PipelineError
+from pipeline.obstacle import Obstacle
+from pipeline.path import QuarticPath
+from pipeline.robot import PlanarArm
+from pipeline.trajectory import JointTrajectory
+from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 
 if TYPE_CHECKING:  # pragma: no cover
     from pipeline.coefficients import Coefficients

@@ -43,7 +43,10 @@ class BrowserConfig:
         width_px, height_px: Viewport (and image) size [px].
         virtual_time_budget_ms: Virtual time the page runs before the screenshot [ms].
         webgl: False adds ``--disable-webgl --disable-3d-apis`` (a negative control).
-        timeout_s: Longest wall-clock time for the browser [s].
+        timeout_s: Longest wall-clock time of one attempt [s].
+        attempts: Tries before giving up. Under heavy CPU load, headless Chromium with a
+            virtual-time budget occasionally never finishes a page that renders large
+            frames continuously (an animation); a hung attempt is killed and retried.
     """
 
     executable: str | None = None
@@ -51,13 +54,15 @@ class BrowserConfig:
     height_px: int = 800
     virtual_time_budget_ms: int = 5000
     webgl: bool = True
-    timeout_s: float = 90.0
+    timeout_s: float = 45.0
+    attempts: int = 2
 
     def __post_init__(self) -> None:
         check_positive_int("width_px", self.width_px, minimum=64)
         check_positive_int("height_px", self.height_px, minimum=64)
         check_positive_int("virtual_time_budget_ms", self.virtual_time_budget_ms)
         check_positive("timeout_s", self.timeout_s)
+        check_positive_int("attempts", self.attempts)
 
     @property
     def aspect(self) -> float:
@@ -65,7 +70,9 @@ class BrowserConfig:
         return self.width_px / self.height_px
 
 
-def chromium_command(executable: str, html_path: Path, png_path: Path, profile_dir: Path, config: BrowserConfig) -> list[str]:
+def chromium_command(
+    executable: str, html_path: Path, png_path: Path, profile_dir: Path, config: BrowserConfig
+) -> list[str]:
     """The headless Chromium command line that writes a screenshot of a local page."""
     command = [
         executable,
@@ -103,7 +110,20 @@ def screenshot_html(html_path: str | Path, png_path: str | Path, config: Browser
     html_path, png_path = Path(html_path), Path(png_path).resolve()
     if not html_path.is_file():
         raise ViewerError(f"{html_path}: no such HTML file")
+    png_path.parent.mkdir(parents=True, exist_ok=True)
     png_path.unlink(missing_ok=True)
+    for _ in range(config.attempts):
+        if _run_once(executable, html_path, png_path, config):
+            return png_path
+    raise ViewerError(f"{executable} did not finish within {config.timeout_s:g} s ({config.attempts} attempt(s))")
+
+
+def _run_once(executable: str, html_path: Path, png_path: Path, config: BrowserConfig) -> bool:
+    """One browser run: True if it wrote the screenshot, False if it hung (and was killed).
+
+    Raises:
+        ViewerError: the browser finished without writing the screenshot.
+    """
     with tempfile.TemporaryDirectory(prefix="viewer-chromium-") as profile:
         command = chromium_command(executable, html_path, png_path, Path(profile), config)
         # Own session, so that on a timeout the browser and its helpers go as one group.
@@ -121,8 +141,9 @@ def screenshot_html(html_path: str | Path, png_path: str | Path, config: Browser
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(proc.pid, signal.SIGKILL)
             proc.communicate()
-            raise ViewerError(f"{executable} did not finish within {config.timeout_s:g} s") from None
+            png_path.unlink(missing_ok=True)
+            return False
     if not png_path.is_file():
         tail = (stderr.strip().splitlines() or ["no output"])[-1]
         raise ViewerError(f"{executable} wrote no screenshot (exit code {proc.returncode}): {tail}")
-    return png_path
+    return True

@@ -22,16 +22,12 @@ test can then compare exactly.
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass, field
 
 import coal
-import meshcat
-import meshcat.geometry as mg
-import meshcat.transformations as mtf
 import numpy as np
 import pinocchio as pin
-from meshcat.animation import Animation
-from pinocchio.visualize import MeshcatVisualizer
 
 from pipeline.clearance import CoalClearance
 from pipeline.exceptions import InvalidParameterError
@@ -41,13 +37,10 @@ from pipeline.robot import PlanarArm
 from pipeline.trajectory import JointTrajectory
 from pipeline.validation import check_positive, check_positive_int
 
+from ._meshcat import Animation, MeshcatVisualizer, meshcat, mg, mtf
+
 #: Names of the constraint points, in path order.
 POINT_NAMES = ("P1", "P2", "P3", "P4", "P5")
-
-
-def rgb_hex(color: int) -> tuple[int, int, int]:
-    """(r, g, b) in 0..255 of a 0xRRGGBB colour."""
-    return (color >> 16) & 0xFF, (color >> 8) & 0xFF, color & 0xFF
 
 
 def rgba_to_hex(rgba: np.ndarray) -> int:
@@ -100,6 +93,8 @@ class ViewStyle:
         play: Start the animation when the page loads.
         aspect: Width / height of the viewport the camera is framed for [-].
         margin_m: Empty border around the content in the camera frame [m].
+        obstacle_opacity: Opacity of the obstacle [0..1]; below 1 a link that enters it
+            (negative clearance) stays visible from above.
     """
 
     flat_colors: bool = False
@@ -116,18 +111,29 @@ class ViewStyle:
     play: bool = True
     aspect: float = 1.5
     margin_m: float = 0.04
+    obstacle_opacity: float = 0.8
 
     def __post_init__(self) -> None:
         for name in ("desired_path_radius_m", "actual_path_radius_m", "point_radius_m", "aspect", "margin_m"):
             check_positive(name, getattr(self, name))
         check_positive_int("samples", self.samples, minimum=16)
         check_positive_int("fps", self.fps)
+        if not 0.0 < self.obstacle_opacity <= 1.0:
+            raise InvalidParameterError("obstacle_opacity", self.obstacle_opacity, "a number in (0, 1]")
 
     @classmethod
     def for_pixels(cls, aspect: float = 1.5, **changes: object) -> ViewStyle:
-        """The style of the pixel test and the README screenshot: flat colours, no grid,
-        axes or background."""
-        return cls(flat_colors=True, show_grid=False, show_axes=False, show_background=False, aspect=aspect, **changes)  # type: ignore[arg-type]
+        """The style of the pixel test (and of ``verify.view --flat``): flat unlit colours, an
+        opaque obstacle, no grid, axes or background."""
+        return cls(
+            flat_colors=True,
+            show_grid=False,
+            show_axes=False,
+            show_background=False,
+            obstacle_opacity=1.0,
+            aspect=aspect,
+            **changes,
+        )  # type: ignore[arg-type]
 
     def material(self, color: int, opacity: float = 1.0) -> mg.Material:
         """A material of this style."""
@@ -333,10 +339,20 @@ def obstacle_mesh(obstacle: Obstacle) -> mg.TriangularMeshGeometry:
 
 
 def tube_mesh(points_m: np.ndarray, radius_m: float, sides: int = 8) -> mg.TriangularMeshGeometry:
-    """A tube of circular section of radius [m] along a polyline (n, 3) [m], open ends."""
+    """A tube of circular section of radius [m] along a polyline (n, 3) [m], open ends.
+
+    Repeated consecutive points are dropped.
+
+    Raises:
+        InvalidParameterError: fewer than two distinct points.
+    """
     points = np.asarray(points_m, dtype=float)
-    if points.ndim != 2 or points.shape[1] != 3 or len(points) < 2:
-        raise InvalidParameterError("points_m", points.shape, "a polyline of shape (n >= 2, 3)")
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise InvalidParameterError("points_m", points.shape, "a polyline of shape (n, 3)")
+    if len(points) > 1:
+        points = points[np.r_[True, np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-12]]
+    if len(points) < 2:
+        raise InvalidParameterError("points_m", len(points), "at least two distinct points")
     tangents = np.gradient(points, axis=0)
     tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
     reference = np.where(np.abs(tangents[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
@@ -381,9 +397,9 @@ def draw_label(
     Meshcat's viewer draws ``_text`` textures centred on a 256 px square canvas, shrinking
     the font until the text fits its width; the font size is chosen so that it fits (for
     an average sans-serif letter of 0.58 em), and the plane is scaled to the wanted height.
-    Keep lines short (about 45 characters): the canvas is only 256 px wide.
+    The canvas is only 256 px wide, so longer lines are wrapped at 48 characters.
     """
-    lines = text.split("\n")
+    lines = [wrapped for line in text.split("\n") for wrapped in (textwrap.wrap(line, 48) or [""])]
     pitch = 1.9 * height_m
     for index, line in enumerate(lines):
         node = vis[f"line{index}"]
@@ -392,14 +408,16 @@ def draw_label(
         texture = mg.GenericTexture(
             {"type": "_text", "text": line, "font_size": int(font_px), "font_face": "sans-serif"}
         )
+        # Labels write no depth: a line's transparent square must not hide its neighbours.
         node["text"].set_object(
-            PlaneGeometry(plane_m, plane_m), mg.MeshBasicMaterial(map=texture, transparent=True, color=0xFFFFFF)
+            PlaneGeometry(plane_m, plane_m),
+            mg.MeshBasicMaterial(map=texture, transparent=True, color=0xFFFFFF, depthWrite=False),
         )
         node["text"].set_transform(mtf.translation_matrix([0.0, 0.0, 0.0005]))
         panel_width = min(plane_m, 0.52 * len(line) * height_m + 1.2 * height_m)
         node["panel"].set_object(
             PlaneGeometry(panel_width, pitch),
-            mg.MeshBasicMaterial(color=style.palette.label_backing, opacity=0.85, transparent=True),
+            mg.MeshBasicMaterial(color=style.palette.label_backing, opacity=0.85, transparent=True, depthWrite=False),
         )
         node["panel"].set_transform(mtf.translation_matrix([0.0, 0.3 * height_m, 0.0]))
         node.set_transform(mtf.translation_matrix([0.0, ((len(lines) - 1) / 2 - index) * pitch, 0.0]))
@@ -408,7 +426,8 @@ def draw_label(
 
 def label_height_m(text: str, height_m: float = 0.018) -> float:
     """Height [m] that :func:`draw_label` takes for ``text``."""
-    return 1.9 * height_m * (text.count("\n") + 1)
+    lines = sum(len(textwrap.wrap(line, 48) or [""]) for line in text.split("\n"))
+    return 1.9 * height_m * lines
 
 
 # ----------------------------------------------------------------------- computation
@@ -424,8 +443,7 @@ def min_clearance(case: TrajectoryCase, times_s: np.ndarray) -> MinClearance:
     data = arm.model.createData()
     geometry_data = pin.GeometryData(arm.collision_model)
     pin.updateGeometryPlacements(arm.model, data, arm.collision_model, geometry_data, q[row])
-    request = coal.DistanceRequest()
-    request.enable_nearest_points = True
+    request = coal.DistanceRequest()  # nearest points are always computed (coal >= 3)
     obstacle_shape = case.obstacle.coal_shape()
     obstacle_tf = coal.Transform3s(np.eye(3), case.obstacle.center_m)
     best: tuple[float, np.ndarray, np.ndarray] | None = None
@@ -536,7 +554,9 @@ def draw_case(
     elbow, tip = _joint_positions(case.arm, q)
     _, desired = case.path.samples(style.samples)
 
-    root["obstacle"].set_object(obstacle_mesh(case.obstacle), style.material(palette.obstacle))
+    root["obstacle"].set_object(
+        obstacle_mesh(case.obstacle), style.material(palette.obstacle, opacity=style.obstacle_opacity)
+    )
     # Paths lie just below the arm's plane, the actual one above the desired one: seen from
     # above the arm hides them where it crosses them.
     desired_3d = np.column_stack([desired, np.full(len(desired), -0.010)])
@@ -544,7 +564,12 @@ def draw_case(
     root["desired_path"].set_object(
         tube_mesh(desired_3d, style.desired_path_radius_m), style.material(palette.desired_path)
     )
-    root["actual_path"].set_object(tube_mesh(actual_3d, style.actual_path_radius_m), style.material(palette.actual_path))
+    try:
+        root["actual_path"].set_object(
+            tube_mesh(actual_3d, style.actual_path_radius_m), style.material(palette.actual_path)
+        )
+    except InvalidParameterError:  # the end effector does not move: a dot
+        _sphere(root["actual_path"], actual_3d[0], 2 * style.actual_path_radius_m, style.material(palette.actual_path))
     for name, point in zip(POINT_NAMES, case.path.points_m, strict=True):
         _sphere(
             root["constraint_points"][name],
@@ -559,7 +584,7 @@ def draw_case(
     _sphere(marker["on_link"], clearance.point_on_link_m + [0, 0, 0.012], 0.005, marker_material)
     _sphere(marker["on_obstacle"], clearance.point_on_obstacle_m + [0, 0, 0.012], 0.003, marker_material)
     gap = np.array([clearance.point_on_link_m, clearance.point_on_obstacle_m]) + [0, 0, 0.012]
-    if np.linalg.norm(gap[1] - gap[0]) > 1e-6:
+    if np.linalg.norm(gap[1] - gap[0]) > 1e-6:  # zero when the link touches the obstacle
         marker["gap"].set_object(tube_mesh(gap, 0.0012, sides=6), marker_material)
 
     bounds = case_bounds(case)

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import atexit
 import contextlib
-import ipaddress
 import io
+import ipaddress
 import math
 import os
 import signal
@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, TextIO
 from pipeline.exceptions import PipelineError
 
 if TYPE_CHECKING:  # pragma: no cover
-    import meshcat
+    from ._meshcat import meshcat
 
 try:  # Prefer the project's own class once it exists in pipeline.exceptions.
     from pipeline.exceptions import ViewerError  # type: ignore[attr-defined]
@@ -214,7 +214,7 @@ class MeshcatServer:
         """
         if self._proc is not None:
             raise ViewerError("the Meshcat server was already started")
-        self._log = tempfile.TemporaryFile()  # noqa: SIM115 - closed in stop()
+        self._log = tempfile.TemporaryFile()
         self._proc = subprocess.Popen(
             [sys.executable, "-u", "-c", _CHILD_CODE, self.config.host],
             stdin=subprocess.DEVNULL,
@@ -266,7 +266,7 @@ class MeshcatServer:
 
     def visualizer(self) -> meshcat.Visualizer:
         """A new ``meshcat.Visualizer`` client connected to this server."""
-        import meshcat
+        from ._meshcat import meshcat
 
         if not self.running:
             raise ViewerError("the Meshcat server is not running")
@@ -311,15 +311,17 @@ def serve_until_interrupted(server: MeshcatServer, hold_s: float | None = None, 
         ViewerError: the server process died while serving.
     """
     out = out if out is not None else sys.stdout
-    print(f"Meshcat viewer: {server.web_url}", file=out, flush=True)
+    print(f"Meshcat viewer: {server.web_url} (server PID {server.pid}, loopback only)", file=out, flush=True)
     if hold_s is None:
-        print("Serving on loopback only; press Ctrl-C to stop.", file=out, flush=True)
+        print("Press Ctrl-C to stop.", file=out, flush=True)
     deadline = math.inf if hold_s is None else time.monotonic() + hold_s
 
     def _terminate(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
 
-    previous = signal.signal(signal.SIGTERM, _terminate) if threading.current_thread() is threading.main_thread() else None
+    previous = (
+        signal.signal(signal.SIGTERM, _terminate) if threading.current_thread() is threading.main_thread() else None
+    )
     try:
         while time.monotonic() < deadline:
             if not server.running:

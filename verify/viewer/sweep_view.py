@@ -20,19 +20,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
-import meshcat
-import meshcat.geometry as mg
-import meshcat.transformations as mtf
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError, PipelineError
 from pipeline.robot import PlanarArm, load_planar_arm
 
+from ._meshcat import meshcat, mg, mtf
 from .browser import BrowserConfig
 from .scene import (
     DrawnCase,
     TopDownCamera,
-    TrajectoryCase,
     ViewStyle,
     case_bounds,
     draw_case,
@@ -162,7 +159,8 @@ def _regenerator(source: TrajectorySource) -> Callable[[float, float], Generated
         return source
     from pipeline.generator import generate  # the coefficients route; imported only when used
 
-    return lambda length_m, width_m: generate(source, length_m, width_m)
+    # The sweep reports extrapolation itself; regenerating its worst cases need not warn again.
+    return lambda length_m, width_m: generate(source, length_m, width_m, out_of_range="ignore")
 
 
 def _cross(vis: meshcat.Visualizer, center_m: np.ndarray, size_m: float, material: mg.Material) -> None:
@@ -224,9 +222,11 @@ def draw_map(
         root["y_label"].set_transform(
             mtf.translation_matrix([-0.035, size / 2, 0.02]) @ mtf.rotation_matrix(math.pi / 2, [0, 0, 1])
         )
-        title = f"sweep: {len(cases)} cases, {failed} failed (x)\ncolour: clearance 0 (red) to {top * 1e3:.1f} mm (green)"
-        draw_label(root["title"], title, [size / 2, size + 0.01 + label_height_m(title) / 2, 0.02], style)
-        bounds = [-0.06, size, -0.06, size + 0.01 + label_height_m(title)]
+        title = (
+            f"sweep: {len(cases)} cases, {failed} failed (x)\ncolour: clearance 0 (red) to {top * 1e3:.1f} mm (green)"
+        )
+        draw_label(root["title"], title, [size / 2, size + 0.03 + label_height_m(title) / 2, 0.02], style)
+        bounds = [-0.06, size, -0.06, size + 0.03 + label_height_m(title)]
     return (bounds[0] + origin_m[0], bounds[1] + origin_m[0], bounds[2] + origin_m[1], bounds[3] + origin_m[1])
 
 
@@ -241,7 +241,7 @@ def draw_sweep_view(
     """Draw the map and the worst cases side by side, animate them, frame the camera.
 
     A worst case whose trajectory cannot be regenerated (a PipelineError) is shown as a
-    one-line label instead.
+    label with the error instead.
     """
     check_cases(cases)
     arm = arm if arm is not None else load_planar_arm()
@@ -251,6 +251,7 @@ def draw_sweep_view(
     map_bounds = draw_map(vis, cases, worst, style, layout)
     cursor = map_bounds[1] + layout.gap_m
     y_min, y_max = map_bounds[2], map_bounds[3]
+    x_max = map_bounds[1]
     animation = new_animation(style)
     drawn: list[DrawnCase] = []
     for pick in worst:
@@ -259,15 +260,16 @@ def draw_sweep_view(
         try:
             case = case_from_generated(regenerate(pick.L_m, pick.W_m), arm, title)
         except PipelineError as exc:
-            draw_label(vis[node], f"{title}\nnot regenerated:\n{exc}", [cursor + 0.3, 0.3, 0.02], style)
-            cursor += 0.6 + layout.gap_m
+            draw_label(vis[node], f"{title}\nnot regenerated: {exc}", [cursor + 0.25, 0.3, 0.02], style)
+            x_max = cursor + 0.5
+            cursor = x_max + layout.gap_m
             continue
-        x0, x1, _, _ = case_bounds(case)
+        x0 = case_bounds(case)[0]
         drawn_case = draw_case(vis, case, style, animation, node=node, offset_m=(cursor - x0, 0.0))
         drawn.append(drawn_case)
-        cursor += x1 - x0 + layout.gap_m
+        x_max = drawn_case.bounds_m[1]
+        cursor = x_max + layout.gap_m
         y_min, y_max = min(y_min, drawn_case.bounds_m[2]), max(y_max, drawn_case.bounds_m[3])
-    x_max = max([map_bounds[1], *(d.bounds_m[1] for d in drawn)])
     camera = TopDownCamera.fit((map_bounds[0], x_max, y_min, y_max), style.aspect, style.margin_m)
     setup_view(vis, style, camera)
     if drawn:
@@ -343,7 +345,7 @@ def screenshot_sweep(
     style: ViewStyle | None = None,
 ) -> RenderedView:
     """Screenshot of the sweep page in headless Chromium, after the animations played."""
-    browser = browser if browser is not None else BrowserConfig(width_px=1800, height_px=800)
+    browser = browser if browser is not None else BrowserConfig(width_px=1400, height_px=600)
     regenerate = _regenerator(trajectory_for)
     generated: dict[tuple[float, float], GeneratedLike] = {}
     for pick in worst_cases(cases):

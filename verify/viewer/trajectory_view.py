@@ -14,14 +14,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Protocol, TextIO
 
-import meshcat
-
 from pipeline.obstacle import Obstacle
 from pipeline.path import QuarticPath, desired_path
 from pipeline.robot import PlanarArm, load_planar_arm
 from pipeline.scene import Scene
 from pipeline.trajectory import JointTrajectory
 
+from ._meshcat import meshcat
 from .browser import BrowserConfig, screenshot_html
 from .scene import (
     DrawnCase,

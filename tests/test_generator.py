@@ -1,0 +1,221 @@
+"""The online generator (pipeline.generator): Eq. 9 evaluated at (L, W), the path's duration,
+the out-of-range policies, bad and impossible obstacles, and batch == single queries for both
+families."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from scipy.integrate import quad
+
+from pipeline.coefficients import Coefficients, fit_coefficients, load_coefficients, paper_data_path
+from pipeline.doe import DoeData, load_doe
+from pipeline.exceptions import (
+    InvalidParameterError,
+    OutOfFittedRangeError,
+    OutOfFittedRangeWarning,
+    UnreachableObstacleError,
+)
+from pipeline.family import expand
+from pipeline.fitness import endpoint_context
+from pipeline.generator import generate, generate_parameters
+from pipeline.obstacle import Obstacle
+from pipeline.path import desired_path
+from pipeline.robot import PlanarArm
+from pipeline.scene import Scene
+from pipeline.trajectory import PARAMETER_NAMES, joint_angles
+
+D, SPEED = 0.56, 0.2
+# Eq. 9 of the paper, typed from the paper, in the order 1, L, W, L^2, LW, W^2.
+EQ9 = {
+    "A1": (-1.475, 2.963, 6.987, -2.869, -19.07, -8.39),
+    "w1": (0.4736, 2.15, 6.109, -2.338, -14.8, -10.74),
+    "phi1": (1.6, -3.08, -9.415, 1.539, 16.82, 6.086),
+    "gamma1": (2.286, -3.97, -9.70, 4.052, 16.95, 11.19),
+    "A2": (1.734, -2.731, -5.85, 5.735, 17.88, 16.36),
+    "w2": (1.208, -0.9549, -0.04626, -0.1239, -1.739, -4.679),
+    "phi2": (0.801, -2.273, -6.41, 1.942, 12.59, 9.89),
+    "gamma2": (-0.2707, 3.232, 10.7, -6.575, -15.95, -24.3),
+}
+QUERIES = [(0.25, 0.10), (0.22, 0.09), (0.28, 0.115), (0.2, 0.08), (0.3, 0.12), (0.215, 0.105)]
+
+
+def eq9_by_hand(L: float, W: float) -> np.ndarray:
+    return np.array([b[0] + b[1] * L + b[2] * W + b[3] * L * L + b[4] * L * W + b[5] * W * W for b in EQ9.values()])
+
+
+def duration_by_hand(L: float, W: float) -> float:
+    """T = S_total / v for the quartic through P1..P5 (NOTES.md), by adaptive quadrature."""
+    x1, x2 = L / 2 + 0.12, L / 2 + 0.03
+    quartic = np.poly1d(
+        np.polyfit([x1, x2, 0.0, -x2, -x1], [D, D - W - 0.03, D - W - 0.10, D - W - 0.03, D], 4)
+    ).deriv()
+    length, _ = quad(lambda x: math.sqrt(1 + quartic(x) ** 2), -x1, x1, epsabs=1e-14, epsrel=1e-13, limit=200)
+    return length / SPEED
+
+
+@pytest.fixture(scope="module")
+def paper() -> Coefficients:
+    return load_coefficients("paper")
+
+
+@pytest.fixture(scope="module")
+def exact() -> Coefficients:
+    """Exact-endpoints coefficients fitted on a small synthetic DOE (smooth free parameters)."""
+    base = load_doe(paper_data_path("paper_table2_doe.json"))
+    L, W = base.lengths_m, base.widths_m
+    free = np.column_stack([0.95 + 0.4 * (0.3 - L), 0.45 - 2.0 * (W - 0.1), 1.4 + 2 * L * W, 0.8 + 0.5 * W])
+    doe = DoeData(
+        family="exact-endpoints",
+        lengths_m=L,
+        widths_m=W,
+        parameters=np.zeros((9, 8)),
+        free=free,
+        scene=base.scene,
+        link_lengths_m=base.link_lengths_m,
+        link_radii_m=base.link_radii_m,
+        elbow=1,
+        document={},
+        source="synthetic",
+    )
+    coefficients, fit = fit_coefficients(doe)
+    assert all(r > 0.999999 for r in fit.r_squared.values())  # the synthetic data are exactly quadratic
+    return coefficients
+
+
+# --------------------------------------------------------------------------------------------
+# The paper's Eq. 9.
+
+
+@pytest.mark.parametrize(("L", "W"), QUERIES)
+def test_generate_gives_eq9_and_the_path_duration(paper: Coefficients, L: float, W: float) -> None:
+    trajectory = generate(paper, L, W)
+    assert trajectory.family == "paper"
+    assert not trajectory.extrapolated
+    assert_allclose(trajectory.trajectory.parameters, eq9_by_hand(L, W), rtol=0, atol=1e-12)
+    scene = Scene()
+    expected_path = desired_path(Obstacle.in_scene(L, W, scene), scene)
+    assert trajectory.duration_s == expected_path.duration_s
+    assert_allclose(trajectory.duration_s, duration_by_hand(L, W), rtol=1e-10)
+    assert_allclose(trajectory.path.points_m, expected_path.points_m, rtol=0, atol=0)
+    # q(t) is Eq. 1 with those parameters.
+    t = np.linspace(0, trajectory.duration_s, 7)
+    a1, w1, p1, g1, a2, w2, p2, g2 = eq9_by_hand(L, W)
+    assert_allclose(
+        trajectory.q(t),
+        np.column_stack([a1 * np.sin(w1 * t + p1) + g1, a2 * np.sin(w2 * t + p2) + g2]),
+        rtol=0,
+        atol=1e-12,
+    )
+
+
+def test_generate_at_test_5_is_close_to_table_2(paper: Coefficients, table2: np.ndarray) -> None:
+    parameters = generate(paper, 0.25, 0.10).trajectory.parameters
+    assert_allclose(parameters, table2[4, :8], rtol=0, atol=0.02)
+
+
+# --------------------------------------------------------------------------------------------
+# Out of range, bad and impossible obstacles.
+
+
+@pytest.mark.parametrize(("L", "W"), [(0.31, 0.10), (0.19, 0.10), (0.25, 0.13), (0.25, 0.07), (0.35, 0.06)])
+def test_out_of_range_policies(paper: Coefficients, L: float, W: float) -> None:
+    with pytest.warns(OutOfFittedRangeWarning):
+        warned = generate(paper, L, W, out_of_range="warn")
+    assert warned.extrapolated
+    with pytest.raises(OutOfFittedRangeError) as info:
+        generate(paper, L, W, out_of_range="error")
+    assert info.value.name in ("L", "W")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ignored = generate(paper, L, W, out_of_range="ignore")
+    assert ignored.extrapolated
+    assert_allclose(ignored.trajectory.parameters, eq9_by_hand(L, W), rtol=0, atol=1e-12)
+    assert ignored.trajectory.parameters == warned.trajectory.parameters
+
+
+def test_default_policy_warns(paper: Coefficients) -> None:
+    with pytest.warns(OutOfFittedRangeWarning):
+        generate(paper, 0.32, 0.10)
+
+
+@pytest.mark.parametrize(("L", "W"), [(0.2, 0.08), (0.3, 0.12), (0.25, 0.1)])
+def test_in_range_is_silent_under_every_policy(paper: Coefficients, L: float, W: float) -> None:
+    for policy in ("warn", "error", "ignore"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert not generate(paper, L, W, out_of_range=policy).extrapolated
+
+
+def test_unknown_policy_raises(paper: Coefficients) -> None:
+    with pytest.raises(InvalidParameterError):
+        generate(paper, 0.25, 0.1, out_of_range="clip")
+
+
+@pytest.mark.parametrize(
+    ("L", "W"),
+    [
+        (float("nan"), 0.1),
+        (0.25, float("nan")),
+        (-0.25, 0.1),
+        (0.25, -0.1),
+        (0.0, 0.1),
+        (0.25, 0.0),
+        (float("inf"), 0.1),
+    ],
+)
+@pytest.mark.parametrize("policy", ["warn", "error", "ignore"])
+def test_bad_sizes_raise(paper: Coefficients, L: float, W: float, policy: str) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an invalid size is an error, not a range warning
+        with pytest.raises(InvalidParameterError):
+            generate(paper, L, W, out_of_range=policy)
+
+
+@pytest.mark.parametrize(("L", "W"), [(1.5, 0.1), (0.8, 0.1), (0.25, 0.46)])
+def test_impassable_obstacle_raises(paper: Coefficients, exact: Coefficients, L: float, W: float) -> None:
+    for coefficients in (paper, exact):
+        with pytest.raises(UnreachableObstacleError) as info:
+            generate(coefficients, L, W, out_of_range="ignore")
+        assert info.value.point_name in ("P1", "P2", "P3", "P4", "P5")
+        assert not info.value.reach_m[0] <= info.value.radius_m <= info.value.reach_m[1]
+
+
+# --------------------------------------------------------------------------------------------
+# Batch == single queries.
+
+
+@pytest.mark.parametrize("family", ["paper", "exact-endpoints"])
+def test_generate_parameters_batch_equals_single_queries(paper: Coefficients, exact: Coefficients, family: str) -> None:
+    coefficients = paper if family == "paper" else exact
+    L = np.array([q[0] for q in QUERIES])
+    W = np.array([q[1] for q in QUERIES])
+    batch = generate_parameters(coefficients, L, W)
+    assert batch.shape == (len(QUERIES), 8)
+    for row, (length, width) in zip(batch, QUERIES, strict=True):
+        single = generate(coefficients, length, width)
+        assert_allclose(row, single.trajectory.parameters, rtol=0, atol=1e-13)
+        t = np.linspace(0, single.duration_s, 11)
+        assert_allclose(joint_angles(row, t), single.q(t), rtol=0, atol=1e-12)
+
+
+def test_exact_endpoints_generator_pins_the_tip(arm: PlanarArm, exact: Coefficients) -> None:
+    for L, W in QUERIES:
+        generated = generate(exact, L, W)
+        free = exact.predict_free(L, W)
+        context = endpoint_context(arm, generated.path, exact.elbow)
+        assert_allclose(generated.trajectory.parameters, expand("exact-endpoints", free, context), rtol=0, atol=1e-12)
+        tips = arm.end_effector_planar(generated.q(np.array([0.0, generated.duration_s])))
+        assert_allclose(tips[0], generated.path.points_m[0], rtol=0, atol=1e-9)
+        assert_allclose(tips[1], generated.path.points_m[-1], rtol=0, atol=1e-9)
+        assert dict(zip(("w1", "phi1", "A2", "w2"), free, strict=True)) == {
+            n: generated.trajectory.as_dict()[n] for n in ("w1", "phi1", "A2", "w2")
+        }
+
+
+def test_parameter_names_order() -> None:
+    assert tuple(EQ9) == PARAMETER_NAMES

@@ -1,0 +1,176 @@
+"""The viewer's Meshcat server: loopback only, stopped by PID, and Meshcat kept out of the
+modules that do not draw.
+
+meshcat 0.3.2's web server listens on every interface; ours must listen on 127.0.0.1 only
+(both the ZeroMQ and the web port), checked here from /proc for the server's PID. After
+shutdown (context exit, SIGTERM to the CLI, or interpreter exit) the process must be gone.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+from verify.viewer.server import (
+    ListeningSocket,
+    MeshcatServer,
+    ServerConfig,
+    ViewerError,
+    _decode_address,
+    listening_sockets,
+)
+
+ROOT = Path(__file__).resolve().parent.parent
+linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+
+
+def gone(pid: int, timeout_s: float = 10.0) -> bool:
+    """True once no process (not even a zombie) has this PID, within the timeout [s]."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        status = Path(f"/proc/{pid}/status")
+        try:
+            text = status.read_text()
+        except FileNotFoundError:
+            return True
+        if re.search(r"^State:\s+Z", text, re.MULTILINE):
+            return False  # a zombie: its parent did not wait for it
+        time.sleep(0.05)
+    return False
+
+
+def assert_loopback_only(pid: int, ports: set[int]) -> None:
+    sockets = listening_sockets(pid)
+    assert sockets, f"process {pid} listens on nothing"
+    assert all(s.address == "127.0.0.1" for s in sockets), sockets
+    assert {s.port for s in sockets} == ports, sockets
+
+
+@linux_only
+def test_server_listens_on_loopback_only_and_is_gone_after_stop():
+    with MeshcatServer() as server:
+        pid = server.pid
+        assert server.running
+        assert server.web_url.startswith("http://127.0.0.1:")
+        assert server.zmq_url.startswith("tcp://127.0.0.1:")
+        assert_loopback_only(pid, {server.zmq_port, server.web_port})
+        # It serves the viewer (a local request, no network).
+        with urllib.request.urlopen(server.web_url, timeout=10) as response:
+            assert response.status == 200
+            assert b"MeshCat" in response.read()
+        # A client can draw through it.
+        vis = server.visualizer()
+        vis["box"].set_transform()
+    assert not server.running
+    assert gone(pid)
+
+
+@linux_only
+def test_live_cli_serves_on_loopback_and_stops_its_server_on_sigterm():
+    cli = subprocess.Popen(
+        [sys.executable, "-m", "verify.view", "--paper-test1", "--hold", "120"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        line = cli.stdout.readline()
+        match = re.match(r"Meshcat viewer: http://127\.0\.0\.1:(\d+)/static/ \(server PID (\d+), loopback only\)", line)
+        assert match, (line, cli.stderr.read() if cli.poll() is not None else "")
+        web_port, server_pid = int(match[1]), int(match[2])
+        sockets = listening_sockets(server_pid)
+        assert web_port in {s.port for s in sockets}
+        assert len(sockets) == 2 and all(s.address == "127.0.0.1" for s in sockets), sockets
+        cli.send_signal(signal.SIGTERM)
+        out, err = cli.communicate(timeout=30)
+    finally:
+        if cli.poll() is None:
+            cli.kill()
+            cli.wait()
+    assert cli.returncode == 0, err
+    assert "stopped the Meshcat server" in out
+    assert gone(server_pid)
+
+
+@linux_only
+def test_server_is_stopped_at_interpreter_exit():
+    code = "from verify.viewer.server import MeshcatServer; print(MeshcatServer().start().pid, flush=True)"
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert gone(int(done.stdout.strip()))
+
+
+def test_stop_is_idempotent_and_a_stopped_server_refuses_clients():
+    server = MeshcatServer().start()
+    server.stop()
+    server.stop()
+    with pytest.raises(ViewerError, match="not running"):
+        server.visualizer()
+
+
+@pytest.mark.parametrize("host", ["0.0.0.0", "192.168.1.10", "::", "localhost", ""])
+def test_config_refuses_non_loopback_hosts(host):
+    with pytest.raises(ViewerError, match="loopback"):
+        ServerConfig(host=host)
+
+
+def test_config_accepts_ipv6_loopback():
+    assert ServerConfig(host="::1").host == "::1"
+
+
+@pytest.mark.parametrize(
+    ("hex_address", "expected"),
+    [
+        ("0100007F", "127.0.0.1"),
+        ("00000000", "0.0.0.0"),
+        ("0101A8C0", "192.168.1.1"),
+        ("00000000000000000000000001000000", "::1"),
+        ("00000000000000000000000000000000", "::"),
+    ],
+)
+def test_proc_net_addresses_are_decoded(hex_address, expected):
+    assert _decode_address(hex_address) == expected
+
+
+def test_wildcard_addresses_are_not_loopback():
+    assert ListeningSocket("127.0.0.1", 7000).is_loopback
+    assert ListeningSocket("::1", 7000).is_loopback
+    assert not ListeningSocket("0.0.0.0", 7000).is_loopback
+    assert not ListeningSocket("::", 7000).is_loopback
+
+
+@linux_only
+def test_listening_sockets_of_a_missing_process_raise():
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    with pytest.raises(ViewerError):
+        listening_sockets(child.pid)
+
+
+def test_meshcat_is_imported_only_by_the_viewer_modules():
+    modules = sorted(
+        f"pipeline.{p.stem}" for p in (ROOT / "pipeline").glob("*.py") if p.stem not in {"__init__", "__main__"}
+    )
+    modules += ["verify.view", "verify.viewer", "verify.viewer.server", "verify.viewer.browser"]
+    if (ROOT / "verify" / "sweep.py").is_file():
+        modules.append("verify.sweep")  # without --meshcat it must not need Meshcat
+    code = (
+        "import importlib, sys\n"
+        f"for name in {modules!r}:\n"
+        "    importlib.import_module(name)\n"
+        "loaded = sorted(m for m in sys.modules if m == 'meshcat' or m.startswith('meshcat.'))\n"
+        "print(loaded)\n"
+    )
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120, env=env)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"

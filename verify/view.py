@@ -1,0 +1,198 @@
+"""Show one generated trajectory in Meshcat: live, as a self-contained HTML page, or as a
+screenshot.
+
+    python -m verify.view --L 0.27 --W 0.09 [--coefficients FILE]
+    python -m verify.view --L 0.27 --W 0.09 --html view.html
+    python -m verify.view --paper-test1 --screenshot docs/viewer.png
+
+Live, a Meshcat server starts on 127.0.0.1 only, its URL is printed, and the scene stays
+up until Ctrl-C (or ``--hold`` seconds); the server process is then terminated. The scene:
+the arm from the URDF, the rounded obstacle at its true size and place, the desired and
+the actual end-effector paths, the five constraint points, the point of minimum clearance
+with its distance, and the trajectory as an animation (Animations > default: play, pause,
+scrub the time).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NoReturn
+
+from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning, PipelineError
+from pipeline.robot import DEFAULT_URDF, load_planar_arm
+
+PROG = "python -m verify.view"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(part) for part in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, e.g. 1200x800, got {text!r}") from None
+    if width < 64 or height < 64:
+        raise argparse.ArgumentTypeError(f"image size {text!r} too small: at least 64x64 px")
+    return width, height
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line interface."""
+    parser = _Parser(
+        prog=PROG,
+        description="Show a generated trajectory around the rounded obstacle in Meshcat (live on "
+        "127.0.0.1, as a self-contained HTML file, or as a PNG screenshot).",
+    )
+    parser.add_argument(
+        "--L", type=float, metavar="METRES", help="obstacle length L [m], > 0 (required unless --paper-test1)"
+    )
+    parser.add_argument(
+        "--W", type=float, metavar="METRES", help="obstacle width W [m], > 0 (required unless --paper-test1)"
+    )
+    parser.add_argument(
+        "--coefficients",
+        default="paper",
+        metavar="FILE",
+        help="coefficients file of the generator, or 'paper' for the paper's Eq. 9 (default: paper)",
+    )
+    parser.add_argument(
+        "--paper-test1",
+        action="store_true",
+        help="show the paper's published Table 2 Test 1 trajectory (L = 0.30 m, W = 0.12 m) "
+        "instead of a generated one (default: off)",
+    )
+    parser.add_argument(
+        "--urdf", type=Path, default=DEFAULT_URDF, metavar="FILE", help="arm URDF (default: the project's)"
+    )
+    output = parser.add_mutually_exclusive_group()
+    output.add_argument(
+        "--html",
+        type=Path,
+        metavar="FILE",
+        help="write the scene as one self-contained HTML file instead of serving it",
+    )
+    output.add_argument(
+        "--screenshot",
+        type=Path,
+        metavar="PNG",
+        help="write a PNG screenshot of the exported page (headless Chromium) instead of serving it",
+    )
+    parser.add_argument(
+        "--size", type=_size, default=(1200, 800), metavar="WxH", help="screenshot size [px] (default: 1200x800)"
+    )
+    parser.add_argument(
+        "--flat",
+        action="store_true",
+        help="flat unlit colours, no grid, axes or background (the pixel test's style; default: off)",
+    )
+    parser.add_argument(
+        "--hold",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="live mode: stop the server after this many seconds [s] (default: run until Ctrl-C)",
+    )
+    parser.add_argument("--fps", type=int, default=30, help="animation frame rate [1/s] (default: 30)")
+    parser.add_argument(
+        "--samples",
+        type=int,
+        default=400,
+        help="points per path and configurations checked for clearance (default: 400)",
+    )
+    parser.add_argument(
+        "--no-play", action="store_true", help="do not start the animation on load (default: it plays once)"
+    )
+    return parser
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    """Raise PipelineError on values argparse cannot check."""
+    if args.paper_test1:
+        for name in ("L", "W"):
+            if getattr(args, name) is not None:
+                raise InvalidParameterError(name, getattr(args, name), "no value with --paper-test1 (it fixes L and W)")
+    else:
+        for name in ("L", "W"):
+            value = getattr(args, name)
+            if value is None:
+                raise InvalidParameterError(name, None, f"a length in metres: --{name} is required")
+            if not math.isfinite(value) or value <= 0:
+                raise InvalidParameterError(name, value, "a positive finite length [m]")
+    if args.hold is not None and not (math.isfinite(args.hold) and args.hold > 0):
+        raise InvalidParameterError("--hold", args.hold, "a positive number of seconds")
+    if args.fps < 1:
+        raise InvalidParameterError("--fps", args.fps, "an integer >= 1")
+    if args.samples < 16:
+        raise InvalidParameterError("--samples", args.samples, "an integer >= 16")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI; returns the exit code (0 ok, 2 bad input or failure, 130 interrupted)."""
+    args = build_parser().parse_args(argv)
+    try:
+        _check_args(args)
+        return _run(args)
+    except PipelineError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _run(args: argparse.Namespace) -> int:
+    # Meshcat is imported here, by the viewer modules, only when a view is requested.
+    from verify.viewer.browser import BrowserConfig
+    from verify.viewer.scene import ViewStyle
+    from verify.viewer.trajectory_view import (
+        case_from_generated,
+        paper_test1_case,
+        screenshot_trajectory,
+        show_trajectory,
+        trajectory_html,
+        write_html,
+    )
+
+    arm = load_planar_arm(args.urdf)
+    if args.paper_test1:
+        case = paper_test1_case(arm)
+    else:
+        from pipeline.coefficients import load_coefficients
+        from pipeline.generator import generate
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", OutOfFittedRangeWarning)
+            generated = generate(load_coefficients(args.coefficients), args.L, args.W)
+        for warning in caught:
+            print(f"{PROG}: warning: {warning.message}", file=sys.stderr)
+        case = case_from_generated(generated, arm)
+    changes = {"fps": args.fps, "samples": args.samples, "play": not args.no_play}
+    if args.screenshot is not None:
+        width, height = args.size
+        style = ViewStyle.for_pixels(**changes) if args.flat else ViewStyle(**changes)
+        view = screenshot_trajectory(case, args.screenshot, BrowserConfig(width_px=width, height_px=height), style)
+        print(f"wrote {args.screenshot} ({width}x{height} px; {view.cases[0].clearance.label})")
+        return 0
+    style = ViewStyle.for_pixels(aspect=1.6, **changes) if args.flat else ViewStyle(aspect=1.6, **changes)
+    if args.html is not None:
+        html, view = trajectory_html(case, style)
+        write_html(args.html, html)
+        print(f"wrote {args.html} ({len(html) / 1e6:.1f} MB, opens offline; {view.cases[0].clearance.label})")
+        return 0
+    view = show_trajectory(case, style, hold_s=args.hold)
+    print(f"stopped the Meshcat server ({view.cases[0].clearance.label})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
