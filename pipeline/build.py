@@ -43,25 +43,58 @@ def parser() -> argparse.ArgumentParser:
         description="Run the DOE (PSO + exact Coal clearance per obstacle) and regress the coefficients.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    p.add_argument("--out", type=Path, default=Path("results"), help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="master random seed")
-    p.add_argument("--levels", type=int, default=3, help="levels per factor (K x K design)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=Path("results"),
+        help="output folder (doe.json, coefficients.json, build_timing.json)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="master random seed [integer]; the same seed gives byte-identical coefficients",
+    )
+    p.add_argument("--levels", type=int, default=3, help="levels per factor [count], K x K design, K >= 3")
     p.add_argument("--L-range", nargs=2, type=float, default=[0.20, 0.30], metavar=("MIN", "MAX"), help="L range [m]")
     p.add_argument("--W-range", nargs=2, type=float, default=[0.08, 0.12], metavar=("MIN", "MAX"), help="W range [m]")
     p.add_argument("--family", choices=FAMILY_NAMES, default="paper", help="trajectory family")
-    p.add_argument("--jobs", type=int, default=1, help="worker processes (does not change the result)")
+    p.add_argument("--jobs", type=int, default=1, help="worker processes [count]; does not change the result")
     p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm")
-    p.add_argument("--swarm-size", type=int, default=defaults_pso.swarm_size, help="PSO particles")
-    p.add_argument("--iterations", type=int, default=defaults_pso.iterations, help="PSO iterations per restart")
-    p.add_argument("--restarts", type=int, default=defaults_pso.restarts, help="independent PSO swarms")
+    p.add_argument("--swarm-size", type=int, default=defaults_pso.swarm_size, help="PSO particles per swarm [count]")
+    p.add_argument("--iterations", type=int, default=defaults_pso.iterations, help="PSO iterations per restart [count]")
+    p.add_argument(
+        "--restarts", type=int, default=defaults_pso.restarts, help="independent PSO swarms [count], each polished"
+    )
     p.add_argument("--no-polish", action="store_true", help="skip the least_squares polish after PSO")
-    p.add_argument("--n-points", type=int, default=defaults_fit.n_points, help="path points n of Eq. 5")
-    p.add_argument("--endpoint-weight", type=float, default=defaults_fit.endpoint_weight, help="Eq. 5 end weight")
-    p.add_argument("--penalty-weight", type=float, default=defaults_fit.penalty_weight, help="clearance penalty weight")
+    p.add_argument(
+        "--n-points", type=int, default=defaults_fit.n_points, help="path points n of Eq. 5 [count], uniform in x"
+    )
+    p.add_argument(
+        "--endpoint-weight",
+        type=float,
+        default=defaults_fit.endpoint_weight,
+        help="weight of the first and last 3 path points in Eq. 5 [-]",
+    )
+    p.add_argument(
+        "--penalty-weight",
+        type=float,
+        default=defaults_fit.penalty_weight,
+        help="clearance penalty weight [1/m^2 relative to Eq. 5's m^2]",
+    )
     p.add_argument("--margin", type=float, default=defaults_scene.margin_m, help="safety margin [m]")
-    p.add_argument("--margin-buffer", type=float, default=defaults_fit.margin_buffer_m, help="extra margin [m]")
-    p.add_argument("--corner-radius", type=float, default=defaults_scene.corner_radius_m, help="corner radius [m]")
-    p.add_argument("--speed", type=float, default=defaults_scene.speed_m_s, help="path speed v [m/s]")
+    p.add_argument(
+        "--margin-buffer",
+        type=float,
+        default=defaults_fit.margin_buffer_m,
+        help="extra clearance the optimiser aims for beyond the margin [m]",
+    )
+    p.add_argument(
+        "--corner-radius", type=float, default=defaults_scene.corner_radius_m, help="obstacle corner radius [m]"
+    )
+    p.add_argument(
+        "--speed", type=float, default=defaults_scene.speed_m_s, help="end-effector speed v along the path [m/s]"
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar or tables")
     return p
 

@@ -90,6 +90,8 @@ _SPEED_SLACK = 1.0 + 1e-9
 
 #: A clearance function: joint configurations (m, 2) [rad] -> per-link clearance (m, 2) [m].
 ClearanceFunction = Callable[[np.ndarray], np.ndarray]
+#: A speed bound: interval ends ta, tb (m,) [s] -> bound on every link point's speed (m, 2) [m/s].
+SpeedBound = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -286,32 +288,70 @@ def certify(
         samples: Number of initial uniform samples over [0, T] (>= 2); default from
             ``resolution_m`` (:func:`samples_for_resolution`).
         resolution_m: Motion resolution of the default sampling [m].
+        distance_error_m, tolerance_m, decide_above_m, max_evaluations: as in :func:`certify_motion`.
+
+    Returns:
+        The :class:`Certificate`.
+    """
+    n = samples_for_resolution(trajectory, reach, resolution_m) if samples is None else samples
+    check_positive_int("samples", n, minimum=2)
+
+    def speed_bound(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+        return link_speed_bounds(trajectory, reach, ta, tb)
+
+    return certify_motion(
+        trajectory.q,
+        np.linspace(0.0, trajectory.duration_s, n),
+        clearance,
+        speed_bound,
+        distance_error_m=distance_error_m,
+        tolerance_m=tolerance_m,
+        decide_above_m=decide_above_m,
+        max_evaluations=max_evaluations,
+    )
+
+
+def certify_motion(
+    q: Callable[[np.ndarray], np.ndarray],
+    times_s: np.ndarray,
+    clearance: ClearanceFunction,
+    speed_bound: SpeedBound,
+    *,
+    distance_error_m: float = COAL_DISTANCE_ERROR_M,
+    tolerance_m: float = DEFAULT_TOLERANCE_M,
+    decide_above_m: float | None = None,
+    max_evaluations: int = DEFAULT_MAX_EVALUATIONS,
+) -> Certificate:
+    """The certificate's core, for any joint motion whose link point speeds can be bounded.
+
+    Args:
+        q: Joint motion, times (m,) [s] -> configurations (m, 2) [rad].
+        times_s: Initial samples, increasing, first and last the ends of the motion [s]. For a
+            piecewise motion they must include every breakpoint (the bisection never crosses one).
+        clearance: Per-link clearance function, (m, 2) [rad] -> (m, 2) [m].
+        speed_bound: Bound on the speed of every point of each link on [ta, tb] [m/s].
         distance_error_m: Bound on the error of ``clearance`` [m] (Coal: :data:`COAL_DISTANCE_ERROR_M`).
         tolerance_m: Refine until the bound is within this of the sampled minimum [m].
         decide_above_m: If given, only decide whether the clearance exceeds this value [m]: intervals
             already bounded above it are not refined, and refinement stops once a sample is at or
             below it. The returned bound is still rigorous, but may be looser than ``tolerance_m``.
         max_evaluations: Cap on refinement evaluations (configurations) beyond the initial samples.
-
-    Returns:
-        The :class:`Certificate`.
     """
-    duration = trajectory.duration_s
-    n = samples_for_resolution(trajectory, reach, resolution_m) if samples is None else samples
+    times = np.asarray(times_s, dtype=float)
+    n = times.size
     check_positive_int("samples", n, minimum=2)
     check_non_negative("distance_error_m", distance_error_m)
     check_positive("tolerance_m", tolerance_m)
     check_positive_int("max_evaluations", max_evaluations, minimum=0)
 
     def evaluate(t: np.ndarray) -> np.ndarray:
-        values = np.asarray(clearance(trajectory.q(t)), dtype=float).reshape(len(t), 2)
+        values = np.asarray(clearance(q(t)), dtype=float).reshape(len(t), 2)
         if not np.all(np.isfinite(values)):
             raise InvalidParameterError(
                 "clearance", "non-finite values", "finite distances from the clearance function"
             )
         return values
 
-    times = np.linspace(0.0, duration, n)
     values = evaluate(times)
     sampled_row = int(np.argmin(np.min(values, axis=1)))
     sampled_link = np.min(values, axis=0)
@@ -326,7 +366,7 @@ def certify(
     rounds = 0
     converged = True
     while ta.size:
-        lower, where = _interval_bounds(trajectory, reach, ta, tb, da, db)
+        lower, where = _interval_bounds(speed_bound(ta, tb), ta, tb, da, db)
         floor = float(np.min(observed)) - distance_error_m
         worst = np.min(lower, axis=1)
         refine = worst < floor - tolerance_m
@@ -381,15 +421,10 @@ def certify(
 
 
 def _interval_bounds(
-    trajectory: JointTrajectory,
-    reach: LinkReach,
-    ta: np.ndarray,
-    tb: np.ndarray,
-    da: np.ndarray,
-    db: np.ndarray,
+    speed: np.ndarray, ta: np.ndarray, tb: np.ndarray, da: np.ndarray, db: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-link lower bound (m, 2) [m] on each interval and where it is attained (m, 2) [s]."""
-    speed = link_speed_bounds(trajectory, reach, ta, tb)
+    """Per-link lower bound (m, 2) [m] on each interval and where it is attained (m, 2) [s],
+    given the link point speed bounds ``speed`` (m, 2) [m/s] on the intervals."""
     h = (tb - ta)[:, None]
     lower = (da + db - speed * h) / 2.0
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -397,6 +432,27 @@ def _interval_bounds(
     where = ta[:, None] + np.clip(offset, 0.0, h)
     # Where the clearance is negative at an end the bound is only used as "not positive".
     return lower, where
+
+
+def clearance_route(arm: PlanarArm, obstacle: Obstacle, route: str) -> tuple[ClearanceFunction, float]:
+    """The clearance function of a route and the bound on its error [m].
+
+    ``"coal"``: Pinocchio geometry model + Coal (canonical); ``"analytic"``: planar capsule to
+    rounded rectangle (only for capsule links in the xy plane).
+
+    Raises:
+        InvalidParameterError: unknown route. RobotModelError: "analytic" on an unsuitable arm.
+    """
+    if route == "coal":
+        return CoalClearance(arm, obstacle).link_clearance, COAL_DISTANCE_ERROR_M
+    if route == "analytic":
+        check_fast_route(arm)
+
+        def function(q: np.ndarray) -> np.ndarray:
+            return analytic_link_clearance(q, arm, obstacle)
+
+        return function, ANALYTIC_DISTANCE_ERROR_M
+    raise InvalidParameterError("route", route, "'coal' or 'analytic'")
 
 
 def certify_trajectory(
@@ -428,19 +484,8 @@ def certify_trajectory(
         InvalidParameterError: unknown route or bad settings.
         RobotModelError: ``route="analytic"`` on an arm that does not suit it.
     """
+    function, error = clearance_route(arm, obstacle, route)
     reach = LinkReach.from_arm(arm)
-    if route == "coal":
-        function: ClearanceFunction = CoalClearance(arm, obstacle).link_clearance
-        error = COAL_DISTANCE_ERROR_M
-    elif route == "analytic":
-        check_fast_route(arm)
-
-        def function(q: np.ndarray) -> np.ndarray:
-            return analytic_link_clearance(q, arm, obstacle)
-
-        error = ANALYTIC_DISTANCE_ERROR_M
-    else:
-        raise InvalidParameterError("route", route, "'coal' or 'analytic'")
     return certify(
         trajectory,
         function,

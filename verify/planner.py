@@ -54,15 +54,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.certificate import (
-    ANALYTIC_DISTANCE_ERROR_M,
     COAL_DISTANCE_ERROR_M,
     DEFAULT_MAX_EVALUATIONS,
     DEFAULT_RESOLUTION_M,
     DEFAULT_TOLERANCE_M,
     Certificate,
     LinkReach,
+    certify_motion,
+    clearance_route,
 )
-from pipeline.clearance import CoalClearance, analytic_link_clearance, check_fast_route
+from pipeline.clearance import CoalClearance
 from pipeline.exceptions import InvalidParameterError
 from pipeline.family import inverse_kinematics
 from pipeline.obstacle import Obstacle
@@ -221,115 +222,35 @@ def certify_joint_path(
     if samples_per_segment is not None:
         check_positive_int("samples_per_segment", samples_per_segment, minimum=2)
 
-    starts = path.waypoints_rad[:-1]
-    steps = np.diff(path.waypoints_rad, axis=0)
     seg_ta = path.times_s[:-1]
     seg_h = np.diff(path.times_s)
     speeds = segment_speed_bounds(path, reach)
 
-    def evaluate(segment: np.ndarray, t: np.ndarray) -> np.ndarray:
-        fraction = np.clip((t - seg_ta[segment]) / seg_h[segment], 0.0, 1.0)
-        q = starts[segment] + fraction[:, None] * steps[segment]
-        values = np.asarray(clearance(q), dtype=float).reshape(len(t), 2)
-        if not np.all(np.isfinite(values)):
-            raise InvalidParameterError(
-                "clearance", "non-finite values", "finite distances from the clearance function"
-            )
-        return values
-
-    # Initial samples: per segment, ends included; a waypoint is evaluated once and shared.
-    counts = []
+    # Initial samples: per segment, ends included; a waypoint is sampled once and shared.
+    times_list = [np.array([0.0])]
     for j in range(path.segments):
         if samples_per_segment is not None:
-            counts.append(samples_per_segment)
+            count = samples_per_segment
         else:
-            counts.append(max(2, math.ceil(float(np.max(speeds[j])) * seg_h[j] / resolution_m) + 1))
-    seg_of_sample = [np.array([0])]
-    times_list = [np.array([0.0])]
-    for j, count in enumerate(counts):
-        fractions = np.linspace(0.0, 1.0, count)[1:]
-        local = seg_ta[j] + fractions * seg_h[j]
+            count = max(2, math.ceil(float(np.max(speeds[j])) * seg_h[j] / resolution_m) + 1)
+        local = seg_ta[j] + np.linspace(0.0, 1.0, count)[1:] * seg_h[j]
         local[-1] = path.times_s[j + 1]
         times_list.append(local)
-        seg_of_sample.append(np.full(count - 1, j))
-    times = np.concatenate(times_list)
-    sample_segment = np.concatenate(seg_of_sample)
-    values = evaluate(sample_segment, times)
-    n = int(times.size)
-    # Interval i runs from sample i to sample i + 1 and lies on the segment of sample i + 1.
-    interval_segment = sample_segment[1:]
 
-    sampled_row = int(np.argmin(np.min(values, axis=1)))
-    sampled_link = np.min(values, axis=0)
-    evaluations = n
-    observed = sampled_link.copy()
-    observed_time = times[np.argmin(values, axis=0)]
+    def speed_bound(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+        # Intervals never cross a waypoint: each lies on the segment holding its midpoint.
+        segment = np.clip(np.searchsorted(path.times_s, (ta + tb) / 2.0, side="right") - 1, 0, path.segments - 1)
+        return speeds[segment]
 
-    ta, tb, seg = times[:-1], times[1:], interval_segment
-    da, db = values[:-1] - distance_error_m, values[1:] - distance_error_m
-    done_lb: list[np.ndarray] = []
-    done_t: list[np.ndarray] = []
-    rounds = 0
-    converged = True
-    while ta.size:
-        speed = speeds[seg]
-        h = (tb - ta)[:, None]
-        lower = (da + db - speed * h) / 2.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            offset = np.where(speed > 0, (da - db + speed * h) / (2.0 * speed), 0.0)
-        where = ta[:, None] + np.clip(offset, 0.0, h)
-        floor = float(np.min(observed)) - distance_error_m
-        worst = np.min(lower, axis=1)
-        refine = worst < floor - tolerance_m
-        if decide_above_m is not None:
-            refine &= worst <= decide_above_m
-            if floor <= decide_above_m:
-                refine[:] = False
-        if np.count_nonzero(refine) > max_evaluations - (evaluations - n):
-            converged = False
-            refine[:] = False
-        done_lb.append(lower[~refine])
-        done_t.append(where[~refine])
-        if not np.any(refine):
-            break
-        rounds += 1
-        mid = (ta[refine] + tb[refine]) / 2.0
-        mid_seg = seg[refine]
-        mid_values = evaluate(mid_seg, mid)
-        evaluations += mid.size
-        rows = np.argmin(mid_values, axis=0)
-        better = mid_values[rows, [0, 1]] < observed
-        observed = np.where(better, mid_values[rows, [0, 1]], observed)
-        observed_time = np.where(better, mid[rows], observed_time)
-        dm = mid_values - distance_error_m
-        ta, tb = np.concatenate([ta[refine], mid]), np.concatenate([mid, tb[refine]])
-        da, db = np.concatenate([da[refine], dm]), np.concatenate([dm, db[refine]])
-        seg = np.concatenate([mid_seg, mid_seg])
-
-    all_lb = np.concatenate(done_lb)
-    all_t = np.concatenate(done_t)
-    rows = np.argmin(all_lb, axis=0)
-    interval_lb = all_lb[rows, [0, 1]]
-    link_bounds = np.minimum(interval_lb, observed - distance_error_m)
-    link_times = np.where(interval_lb <= observed - distance_error_m, all_t[rows, [0, 1]], observed_time)
-    bound_link = int(np.argmin(link_bounds))
-    observed_link = int(np.argmin(observed))
-    return Certificate(
-        certified_clearance_m=float(link_bounds[bound_link]),
-        certified_link_clearance_m=(float(link_bounds[0]), float(link_bounds[1])),
-        sampled_clearance_m=float(np.min(sampled_link)),
-        sampled_link_clearance_m=(float(sampled_link[0]), float(sampled_link[1])),
-        sampled_time_s=float(times[sampled_row]),
-        min_observed_clearance_m=float(observed[observed_link]),
-        min_observed_time_s=float(observed_time[observed_link]),
-        bound_time_s=float(link_times[bound_link]),
-        bound_link=bound_link + 1,
-        initial_samples=n,
-        evaluations=evaluations,
-        refinement_rounds=rounds,
-        converged=converged,
-        distance_error_m=float(distance_error_m),
-        tolerance_m=float(tolerance_m),
+    return certify_motion(
+        path.q,
+        np.concatenate(times_list),
+        clearance,
+        speed_bound,
+        distance_error_m=distance_error_m,
+        tolerance_m=tolerance_m,
+        decide_above_m=decide_above_m,
+        max_evaluations=max_evaluations,
     )
 
 
@@ -359,19 +280,8 @@ def certify_path(
     Raises:
         InvalidParameterError: unknown route or bad settings.
     """
+    function, error = clearance_route(arm, obstacle, route)
     reach = LinkReach.from_arm(arm)
-    if route == "coal":
-        function: ClearanceFunction = CoalClearance(arm, obstacle).link_clearance
-        error = COAL_DISTANCE_ERROR_M
-    elif route == "analytic":
-        check_fast_route(arm)
-
-        def function(q: np.ndarray) -> np.ndarray:
-            return analytic_link_clearance(q, arm, obstacle)
-
-        error = ANALYTIC_DISTANCE_ERROR_M
-    else:
-        raise InvalidParameterError("route", route, "'coal' or 'analytic'")
     return certify_joint_path(
         path,
         function,
