@@ -20,6 +20,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .certificate import Certificate, certify_trajectory
+from .clearance import CoalClearance
 from .coefficients import Coefficients
 from .exceptions import NoCertifiedTrajectoryError
 from .family import canonical_free, polish_bounds
@@ -174,10 +175,21 @@ def generate_certified(
     if second.certified_clearance_m >= margin:
         fixed = GeneratedTrajectory(**{**generated.__dict__, "trajectory": repaired})
         return CertifiedTrajectory(fixed, second, margin, True, first, seconds)
+    best = max(first.certified_clearance_m, second.certified_clearance_m)
     raise NoCertifiedTrajectoryError(
-        generated.length_m,
-        generated.width_m,
-        max(first.certified_clearance_m, second.certified_clearance_m),
-        margin,
-        f"repair ran {seconds:.3f} s and did not reach the margin",
+        generated.length_m, generated.width_m, best, margin, _refusal_reason(generated, arm, coefficients, margin)
     )
+
+
+def _refusal_reason(generated: GeneratedTrajectory, arm: PlanarArm, coefficients: Coefficients, margin: float) -> str:
+    """Why the repair could not reach the margin, in words that group well across cases."""
+    if coefficients.family == "exact-endpoints":
+        # The family pins the poses at P1 and P5: if one of them is closer than the margin,
+        # no trajectory of the family can keep it.
+        ends = np.array([0.0, generated.duration_s])
+        clearance = CoalClearance(arm, generated.obstacle).link_clearance(generated.trajectory.q(ends))
+        closest = clearance.min(axis=1)
+        if closest.min() < margin:
+            name = "P1" if closest[0] <= closest[1] else "P5"
+            return f"the end pose at {name}, fixed by the exact-endpoints family, is closer than the margin"
+    return "the repair did not reach the margin"

@@ -97,3 +97,29 @@ def test_online_sweep_cli_bad_input(capsys):
     assert online_sweep.main(["--coefficients", "paper", "--n", "0"]) == 2
     err = capsys.readouterr().err
     assert "error:" in err and "Traceback" not in err
+
+
+def test_exact_endpoints_refusal_names_the_fixed_end_pose(arm, paper):
+    """With exact endpoints the pose at P5 is fixed; at (0.25, 0.12) it is closer than the 1 cm
+    margin (checked here independently by IK and the analytic distance), so the answer must be
+    a refusal that says so, not a trajectory."""
+    from pipeline.coefficients import Coefficients
+    from pipeline.family import inverse_kinematics
+    from pipeline.obstacle import Obstacle
+    from pipeline.path import desired_path
+
+    constant = {"w1": 1.2, "phi1": 0.216, "A2": 3.0, "w2": 0.562}
+    exact = Coefficients(
+        family="exact-endpoints",
+        parameters={name: (value, 0.0, 0.0, 0.0, 0.0, 0.0) for name, value in constant.items()},
+        fitted_range_m=paper.fitted_range_m,
+        scene=paper.scene,
+        link_lengths_m=paper.link_lengths_m,
+        link_radii_m=paper.link_radii_m,
+    )
+    obstacle = Obstacle.in_scene(0.25, 0.12, paper.scene)
+    end_pose = inverse_kinematics(desired_path(obstacle, paper.scene).points_m[-1], arm.link_lengths_m, 1)
+    assert analytic_link_clearance(end_pose, arm, obstacle).min() < paper.scene.margin_m
+    with pytest.raises(NoCertifiedTrajectoryError, match="end pose at P5") as info:
+        generate_certified(exact, 0.25, 0.12, arm)
+    assert info.value.certified_clearance_m < paper.scene.margin_m
