@@ -113,3 +113,7 @@ class NoCertifiedTrajectoryError(PipelineError):
             f"clearance {certified_clearance_m * 1e3:.3f} mm < margin {margin_m * 1e3:.3f} mm "
             f"({reason})"
         )
+
+
+class ViewerError(PipelineError):
+    """The Meshcat viewer or the headless browser could not start, serve or render."""

@@ -20,13 +20,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
-from pipeline.clearance import CoalClearance, analytic_link_clearance
-from pipeline.exceptions import InvalidParameterError
-from pipeline.obstacle import Obstacle
-from pipeline.path import desired_path
-from pipeline.robot import PlanarArm, load_planar_arm
-from pipeline.scene import Scene
-from pipeline.trajectory import JointTrajectory
 from pipeline.certificate import (
     COAL_DISTANCE_ERROR_M,
     LinkReach,
@@ -36,6 +29,13 @@ from pipeline.certificate import (
     link_speed_bounds,
     samples_for_resolution,
 )
+from pipeline.clearance import CoalClearance, analytic_link_clearance
+from pipeline.exceptions import InvalidParameterError
+from pipeline.obstacle import Obstacle
+from pipeline.path import desired_path
+from pipeline.robot import PlanarArm, load_planar_arm
+from pipeline.scene import Scene
+from pipeline.trajectory import JointTrajectory
 
 L1, L2, R_LINK = 0.30, 0.35, 0.005
 CORNER = 0.01

@@ -117,14 +117,15 @@ def test_stop_is_idempotent_and_a_stopped_server_refuses_clients():
         server.visualizer()
 
 
-@pytest.mark.parametrize("host", ["0.0.0.0", "192.168.1.10", "::", "localhost", ""])
+@pytest.mark.parametrize("host", ["0.0.0.0", "192.168.1.10", "::", "::1", "localhost", ""])
 def test_config_refuses_non_loopback_hosts(host):
     with pytest.raises(ViewerError, match="loopback"):
         ServerConfig(host=host)
 
 
-def test_config_accepts_ipv6_loopback():
-    assert ServerConfig(host="::1").host == "::1"
+def test_config_accepts_ipv4_loopback():
+    assert ServerConfig().host == "127.0.0.1"
+    assert ServerConfig(host="127.0.0.2").host == "127.0.0.2"
 
 
 @pytest.mark.parametrize(
