@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pipeline.coefficients import load_coefficients
 from pipeline.exceptions import InvalidParameterError
 from pipeline.obstacle import Obstacle
 from pipeline.path import desired_path
@@ -244,9 +245,7 @@ def test_case_result_invariants_and_json(arm: PlanarArm, scene: Scene) -> None:
 
 
 def test_measure_case_uses_the_online_generator(arm: PlanarArm) -> None:
-    coefficients_module = pytest.importorskip("pipeline.coefficients")
-    pytest.importorskip("pipeline.generator")
-    paper = coefficients_module.load_coefficients("paper")
+    paper = load_coefficients("paper")
     inside = measure_case(paper, 0.27, 0.11, arm, FAST, index=3)
     assert inside.index == 3 and inside.error is None and not inside.extrapolated
     assert inside.L_m == 0.27 and inside.W_m == 0.11

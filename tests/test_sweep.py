@@ -49,11 +49,6 @@ CASE_KEYS = (
 )
 
 
-def needs_coefficients() -> None:
-    pytest.importorskip("pipeline.coefficients")
-    pytest.importorskip("pipeline.generator")
-
-
 def run_main(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
     status = main(list(argv))
     captured = capsys.readouterr()
@@ -118,7 +113,6 @@ def test_missing_default_file_says_what_to_do(capsys: pytest.CaptureFixture[str]
 
 @pytest.mark.parametrize("content", ["{not json", "[]", '{"family": "paper"}', ""])
 def test_malformed_coefficients_file(capsys: pytest.CaptureFixture[str], tmp_path: Path, content: str) -> None:
-    pytest.importorskip("pipeline.coefficients")
     bad = tmp_path / "coefficients.json"
     bad.write_text(content)
     status, _, err = run_main(capsys, "--coefficients", str(bad), "--n", "2", *FAST)
@@ -155,7 +149,6 @@ def test_viewer_flags_fail_clearly_when_the_viewer_is_unavailable(capsys, monkey
 
 def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: Path) -> None:
     """--html calls verify.viewer.sweep_view.sweep_html(cases, regenerate, path, arm=...) after the sweep."""
-    needs_coefficients()
     calls = []
 
     class FakeViewer:
@@ -185,7 +178,6 @@ def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: 
 
 
 def test_coefficients_for_another_arm_are_refused(capsys: pytest.CaptureFixture[str], double_pendulum_urdf) -> None:
-    needs_coefficients()
     status, _, err = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST, "--urdf", str(double_pendulum_urdf))
     assert status == EXIT_USAGE and "link_lengths_m" in err and "Traceback" not in err
 
@@ -230,7 +222,6 @@ def test_write_json_atomic_replaces_and_leaves_no_temporary(tmp_path: Path) -> N
 
 
 def test_json_schema_and_summary(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    needs_coefficients()
     out_file = tmp_path / "sweep.json"
     status, out, _ = run_main(
         capsys, "--coefficients", "paper", "--n", "5", "--seed", "3", *FAST, "--json", str(out_file)
@@ -268,14 +259,12 @@ def test_json_schema_and_summary(capsys: pytest.CaptureFixture[str], tmp_path: P
 
 
 def test_failing_cases_are_listed_and_exit_1(capsys: pytest.CaptureFixture[str]) -> None:
-    needs_coefficients()
     status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "3", *FAST, "--max-endpoint-error", "1e-6")
     assert status == EXIT_FAILED
     assert "FAILED: 3 case(s)" in out and out.count("endpoint error at") >= 3 and "verdict: FAIL" in out
 
 
 def test_determinism_with_seed() -> None:
-    needs_coefficients()
     settings = MeasureSettings(time_samples=200)
     a = run_sweep("paper", n=4, seed=11, settings=settings, case_studies=False).to_json()
     b = run_sweep("paper", n=4, seed=11, settings=settings, case_studies=False).to_json()
@@ -285,7 +274,6 @@ def test_determinism_with_seed() -> None:
 
 
 def test_results_do_not_depend_on_jobs() -> None:
-    needs_coefficients()
     cases = sample_cases(SweepRange((0.2, 0.3), (0.08, 0.12)), 6, 21)
     settings = MeasureSettings(time_samples=200)
     serial = run_cases("paper", cases, settings, jobs=1)
@@ -295,7 +283,6 @@ def test_results_do_not_depend_on_jobs() -> None:
 
 
 def test_extrapolation_is_reported(capsys: pytest.CaptureFixture[str]) -> None:
-    needs_coefficients()
     status, out, _ = run_main(
         capsys, "--coefficients", "paper", "--n", "3", *FAST, "--range", "0.31", "0.33", "0.13", "0.14"
     )
@@ -304,7 +291,6 @@ def test_extrapolation_is_reported(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_compare_prints_both_on_the_same_cases(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    needs_coefficients()
     out_file = tmp_path / "compare.json"
     status, out, _ = run_main(
         capsys,
