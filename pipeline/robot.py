@@ -155,7 +155,7 @@ def load_planar_arm(urdf_path: str | Path | None = None, ee_frame: str | None = 
     if not path.is_file():
         raise RobotModelError(f"URDF not found: {path}")
     try:
-        model, collision_model, visual_model = pin.buildModelsFromUrdf(str(path))
+        model = pin.buildModelFromUrdf(str(path))
     except (RuntimeError, ValueError) as exc:
         raise RobotModelError(f"{path}: cannot be parsed as URDF ({exc})") from None
 
@@ -174,6 +174,12 @@ def load_planar_arm(urdf_path: str | Path | None = None, ee_frame: str | None = 
     axis = axes[0] / np.linalg.norm(axes[0])
     if float(axes[1] @ axis) < 0:
         raise RobotModelError(f"{path}: joint axes point in opposite directions; expected the same sense")
+
+    try:  # Geometry only once the kinematics are known to be a planar 2R chain.
+        collision_model = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.COLLISION)
+        visual_model = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.VISUAL)
+    except (RuntimeError, ValueError) as exc:
+        raise RobotModelError(f"{path}: geometry cannot be loaded ({exc})") from None
 
     ee_id = _end_effector_frame(model, ee_frame, path)
     pin.updateFramePlacements(model, data)

@@ -46,6 +46,14 @@ def double_pendulum_urdf() -> Path:
 
 
 @pytest.fixture(scope="session")
+def ur5_urdf() -> Path:
+    """example-robot-data's ur5_robot.urdf: a 6-joint spatial arm whose meshes are not resolvable here."""
+    return _example_robot_data_file(
+        Path("cmeel.prefix/share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")
+    )
+
+
+@pytest.fixture(scope="session")
 def scene() -> Scene:
     """The paper's scene with the defaults of NOTES.md (d = 0.56, y1 = d, v = 0.2 m/s)."""
     return Scene()

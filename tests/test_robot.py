@@ -293,3 +293,10 @@ def test_planar_arm_about_negative_z_loads(tmp_path: Path) -> None:
     q = np.array([0.4, -0.9])
     # Turning about -z mirrors Eq. 2 in the base frame.
     assert_allclose(arm.end_effector_position(q)[:2], eq2(q) * [1, -1], rtol=0, atol=1e-9)
+
+
+def test_a_six_joint_arm_is_refused_for_its_joints_not_its_meshes(ur5_urdf: Path) -> None:
+    """example-robot-data's UR5 (meshes not resolvable here) must be refused as 'not a 2-joint
+    arm' before any geometry is loaded."""
+    with pytest.raises(RobotModelError, match=r"expected exactly 2 actuated joints .* nq = 6"):
+        load_planar_arm(ur5_urdf)
