@@ -15,6 +15,7 @@ import pytest
 from pipeline.jsonio import write_json_atomic
 from verify import bench, planner
 from verify.bench import EXIT_OK, EXIT_USAGE, build_parser, main
+from verify.cli import HelpFormatter
 
 #: Tiny settings: 3 obstacles, a 4-particle 2-iteration PSO without polish on one of them.
 TINY = [
@@ -95,7 +96,7 @@ def test_help_lists_every_option_with_units_and_defaults(capsys: pytest.CaptureF
         for option in action.option_strings:
             assert option in out
         if action.option_strings != ["-h", "--help"]:
-            assert "(default" in bench._HelpFormatter("x")._get_help_string(action), action.option_strings
+            assert "(default" in HelpFormatter("x")._get_help_string(action), action.option_strings
     for expected in ("default: results/coefficients.json", "[s]", "[cases]", "(default: 50)", "(default: 3)"):
         assert expected in text
 

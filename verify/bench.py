@@ -60,6 +60,7 @@ from pipeline.pso import PsoConfig
 from pipeline.robot import PlanarArm, load_planar_arm
 from pipeline.trajectory import PARAMETER_NAMES, JointTrajectory
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
+from verify.cli import HelpFormatter, Parser
 
 from . import planner
 from .metrics import MeasureSettings, check_arm_matches
@@ -954,27 +955,10 @@ def format_report(report: BenchReport) -> str:
 # Command line
 
 
-class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """Appends "(default: ...)" unless the help text already states its default."""
-
-    def _get_help_string(self, action: argparse.Action) -> str | None:
-        text = action.help or ""
-        if "(default" in text or action.default is argparse.SUPPRESS or action.option_strings == ["-h", "--help"]:
-            return text
-        return super()._get_help_string(action)
-
-
-class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose errors are one line and exit with status 2."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface of ``python -m verify.bench``."""
     defaults = BenchSettings()
-    parser = _Parser(
+    parser = Parser(
         prog=PROG,
         description=(
             "Time, on the same random obstacles in one run: (a) the regression generator per query and "
@@ -983,7 +967,7 @@ def build_parser() -> argparse.ArgumentParser:
             "time per query, ratios to (a) and (b), the fraction of answers certified collision-free, the "
             "build time and the sweep rate. Ratios measured in one run on this machine, not absolute claims."
         ),
-        formatter_class=_HelpFormatter,
+        formatter_class=HelpFormatter,
     )
     parser.add_argument(
         "--coefficients",

@@ -40,6 +40,7 @@ from pipeline.obstacle import Obstacle
 from pipeline.provenance import package_versions, sha256_file
 from pipeline.robot import PlanarArm, load_planar_arm
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
+from verify.cli import HelpFormatter, Parser
 
 from .metrics import AcceptanceThresholds, CaseResult, MeasureSettings, check_arm_matches, measure_case
 
@@ -672,33 +673,16 @@ def _wrap(text: str, width: int) -> list[str]:
 # Command line
 
 
-class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """Appends "(default: ...)" unless the help text already states its default."""
-
-    def _get_help_string(self, action: argparse.Action) -> str | None:
-        text = action.help or ""
-        if "(default" in text or action.default is argparse.SUPPRESS or action.option_strings == ["-h", "--help"]:
-            return text
-        return super()._get_help_string(action)
-
-
-class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose errors are one line (no usage block) and exit with status 2."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface of ``python -m verify.sweep``."""
-    parser = _Parser(
+    parser = Parser(
         prog="python -m verify.sweep",
         description=(
             "Acceptance verifier: judge a coefficients file (or the paper's Eq. 9) on random obstacle "
             "sizes (L, W): certified clearance (Pinocchio + Coal, continuous time), endpoint accuracy, "
             "tracking, joint limits. Exit status 0 if every case passes, 1 if any fails, 2 on bad input."
         ),
-        formatter_class=_HelpFormatter,
+        formatter_class=HelpFormatter,
     )
     source = parser.add_mutually_exclusive_group()
     source.add_argument(

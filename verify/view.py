@@ -21,19 +21,12 @@ import sys
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
 
 from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning, PipelineError
 from pipeline.robot import DEFAULT_URDF, load_planar_arm
+from verify.cli import Parser
 
 PROG = "python -m verify.view"
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -48,7 +41,7 @@ def _size(text: str) -> tuple[int, int]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface."""
-    parser = _Parser(
+    parser = Parser(
         prog=PROG,
         description="Show a generated trajectory around the rounded obstacle in Meshcat (live on "
         "127.0.0.1, as a self-contained HTML file, or as a PNG screenshot).",
