@@ -63,6 +63,7 @@ from pipeline.validation import check_non_negative, check_positive, check_positi
 from verify.cli import HelpFormatter, Parser
 
 from . import planner
+from .bench_report import format_report
 from .metrics import MeasureSettings, check_arm_matches
 from .sweep import SweepRange, run_cases, sample_cases
 
@@ -356,28 +357,6 @@ def solver_config(coefficients: Any, settings: BenchSettings) -> tuple[SolverCon
     if settings.polish is not None:
         polish = settings.polish
     return SolverConfig(family=coefficients.family, fitness=fitness, pso=pso, polish=polish), source
-
-
-def _format_time(seconds: float) -> str:
-    if not math.isfinite(seconds):
-        return "-"
-    if seconds < 1e-3:
-        return f"{seconds * 1e6:.3g} us"
-    if seconds < 1.0:
-        return f"{seconds * 1e3:.3g} ms"
-    return f"{seconds:.3g} s"
-
-
-def _format_ratio(ratio: float | None) -> str:
-    if ratio is None or not math.isfinite(ratio):
-        return "-"
-    if ratio >= 100:
-        return f"{ratio:,.0f}x"
-    return f"{ratio:.3g}x"
-
-
-def _format_fraction(fraction: float) -> str:
-    return "-" if not math.isfinite(fraction) else f"{100 * fraction:.0f}%"
 
 
 def _timed(function: Callable[[], Any]) -> tuple[float, Any]:
@@ -854,101 +833,6 @@ def run_bench(
         command=command,
         elapsed_s=time.perf_counter() - started,
     )
-
-
-# --------------------------------------------------------------------------------------------
-# Report
-
-
-def format_report(report: BenchReport) -> str:
-    """The table and notes printed on stdout."""
-    a, b = report.method("a"), report.method("b")
-    reference_a = a.median_s if a else float("nan")
-    reference_b = b.median_s if b else None
-    fitted = report.coefficients["fitted_range_m"]
-    machine = report.machine
-    versions = machine["versions"]
-    lines = [
-        f"$ {report.command}",
-        f"Benchmark of coefficients '{report.coefficients['source']}' (family {report.coefficients['family']}) "
-        f"on {len(report.cases_m)} random obstacles (seed {report.settings['seed']}), "
-        f"L in [{fitted['L'][0]:.3f}, {fitted['L'][1]:.3f}] m, W in [{fitted['W'][0]:.3f}, {fitted['W'][1]:.3f}] m; "
-        f"margin {report.margin_m * 1e3:.0f} mm.",
-        f"Machine: {machine['platform']}, {machine['usable_cpus']} usable CPU(s), load average "
-        f"{machine['load_average_1_5_15_min']} at the start; Python {versions['python']}, "
-        f"numpy {versions['numpy']}, pin {versions['pin']}, coal {versions['coal']}, ompl {versions['ompl']}.",
-        "",
-    ]
-    header = (
-        f"{'method':<44} {'obst.':>5} {'runs':>6} {'median/query':>12} {'vs (a)':>9} {'vs (b)':>9} "
-        f"{'answered':>8} {'cert. free':>10} {'keeps margin':>12}"
-    )
-    lines += [header, "-" * len(header)]
-    for m in report.methods:
-        ratio_b = None if reference_b is None else m.median_s / reference_b
-        lines.append(
-            f"{m.label:<44} {m.obstacles:>5} {len(m.times_s):>6} {_format_time(m.median_s):>12} "
-            f"{_format_ratio(m.median_s / reference_a):>9} {_format_ratio(ratio_b):>9} "
-            f"{_format_fraction(m.answered_fraction):>8} {_format_fraction(m.certified_fraction):>10} "
-            f"{_format_fraction(m.keeps_margin_fraction):>12}"
-        )
-    for key, reason in report.skipped.items():
-        lines.append(f"({key}) skipped: {reason}")
-    lines.append("")
-    if report.sweep is not None:
-        without, with_ = report.sweep["without_certificate"], report.sweep["with_certificate"]
-        lines.append(
-            f"Sweep rate (verify.sweep.run_cases, {report.sweep['n_cases']} cases, 1 process): "
-            f"{without['cases_per_s']:.1f} cases/s without the certificate, "
-            f"{with_['cases_per_s']:.1f} cases/s with it."
-        )
-    build = report.build
-    if build is not None:
-        for key in ("file", "reduced"):
-            info = build.get(key)
-            if info is None:
-                continue
-            seconds = info["experiment_seconds"]
-            spread = (
-                f" (per experiment: median {info['experiment_median_s']:.1f} s, "
-                f"min {min(seconds):.1f} s, max {max(seconds):.1f} s)"
-                if seconds
-                else ""
-            )
-            lines.append(
-                f"Build time ({info['source']}): {info['total_s']:.1f} s total for {info['experiments']} experiments"
-                f"{spread}, jobs {info['jobs']}; {info['coal_queries']:,} Coal distance queries."
-            )
-        if build.get("missing"):
-            lines.append(f"Build time: {build['missing']}.")
-    lines += ["", "Notes:"]
-    for m in report.methods:
-        lines.append(f"  {m.label.split()[0]} {m.note}")
-    d = report.method("d")
-    if d is not None:
-        x = d.extra
-        lines.append(
-            f"  (d) valid state: {x['validity']}"
-            + (" (the same margin as ours)" if x["validity_margin_m"] == report.margin_m else "")
-            + f", checked along motions every "
-            f"{x['validity_resolution']} of the joint-space extent ({x['validity_resolution_rad']:.3f} rad); "
-            f"time limit {x['time_limit_s']} s. Unanswered: {x['planner_failures']} of {d.queries} queries "
-            f"(start configuration within the margin: {x['failure_reasons']['start_invalid']}, goal configuration "
-            f"within the margin: {x['failure_reasons']['goal_invalid']}, no path in time: "
-            f"{x['failure_reasons']['not_solved']}); median over the answered queries only: "
-            f"{_format_time(x['median_answered_s'] if x['median_answered_s'] is not None else math.nan)}. "
-            "Its path joins the start and goal configurations "
-            "(IK of P1 and P5); it does not track the desired path."
-        )
-    lines += [
-        "  vs (a), vs (b): median time per query divided by that of (a) and of (b).",
-        "  answered: queries that returned a trajectory or path; cert. free: answers whose certified clearance "
-        "(rigorous lower bound over the whole continuous motion, Pinocchio + Coal) is > 0; keeps margin: >= "
-        f"{report.margin_m * 1e3:.0f} mm.",
-        "  These are ratios measured in one run on this machine, not absolute claims.",
-        f"Total benchmark wall time: {report.elapsed_s:.1f} s.",
-    ]
-    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,0 +1,180 @@
+"""The sweep's human-readable report: the summary a person reads on stdout, and the side-by-side
+comparison of two coefficients sets (``python -m verify.sweep --compare A B``)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from .metrics import CaseResult
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .sweep import SweepRun
+
+
+def _mm(value: float | None, digits: int = 3) -> str:
+    return "n/a" if value is None else f"{value * 1e3:.{digits}f} mm"
+
+
+def _case_line(case: CaseResult) -> str:
+    head = f"#{case.index:<4d} L = {case.L_m:.4f} m, W = {case.W_m:.4f} m"
+    if case.extrapolated:
+        head += " (extrapolated)"
+    if case.error is not None:
+        return f"{head}: {case.error}"
+    detail = (
+        f"certified {_mm(case.certified_clearance_m)}, sampled {_mm(case.clearance_m)}, "
+        f"endpoint {_mm(case.endpoint_error_m)}, tracking max {_mm(case.tracking_max_m, 2)}"
+    )
+    if case.failures:
+        detail += " -- " + "; ".join(case.failures)
+    return f"{head}: {detail}"
+
+
+def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
+    s = run.summary
+    t = run.settings.thresholds
+    n = s["n_cases"]
+    rows = [
+        (
+            "coefficients",
+            f"{run.source} (family {run.provenance['coefficients']['family']}, "
+            f"sha256 {str(run.provenance['coefficients']['sha256'])[:12]})",
+        ),
+        (
+            "cases",
+            f"{n}, L in [{run.sweep_range.L_m[0]:.4f}, {run.sweep_range.L_m[1]:.4f}] m, "
+            f"W in [{run.sweep_range.W_m[0]:.4f}, {run.sweep_range.W_m[1]:.4f}] m"
+            + (" (the fitted range)" if not run.extrapolating else " (EXTRAPOLATION beyond the fitted range)"),
+        ),
+        (
+            "extrapolated",
+            f"{s['n_extrapolated']} / {n} cases outside the fitted range "
+            f"L [{run.fitted_range.L_m[0]:.4f}, {run.fitted_range.L_m[1]:.4f}] m, "
+            f"W [{run.fitted_range.W_m[0]:.4f}, {run.fitted_range.W_m[1]:.4f}] m",
+        ),
+        ("PASSED", f"{s['n_passed']} / {n} ({100.0 * (s['pass_rate'] or 0.0):.1f} %)"),
+        (
+            "collision-free",
+            f"certified {s['n_certified_collision_free']} / {n}; keep the "
+            f"{t.margin_m * 1e3:.1f} mm margin {s['n_keep_margin']} / {n} "
+            f"({100.0 * (s['keep_margin_fraction'] or 0.0):.1f} %)",
+        ),
+        (
+            "clearance",
+            f"certified min {_mm(s['certified_clearance_min_m'])}, median "
+            f"{_mm(s['certified_clearance_median_m'])}; sampled min {_mm(s['clearance_min_m'])}, median "
+            f"{_mm(s['clearance_median_m'])}",
+        ),
+        (
+            "endpoint error",
+            f"median {_mm(s['endpoint_error_median_m'])}, p99 {_mm(s['endpoint_error_p99_m'])}, "
+            f"max {_mm(s['endpoint_error_max_m'])} (limit {_mm(t.max_endpoint_error_m, 1)})",
+        ),
+        (
+            "tracking error",
+            f"max {_mm(s['tracking_max_m'], 2)}, median of max {_mm(s['tracking_max_median_m'], 2)}, "
+            f"RMS median {_mm(s['tracking_rms_median_m'], 2)}",
+        ),
+    ]
+    if s["peak_velocity_max_rad_s"] is not None:
+        measured = n - s["n_errors"]
+        rows.append(
+            (
+                "joints",
+                "speed peak ({:.3f}, {:.3f}) rad/s, acceleration peak ({:.3f}, {:.3f}) rad/s^2; "
+                "{} / {} within the URDF limits".format(
+                    *s["peak_velocity_max_rad_s"],
+                    *s["peak_acceleration_max_rad_s2"],
+                    s["n_within_joint_limits"],
+                    measured,
+                ),
+            )
+        )
+    rows.append(
+        (
+            "sampling",
+            f"{s['time_samples_min']}..{s['time_samples_max']} time samples per case "
+            + (
+                "(fixed by --samples)"
+                if run.settings.time_samples is not None
+                else f"({run.settings.resolution_m * 1e3:g} mm motion resolution)"
+            )
+            + ", certificate tolerance "
+            f"{run.settings.tolerance_m * 1e3:g} mm, {s['certificate_evaluations_total']} clearance evaluations"
+            + (f", {s['n_certificate_not_converged']} not converged" if s["n_certificate_not_converged"] else ""),
+        )
+    )
+    rate = n / run.elapsed_s if run.elapsed_s > 0 else float("inf")
+    rows.append(("speed", f"{run.elapsed_s:.1f} s, {rate:.1f} cases/s with {run.jobs} job(s)"))
+    if s["n_errors"]:
+        rows.append(("errors", f"{s['n_errors']} cases could not be generated"))
+    return rows
+
+
+def format_summary(run: SweepRun, list_failures: int | None = None) -> str:
+    """The human summary printed on stdout."""
+    lines = [f"== verify.sweep: {run.label} =="]
+    rows = _summary_rows(run)
+    width = max(len(k) for k, _ in rows)
+    lines += [f"{k:<{width}}  {v}" for k, v in rows]
+    by_index = {c.index: c for c in run.cases}
+    lines.append("worst clearance:")
+    lines += ["  " + _case_line(by_index[b["index"]]) for b in run.summary["worst_clearance"]]
+    lines.append("worst endpoint error:")
+    lines += ["  " + _case_line(by_index[b["index"]]) for b in run.summary["worst_endpoint_error"]]
+    if run.case_studies:
+        lines.append("case studies (inside the fitted range, off the DOE grid):")
+        lines += ["  " + _case_line(c).replace(f"#{c.index:<4d}", f"case {c.index + 1}") for c in run.case_studies]
+    failing = [c for c in run.cases if not c.passed]
+    if failing:
+        shown = failing if list_failures is None else failing[:list_failures]
+        lines.append(f"FAILED: {len(failing)} case(s):")
+        lines += ["  " + _case_line(c) for c in shown]
+        if len(shown) < len(failing):
+            lines.append(f"  ... and {len(failing) - len(shown)} more (all are in --json)")
+        lines.append("verdict: FAIL")
+    else:
+        lines.append("verdict: PASS (every case passed)")
+    return "\n".join(lines)
+
+
+def format_comparison(runs: Sequence[SweepRun]) -> str:
+    """The runs' summaries side by side (same cases)."""
+    tables = [dict(_summary_rows(run)) for run in runs]
+    keys = [k for k, _ in _summary_rows(runs[0])]
+    width = max(len(k) for k in keys)
+    column = max(44, *(len(run.label) for run in runs))
+    lines = [
+        f"== verify.sweep: comparison on the same {runs[0].summary['n_cases']} cases ==",
+        f"{'':<{width}}  " + " | ".join(f"{run.label:<{column}}" for run in runs),
+    ]
+    for key in keys:
+        cells = [table.get(key, "") for table in tables]
+        wrapped = [_wrap(cell, column) for cell in cells]
+        height = max(len(w) for w in wrapped)
+        for row in range(height):
+            name = key if row == 0 else ""
+            lines.append(
+                f"{name:<{width}}  " + " | ".join(f"{(w[row] if row < len(w) else ''):<{column}}" for w in wrapped)
+            )
+    if len(runs) == 2 and len(runs[0].cases) == len(runs[1].cases):
+        a, b = runs
+        only_a = sum(x.passed and not y.passed for x, y in zip(a.cases, b.cases, strict=True))
+        only_b = sum(y.passed and not x.passed for x, y in zip(a.cases, b.cases, strict=True))
+        lines.append(f"cases passing only with {a.label}: {only_a}; only with {b.label}: {only_b}")
+    verdicts = ", ".join(f"{run.label}: {'PASS' if run.passed else 'FAIL'}" for run in runs)
+    lines.append(f"verdicts: {verdicts}")
+    return "\n".join(lines)
+
+
+def _wrap(text: str, width: int) -> list[str]:
+    words, lines, current = text.split(" "), [], ""
+    for word in words:
+        if current and len(current) + 1 + len(word) > width:
+            lines.append(current)
+            current = word
+        else:
+            current = f"{current} {word}" if current else word
+    lines.append(current)
+    return lines
