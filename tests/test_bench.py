@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.jsonio import write_json_atomic
-from verify import bench, planner
+from verify import bench, bench_results, planner
 from verify.bench import EXIT_OK, EXIT_USAGE, build_parser, main
 from verify.cli import HelpFormatter
 
@@ -104,7 +104,7 @@ def test_help_lists_every_option_with_units_and_defaults(capsys: pytest.CaptureF
 def test_tiny_run_prints_the_table_and_writes_the_json_schema(tiny_run: tuple[int, str, dict]) -> None:
     status, out, data = tiny_run
     assert status == EXIT_OK
-    assert data["format"] == bench.FORMAT
+    assert data["format"] == bench_results.FORMAT
     for key in ("command", "coefficients", "settings", "margin_m", "cases", "methods", "sweep", "build", "machine"):
         assert key in data
     assert data["command"].startswith("python -m verify.bench --coefficients paper")

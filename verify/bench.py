@@ -32,254 +32,54 @@ Exit status: 0 on success, 2 on bad input (one line on stderr), 130 if interrupt
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
-import math
 import os
 import platform
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, replace
-from importlib import metadata
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from pipeline.certificate import certify_trajectory
-from pipeline.exceptions import DataFileError, InvalidParameterError, NoCertifiedTrajectoryError, PipelineError
-from pipeline.experiment import SolverConfig, solve_experiment
+from pipeline.exceptions import DataFileError, PipelineError
+from pipeline.experiment import SolverConfig
 from pipeline.fitness import FitnessConfig
-from pipeline.generator import generate, generate_parameters
-from pipeline.jsonio import read_json, write_json_atomic
-from pipeline.obstacle import Obstacle
-from pipeline.online import generate_certified
+from pipeline.jsonio import write_json_atomic
+from pipeline.provenance import PACKAGES, package_versions
 from pipeline.pso import PsoConfig
-from pipeline.robot import PlanarArm, load_planar_arm
-from pipeline.trajectory import PARAMETER_NAMES, JointTrajectory
-from pipeline.validation import check_non_negative, check_positive, check_positive_int
+from pipeline.robot import load_planar_arm
+from pipeline.trajectory import JointTrajectory
 from verify.cli import HelpFormatter, Parser
 
 from . import planner
+from .bench_methods import (
+    bench_batched,
+    bench_certified,
+    bench_generator,
+    bench_ompl,
+    bench_pso,
+    bench_sweep,
+    certificate_counts,
+    read_build_timing,
+    run_reduced_build,
+)
 from .bench_report import format_report
-from .metrics import MeasureSettings, check_arm_matches
-from .sweep import SweepRange, run_cases, sample_cases
-
-FORMAT = "twolink-bench/1"
-PROG = "python -m verify.bench"
-DEFAULT_COEFFICIENTS = "results/coefficients.json"
-DEFAULT_BUILD_TIMING = "results/build_timing.json"
-DEFAULT_N = 50
-DEFAULT_SEED = 0
-DEFAULT_REPEATS = 200
-DEFAULT_SLOW_REPEATS = 3
-DEFAULT_PSO_CASES = 3
-DEFAULT_OMPL_TIME_S = 1.0
-EXIT_OK, EXIT_USAGE, EXIT_INTERRUPTED = 0, 2, 130
-
-#: Warm-up calls of the cheap methods before timing.
-_WARMUP_CALLS = 20
-
-
-# --------------------------------------------------------------------------------------------
-# Results
-
-
-@dataclass(frozen=True)
-class MethodResult:
-    """Timings and answer quality of one method.
-
-    Attributes:
-        key: Short key: "a", "a_batch", "b", "c", "d", "d_cert".
-        label: Row label of the table.
-        obstacles: Distinct obstacles queried.
-        times_s: Every timed run, as time per query [s].
-        queries: Queries whose answers are counted (obstacles x runs).
-        answered: Queries that returned an answer (a trajectory or a path).
-        certified: Answers certified collision-free (certified clearance > 0).
-        keeps_margin: Answers whose certified clearance is >= the margin.
-        note: What exactly was timed.
-        extra: Method-specific numbers (repairs, planner failures, Coal queries, ...).
-    """
-
-    key: str
-    label: str
-    obstacles: int
-    times_s: tuple[float, ...]
-    queries: int
-    answered: int
-    certified: int
-    keeps_margin: int
-    note: str = ""
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def median_s(self) -> float:
-        """Median time per query [s]."""
-        return float(np.median(self.times_s))
-
-    @property
-    def answered_fraction(self) -> float:
-        """Fraction of the queries answered."""
-        return self.answered / self.queries if self.queries else float("nan")
-
-    @property
-    def certified_fraction(self) -> float:
-        """Fraction of the answers certified collision-free."""
-        return self.certified / self.answered if self.answered else float("nan")
-
-    @property
-    def keeps_margin_fraction(self) -> float:
-        """Fraction of the answers whose certified clearance keeps the margin."""
-        return self.keeps_margin / self.answered if self.answered else float("nan")
-
-    def to_json(self, reference_a_s: float, reference_b_s: float | None) -> dict[str, Any]:
-        """Plain-JSON form, with the ratios of the median to (a) and (b)."""
-        return {
-            "key": self.key,
-            "label": self.label,
-            "obstacles": self.obstacles,
-            "timed_runs": len(self.times_s),
-            "median_s": self.median_s,
-            "min_s": float(np.min(self.times_s)),
-            "max_s": float(np.max(self.times_s)),
-            "ratio_to_a": self.median_s / reference_a_s,
-            "ratio_to_b": None if reference_b_s is None else self.median_s / reference_b_s,
-            "queries": self.queries,
-            "answered": self.answered,
-            "answered_fraction": self.answered_fraction,
-            "certified_collision_free": self.certified,
-            "certified_fraction": self.certified_fraction,
-            "keeps_margin": self.keeps_margin,
-            "keeps_margin_fraction": self.keeps_margin_fraction,
-            "note": self.note,
-            "extra": self.extra,
-        }
-
-
-@dataclass(frozen=True)
-class BenchSettings:
-    """What the benchmark runs.
-
-    Attributes:
-        n: Random obstacles [cases].
-        seed: Seed of the obstacle sampler, the PSO and OMPL.
-        repeats: Timed passes over all obstacles for (a) and (a').
-        slow_repeats: Timed passes over all obstacles for (b) and (d).
-        pso_cases: Obstacles (the first ones) on which (c) re-runs the PSO; 0 skips (c).
-        pso_swarm_size, pso_iterations, pso_restarts: PSO settings of (c) and --run-build; None: the
-            coefficients' build settings if recorded (provenance), else PsoConfig's defaults.
-        polish: least_squares polish in (c); None: as the build did (default True).
-        ompl_time_s: RRT-Connect time budget per query [s].
-        ompl_margin_m: Validity margin of (d): a state is valid iff both links' clearance is >= this [m];
-            None: the coefficients' scene margin (the fair comparison: the margin (b) is held to).
-        ompl_simplify: Simplify the RRT-Connect path (timed as part of (d)).
-        ompl_resolution: OMPL's validity checking resolution [fraction of the joint-space extent].
-        run_ompl: Run (d) if ompl is installed.
-        build_timing: build_timing.json to report (None: skip).
-        run_build_levels: If set, also run a reduced build with this many levels per factor.
-        urdf: URDF of the arm (None: the project's).
-    """
-
-    n: int = DEFAULT_N
-    seed: int = DEFAULT_SEED
-    repeats: int = DEFAULT_REPEATS
-    slow_repeats: int = DEFAULT_SLOW_REPEATS
-    pso_cases: int = DEFAULT_PSO_CASES
-    pso_swarm_size: int | None = None
-    pso_iterations: int | None = None
-    pso_restarts: int | None = None
-    polish: bool | None = None
-    ompl_time_s: float = DEFAULT_OMPL_TIME_S
-    ompl_margin_m: float | None = None
-    ompl_simplify: bool = True
-    ompl_resolution: float = planner.OMPL_DEFAULT_RESOLUTION
-    run_ompl: bool = True
-    build_timing: Path | None = Path(DEFAULT_BUILD_TIMING)
-    run_build_levels: int | None = None
-    urdf: Path | None = None
-
-    def __post_init__(self) -> None:
-        check_positive_int("--n", self.n)
-        check_positive_int("--seed", self.seed, minimum=0)
-        check_positive_int("--repeats", self.repeats)
-        check_positive_int("--slow-repeats", self.slow_repeats)
-        check_positive_int("--pso-cases", self.pso_cases, minimum=0)
-        if self.pso_cases > self.n:
-            raise InvalidParameterError("--pso-cases", self.pso_cases, f"at most --n = {self.n}")
-        for name, value, minimum in (
-            ("--pso-swarm-size", self.pso_swarm_size, 2),
-            ("--pso-iterations", self.pso_iterations, 1),
-            ("--pso-restarts", self.pso_restarts, 1),
-        ):
-            if value is not None:
-                check_positive_int(name, value, minimum=minimum)
-        check_positive("--ompl-time", self.ompl_time_s)
-        if self.ompl_margin_m is not None:
-            check_non_negative("--ompl-margin", self.ompl_margin_m)
-        check_positive("--ompl-resolution", self.ompl_resolution)
-        if self.run_build_levels is not None:
-            check_positive_int("--run-build", self.run_build_levels, minimum=3)
-
-
-@dataclass(frozen=True)
-class BenchReport:
-    """Everything one benchmark run measured.
-
-    Attributes:
-        coefficients: Source, family and hash of the coefficients.
-        settings: The settings as plain JSON.
-        cases_m: The obstacles (L, W) [m], shape (n, 2).
-        margin_m: The scene's safety margin [m].
-        methods: One :class:`MethodResult` per method run.
-        skipped: Method key -> why it was skipped.
-        sweep: Sweep rates (None if not run).
-        build: Build timing (None if none was found or run).
-        machine: Python, platform, CPU count, package versions.
-        command: The command line.
-        elapsed_s: Wall time of the whole benchmark [s].
-    """
-
-    coefficients: dict[str, Any]
-    settings: dict[str, Any]
-    cases_m: np.ndarray
-    margin_m: float
-    methods: tuple[MethodResult, ...]
-    skipped: dict[str, str]
-    sweep: dict[str, Any] | None
-    build: dict[str, Any] | None
-    machine: dict[str, Any]
-    command: str
-    elapsed_s: float
-
-    def method(self, key: str) -> MethodResult | None:
-        """The result of method ``key``, or None if it was not run."""
-        return next((m for m in self.methods if m.key == key), None)
-
-    def to_json(self) -> dict[str, Any]:
-        """The --json document."""
-        a = self.method("a")
-        b = self.method("b")
-        reference_a = a.median_s if a else float("nan")
-        reference_b = b.median_s if b else None
-        return {
-            "format": FORMAT,
-            "command": self.command,
-            "note": "ratios measured in one run on this machine, not absolute claims",
-            "coefficients": self.coefficients,
-            "settings": self.settings,
-            "margin_m": self.margin_m,
-            "cases": [[float(length), float(width)] for length, width in self.cases_m],
-            "methods": [m.to_json(reference_a, reference_b) for m in self.methods],
-            "skipped": dict(self.skipped),
-            "sweep": self.sweep,
-            "build": self.build,
-            "machine": self.machine,
-            "elapsed_s": self.elapsed_s,
-        }
-
+from .bench_results import (
+    DEFAULT_BUILD_TIMING,
+    DEFAULT_COEFFICIENTS,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    PROG,
+    BenchReport,
+    BenchSettings,
+    MethodResult,
+)
+from .metrics import check_arm_matches
+from .sweep import SweepRange, sample_cases
 
 # --------------------------------------------------------------------------------------------
 # Helpers
@@ -293,16 +93,6 @@ def load_coefficients_checked(source: str) -> Any:
         hint = " (run python -m pipeline.build first, or pass --coefficients paper)"
         raise DataFileError(source, "coefficients file not found" + (hint if source == DEFAULT_COEFFICIENTS else ""))
     return load_coefficients(source)
-
-
-def _versions() -> dict[str, str | None]:
-    out: dict[str, str | None] = {"python": platform.python_version()}
-    for name in ("twolink-obstacle", "numpy", "scipy", "pin", "coal", "ompl"):
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = None
-    return out
 
 
 def machine_info() -> dict[str, Any]:
@@ -322,7 +112,7 @@ def machine_info() -> dict[str, Any]:
         "machine": platform.machine(),
         "processor": platform.processor() or None,
         "usable_cpus": cpus,
-        "versions": _versions(),
+        "versions": package_versions((*PACKAGES, "ompl")),
     }
 
 
@@ -357,302 +147,6 @@ def solver_config(coefficients: Any, settings: BenchSettings) -> tuple[SolverCon
     if settings.polish is not None:
         polish = settings.polish
     return SolverConfig(family=coefficients.family, fitness=fitness, pso=pso, polish=polish), source
-
-
-def _timed(function: Callable[[], Any]) -> tuple[float, Any]:
-    started = time.perf_counter()
-    value = function()
-    return time.perf_counter() - started, value
-
-
-def _certificate_counts(clearances: Sequence[float], margin_m: float) -> tuple[int, int]:
-    certified = sum(1 for c in clearances if c > 0.0)
-    keeps = sum(1 for c in clearances if c >= margin_m)
-    return certified, keeps
-
-
-# --------------------------------------------------------------------------------------------
-# The methods
-
-
-def bench_generator(coefficients: Any, cases: np.ndarray, repeats: int) -> tuple[list[float], list[Any]]:
-    """(a): time ``generate`` one query at a time, ``repeats`` passes over the cases.
-
-    Returns:
-        (time of every call [s], the generated trajectories of the last pass, None where it raised).
-    """
-    for _ in range(_WARMUP_CALLS):
-        generate(coefficients, float(cases[0, 0]), float(cases[0, 1]))
-    times: list[float] = []
-    answers: list[Any] = [None] * len(cases)
-    clock = time.perf_counter
-    for _ in range(repeats):
-        for i, (length, width) in enumerate(cases):
-            started = clock()
-            try:
-                answers[i] = generate(coefficients, float(length), float(width))
-            except PipelineError:
-                answers[i] = None
-            times.append(clock() - started)
-    return times, answers
-
-
-def bench_batched(coefficients: Any, cases: np.ndarray, repeats: int) -> tuple[list[float], np.ndarray]:
-    """(a'): time ``generate_parameters`` over all cases at once; returns time per query [s] of each pass."""
-    lengths, widths = np.ascontiguousarray(cases[:, 0]), np.ascontiguousarray(cases[:, 1])
-    for _ in range(max(2, _WARMUP_CALLS // 4)):
-        generate_parameters(coefficients, lengths, widths)
-    times = []
-    parameters = np.empty((0, 8))
-    for _ in range(repeats):
-        elapsed, parameters = _timed(lambda: generate_parameters(coefficients, lengths, widths))
-        times.append(elapsed / len(cases))
-    return times, np.asarray(parameters)
-
-
-def bench_certified(
-    coefficients: Any, cases: np.ndarray, arm: PlanarArm, repeats: int
-) -> tuple[list[float], list[float | None], int]:
-    """(b): time ``generate_certified`` per query.
-
-    Returns:
-        (times [s], certified clearance of each answer or None where it refused, repairs made).
-    """
-    with contextlib.suppress(PipelineError):
-        generate_certified(coefficients, float(cases[0, 0]), float(cases[0, 1]), arm)
-    times: list[float] = []
-    clearances: list[float | None] = []
-    repairs = 0
-    for _ in range(repeats):
-        for length, width in cases:
-            started = time.perf_counter()
-            try:
-                answer = generate_certified(coefficients, float(length), float(width), arm)
-            except NoCertifiedTrajectoryError:
-                answer = None
-            times.append(time.perf_counter() - started)
-            clearances.append(None if answer is None else answer.certified_clearance_m)
-            repairs += bool(answer is not None and answer.repaired)
-    return times, clearances, repairs
-
-
-def bench_pso(
-    coefficients: Any, cases: np.ndarray, arm: PlanarArm, config: SolverConfig, seed: int, log: Callable[[str], None]
-) -> tuple[list[float], list[float], list[dict[str, Any]]]:
-    """(c): time ``solve_experiment`` once per case and certify each optimum (not timed).
-
-    Returns:
-        (times [s], certified clearance of each optimum [m], per-case details).
-    """
-    rng = np.random.default_rng(seed)
-    times, clearances, details = [], [], []
-    for length, width in cases:
-        started = time.perf_counter()
-        result = solve_experiment(arm, float(length), float(width), coefficients.scene, config, rng)
-        elapsed = time.perf_counter() - started
-        trajectory = JointTrajectory(tuple(result.parameters[name] for name in PARAMETER_NAMES), result.duration_s)
-        obstacle = Obstacle.in_scene(float(length), float(width), coefficients.scene)
-        certificate = certify_trajectory(trajectory, arm, obstacle)
-        times.append(elapsed)
-        clearances.append(certificate.certified_clearance_m)
-        details.append(
-            {
-                "L": float(length),
-                "W": float(width),
-                "seconds": elapsed,
-                "fitness": result.fitness,
-                "solver": result.solver,
-                "objective_evaluations": result.objective_evaluations,
-                "coal_queries": result.coal_queries,
-                "certified_clearance_m": certificate.certified_clearance_m,
-            }
-        )
-        log(f"  (c) L = {length:.4f} m, W = {width:.4f} m: {elapsed:.2f} s")
-    return times, clearances, details
-
-
-def bench_ompl(
-    coefficients: Any,
-    cases: np.ndarray,
-    arm: PlanarArm,
-    settings: BenchSettings,
-    validity_margin_m: float,
-    margin_m: float,
-) -> tuple[MethodResult, MethodResult]:
-    """(d) and (d+): RRT-Connect per query (setup, IK of P1 / P5, solve, simplify), then our certificate.
-
-    Args:
-        validity_margin_m: A state is valid iff both links' Coal clearance is >= this [m].
-        margin_m: The scene's margin, for the "keeps margin" count [m].
-    """
-    planner.seed_ompl(settings.seed)
-    config = planner.PlannerConfig(
-        time_limit_s=settings.ompl_time_s,
-        margin_m=validity_margin_m,
-        simplify=settings.ompl_simplify,
-        resolution=settings.ompl_resolution,
-        log_level="none",  # failures are counted below, with their reasons
-    )
-    scene = coefficients.scene
-
-    def query(length: float, width: float) -> tuple[Obstacle, planner.PlanResult]:
-        obstacle = Obstacle.in_scene(length, width, scene)
-        start, goal = planner.start_goal_configurations(obstacle, scene, arm.link_lengths_m, coefficients.elbow)
-        return obstacle, planner.plan_rrt_connect(arm, obstacle, start, goal, config)
-
-    query(float(cases[0, 0]), float(cases[0, 1]))  # warm-up
-    plan_times, total_times, clearances = [], [], []
-    failures = {"start_invalid": 0, "goal_invalid": 0, "not_solved": 0}
-    checks, queries_coal, waypoints, answered_times = [], [], [], []
-    for _ in range(settings.slow_repeats):
-        for length, width in cases:
-            plan_s, (obstacle, result) = _timed(lambda length=length, width=width: query(float(length), float(width)))
-            certify_s = 0.0
-            if result.solved and result.path is not None:
-                certify_s, certificate = _timed(lambda r=result, o=obstacle: planner.certify_path(r.path, arm, o))
-                clearances.append(certificate.certified_clearance_m)
-                waypoints.append(int(result.waypoints_rad.shape[0]))
-                answered_times.append(plan_s)
-            elif not result.start_valid:
-                failures["start_invalid"] += 1
-            elif not result.goal_valid:
-                failures["goal_invalid"] += 1
-            else:
-                failures["not_solved"] += 1
-            checks.append(result.validity_checks)
-            queries_coal.append(result.coal_queries)
-            plan_times.append(plan_s)
-            total_times.append(plan_s + certify_s)
-    certified, keeps = _certificate_counts(clearances, margin_m)
-    n_queries = len(plan_times)
-    limits = arm.position_limits_rad
-    extent = math.hypot(limits[0][1] - limits[0][0], limits[1][1] - limits[1][0])
-    extra = {
-        "planner_failures": sum(failures.values()),
-        "failure_reasons": failures,
-        "median_answered_s": float(np.median(answered_times)) if answered_times else None,
-        "time_limit_s": settings.ompl_time_s,
-        "simplify": settings.ompl_simplify,
-        "validity": f"Coal clearance of both links >= {validity_margin_m} m",
-        "validity_margin_m": validity_margin_m,
-        "validity_resolution": settings.ompl_resolution,
-        "validity_resolution_rad": settings.ompl_resolution * extent,
-        "validity_checks_median": float(np.median(checks)),
-        "coal_queries_median": float(np.median(queries_coal)),
-        "waypoints_median": float(np.median(waypoints)) if waypoints else None,
-        "certified_clearance_min_m": min(clearances) if clearances else None,
-        "certified_clearance_median_m": float(np.median(clearances)) if clearances else None,
-    }
-    common = {
-        "obstacles": len(cases),
-        "queries": n_queries,
-        "answered": len(clearances),
-        "certified": certified,
-        "keeps_margin": keeps,
-        "extra": extra,
-    }
-    plan = MethodResult(
-        key="d",
-        label="(d)  OMPL RRT-Connect" + (" + simplify" if settings.ompl_simplify else ""),
-        times_s=tuple(plan_times),
-        note="per query: Coal checker + SimpleSetup + IK of P1/P5 + solve"
-        + (" + simplifySolution" if settings.ompl_simplify else ""),
-        **common,
-    )
-    total = MethodResult(
-        key="d_cert",
-        label="(d+) OMPL path + our certificate",
-        times_s=tuple(total_times),
-        note="(d) + certify_path (piecewise-linear certificate, Coal)",
-        **common,
-    )
-    return plan, total
-
-
-def bench_sweep(source: str, coefficients: Any, arm: PlanarArm, cases: np.ndarray) -> tuple[dict[str, Any], Any]:
-    """Sweep rate of ``verify.sweep.run_cases`` (one process) with and without the certificate.
-
-    Returns:
-        (rates, the certified sweep's case results).
-    """
-    run_cases(source, cases[:1], MeasureSettings(certify=True), jobs=1, coefficients=coefficients, arm=arm)  # warm-up
-    out: dict[str, Any] = {"n_cases": len(cases), "jobs": 1}
-    results = None
-    for key, certify in (("without_certificate", False), ("with_certificate", True)):
-        elapsed, results = _timed(
-            lambda certify=certify: run_cases(
-                source, cases, MeasureSettings(certify=certify), jobs=1, coefficients=coefficients, arm=arm
-            )
-        )
-        out[key] = {"seconds": elapsed, "cases_per_s": len(cases) / elapsed}
-    return out, results
-
-
-def read_build_timing(path: Path) -> dict[str, Any] | None:
-    """Summary of a build_timing.json (None if the file does not exist).
-
-    Raises:
-        DataFileError: the file exists but is malformed.
-    """
-    if not path.is_file():
-        return None
-    data = read_json(path)
-    try:
-        experiments = [float(e["seconds"]) for e in data.get("experiments", [])]
-        return {
-            "source": str(path),
-            "total_s": float(data["total_s"]),
-            "jobs": data.get("jobs"),
-            "experiments": len(experiments),
-            "experiment_seconds": experiments,
-            "experiment_median_s": float(np.median(experiments)) if experiments else None,
-            "coal_queries": int(data["coal_queries"]),
-            "objective_evaluations": data.get("objective_evaluations"),
-        }
-    except (KeyError, TypeError, ValueError) as exc:
-        raise DataFileError(path, f"not a build timing file ({type(exc).__name__}: {exc})") from None
-
-
-def run_reduced_build(levels: int, config: SolverConfig, seed: int, urdf: Path | None) -> dict[str, Any]:
-    """Run ``python -m pipeline.build`` with ``levels`` levels per factor (>= 3) into a temporary
-    folder, with the PSO settings of (c); its build_timing.json, summarised.
-
-    Raises:
-        PipelineError: the build failed.
-    """
-    from pipeline import build
-
-    with tempfile.TemporaryDirectory(prefix="bench-build-") as folder:
-        argv = [
-            "--out",
-            folder,
-            "--quiet",
-            "--seed",
-            str(seed),
-            "--levels",
-            str(levels),
-            "--family",
-            config.family,
-            "--swarm-size",
-            str(config.pso.swarm_size),
-            "--iterations",
-            str(config.pso.iterations),
-            "--restarts",
-            str(config.pso.restarts),
-        ]
-        if not config.polish:
-            argv.append("--no-polish")
-        if urdf is not None:
-            argv += ["--urdf", str(urdf)]
-        build.build(build.parser().parse_args(argv), out=io.StringIO())
-        summary = read_build_timing(Path(folder) / "build_timing.json")
-    assert summary is not None
-    pso = config.pso
-    summary["source"] = (
-        f"build run by the benchmark: {levels} x {levels} levels, PSO swarm {pso.swarm_size}, iterations "
-        f"{pso.iterations}, restarts {pso.restarts}, polish {config.polish}"
-    )
-    return summary
 
 
 # --------------------------------------------------------------------------------------------
@@ -693,7 +187,7 @@ def run_bench(
     log("timing the sweep with and without the certificate (and certifying (a)'s answers) ...")
     sweep_info, certified_cases = bench_sweep(source, coefficients, arm, cases)
     clearances_a = [c.certified_clearance_m for c in certified_cases if c.certified_clearance_m is not None]
-    certified_a, keeps_a = _certificate_counts(clearances_a, margin)
+    certified_a, keeps_a = certificate_counts(clearances_a, margin)
     answered_a = sum(a is not None for a in answers)
     methods.append(
         MethodResult(
@@ -721,7 +215,7 @@ def run_bench(
             if answer is not None:
                 trajectory = JointTrajectory(tuple(row), answer.duration_s)
                 clearances_batch.append(certify_trajectory(trajectory, arm, answer.obstacle).certified_clearance_m)
-        certified_batch, keeps_batch = _certificate_counts(clearances_batch, margin)
+        certified_batch, keeps_batch = certificate_counts(clearances_batch, margin)
     else:
         certified_batch, keeps_batch = certified_a, keeps_a
     methods.append(
@@ -743,7 +237,7 @@ def run_bench(
     log("timing (b) the generator with certification (certify-or-repair) ...")
     times_b, clearances_b, repairs = bench_certified(coefficients, cases, arm, settings.slow_repeats)
     answered_clearances = [c for c in clearances_b if c is not None]
-    certified_b, keeps_b = _certificate_counts(answered_clearances, margin)
+    certified_b, keeps_b = certificate_counts(answered_clearances, margin)
     methods.append(
         MethodResult(
             key="b",
@@ -766,7 +260,7 @@ def run_bench(
         times_c, clearances_c, details = bench_pso(
             coefficients, cases[: settings.pso_cases], arm, config, settings.seed, log
         )
-        certified_c, keeps_c = _certificate_counts(clearances_c, margin)
+        certified_c, keeps_c = certificate_counts(clearances_c, margin)
         methods.append(
             MethodResult(
                 key="c",

@@ -1,0 +1,323 @@
+"""The methods the benchmark times side by side: (a) the generator, (a') batched, (b) certify-or-repair,
+(c) PSO online, (d) OMPL RRT-Connect, and the sweep rate and build time."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pipeline.certificate import certify_trajectory
+from pipeline.exceptions import DataFileError, NoCertifiedTrajectoryError, PipelineError
+from pipeline.experiment import SolverConfig, solve_experiment
+from pipeline.generator import generate, generate_parameters
+from pipeline.jsonio import read_json
+from pipeline.obstacle import Obstacle
+from pipeline.online import generate_certified
+from pipeline.robot import PlanarArm
+from pipeline.trajectory import PARAMETER_NAMES, JointTrajectory
+
+from . import planner
+from .bench_results import WARMUP_CALLS, BenchSettings, MethodResult
+from .metrics import MeasureSettings
+from .sweep import run_cases
+
+
+def certificate_counts(clearances: Sequence[float], margin_m: float) -> tuple[int, int]:
+    """How many certified clearances [m] are > 0 (collision-free) and >= ``margin_m`` (keep the margin)."""
+    certified = sum(1 for c in clearances if c > 0.0)
+    keeps = sum(1 for c in clearances if c >= margin_m)
+    return certified, keeps
+
+
+def _timed(function: Callable[[], Any]) -> tuple[float, Any]:
+    started = time.perf_counter()
+    value = function()
+    return time.perf_counter() - started, value
+
+
+def bench_generator(coefficients: Any, cases: np.ndarray, repeats: int) -> tuple[list[float], list[Any]]:
+    """(a): time ``generate`` one query at a time, ``repeats`` passes over the cases.
+
+    Returns:
+        (time of every call [s], the generated trajectories of the last pass, None where it raised).
+    """
+    for _ in range(WARMUP_CALLS):
+        generate(coefficients, float(cases[0, 0]), float(cases[0, 1]))
+    times: list[float] = []
+    answers: list[Any] = [None] * len(cases)
+    clock = time.perf_counter
+    for _ in range(repeats):
+        for i, (length, width) in enumerate(cases):
+            started = clock()
+            try:
+                answers[i] = generate(coefficients, float(length), float(width))
+            except PipelineError:
+                answers[i] = None
+            times.append(clock() - started)
+    return times, answers
+
+
+def bench_batched(coefficients: Any, cases: np.ndarray, repeats: int) -> tuple[list[float], np.ndarray]:
+    """(a'): time ``generate_parameters`` over all cases at once; returns time per query [s] of each pass."""
+    lengths, widths = np.ascontiguousarray(cases[:, 0]), np.ascontiguousarray(cases[:, 1])
+    for _ in range(max(2, WARMUP_CALLS // 4)):
+        generate_parameters(coefficients, lengths, widths)
+    times = []
+    parameters = np.empty((0, 8))
+    for _ in range(repeats):
+        elapsed, parameters = _timed(lambda: generate_parameters(coefficients, lengths, widths))
+        times.append(elapsed / len(cases))
+    return times, np.asarray(parameters)
+
+
+def bench_certified(
+    coefficients: Any, cases: np.ndarray, arm: PlanarArm, repeats: int
+) -> tuple[list[float], list[float | None], int]:
+    """(b): time ``generate_certified`` per query.
+
+    Returns:
+        (times [s], certified clearance of each answer or None where it refused, repairs made).
+    """
+    with contextlib.suppress(PipelineError):
+        generate_certified(coefficients, float(cases[0, 0]), float(cases[0, 1]), arm)
+    times: list[float] = []
+    clearances: list[float | None] = []
+    repairs = 0
+    for _ in range(repeats):
+        for length, width in cases:
+            started = time.perf_counter()
+            try:
+                answer = generate_certified(coefficients, float(length), float(width), arm)
+            except NoCertifiedTrajectoryError:
+                answer = None
+            times.append(time.perf_counter() - started)
+            clearances.append(None if answer is None else answer.certified_clearance_m)
+            repairs += bool(answer is not None and answer.repaired)
+    return times, clearances, repairs
+
+
+def bench_pso(
+    coefficients: Any, cases: np.ndarray, arm: PlanarArm, config: SolverConfig, seed: int, log: Callable[[str], None]
+) -> tuple[list[float], list[float], list[dict[str, Any]]]:
+    """(c): time ``solve_experiment`` once per case and certify each optimum (not timed).
+
+    Returns:
+        (times [s], certified clearance of each optimum [m], per-case details).
+    """
+    rng = np.random.default_rng(seed)
+    times, clearances, details = [], [], []
+    for length, width in cases:
+        started = time.perf_counter()
+        result = solve_experiment(arm, float(length), float(width), coefficients.scene, config, rng)
+        elapsed = time.perf_counter() - started
+        trajectory = JointTrajectory(tuple(result.parameters[name] for name in PARAMETER_NAMES), result.duration_s)
+        obstacle = Obstacle.in_scene(float(length), float(width), coefficients.scene)
+        certificate = certify_trajectory(trajectory, arm, obstacle)
+        times.append(elapsed)
+        clearances.append(certificate.certified_clearance_m)
+        details.append(
+            {
+                "L": float(length),
+                "W": float(width),
+                "seconds": elapsed,
+                "fitness": result.fitness,
+                "solver": result.solver,
+                "objective_evaluations": result.objective_evaluations,
+                "coal_queries": result.coal_queries,
+                "certified_clearance_m": certificate.certified_clearance_m,
+            }
+        )
+        log(f"  (c) L = {length:.4f} m, W = {width:.4f} m: {elapsed:.2f} s")
+    return times, clearances, details
+
+
+def bench_ompl(
+    coefficients: Any,
+    cases: np.ndarray,
+    arm: PlanarArm,
+    settings: BenchSettings,
+    validity_margin_m: float,
+    margin_m: float,
+) -> tuple[MethodResult, MethodResult]:
+    """(d) and (d+): RRT-Connect per query (setup, IK of P1 / P5, solve, simplify), then our certificate.
+
+    Args:
+        validity_margin_m: A state is valid iff both links' Coal clearance is >= this [m].
+        margin_m: The scene's margin, for the "keeps margin" count [m].
+    """
+    planner.seed_ompl(settings.seed)
+    config = planner.PlannerConfig(
+        time_limit_s=settings.ompl_time_s,
+        margin_m=validity_margin_m,
+        simplify=settings.ompl_simplify,
+        resolution=settings.ompl_resolution,
+        log_level="none",  # failures are counted below, with their reasons
+    )
+    scene = coefficients.scene
+
+    def query(length: float, width: float) -> tuple[Obstacle, planner.PlanResult]:
+        obstacle = Obstacle.in_scene(length, width, scene)
+        start, goal = planner.start_goal_configurations(obstacle, scene, arm.link_lengths_m, coefficients.elbow)
+        return obstacle, planner.plan_rrt_connect(arm, obstacle, start, goal, config)
+
+    query(float(cases[0, 0]), float(cases[0, 1]))  # warm-up
+    plan_times, total_times, clearances = [], [], []
+    failures = {"start_invalid": 0, "goal_invalid": 0, "not_solved": 0}
+    checks, queries_coal, waypoints, answered_times = [], [], [], []
+    for _ in range(settings.slow_repeats):
+        for length, width in cases:
+            plan_s, (obstacle, result) = _timed(lambda length=length, width=width: query(float(length), float(width)))
+            certify_s = 0.0
+            if result.solved and result.path is not None:
+                certify_s, certificate = _timed(lambda r=result, o=obstacle: planner.certify_path(r.path, arm, o))
+                clearances.append(certificate.certified_clearance_m)
+                waypoints.append(int(result.waypoints_rad.shape[0]))
+                answered_times.append(plan_s)
+            elif not result.start_valid:
+                failures["start_invalid"] += 1
+            elif not result.goal_valid:
+                failures["goal_invalid"] += 1
+            else:
+                failures["not_solved"] += 1
+            checks.append(result.validity_checks)
+            queries_coal.append(result.coal_queries)
+            plan_times.append(plan_s)
+            total_times.append(plan_s + certify_s)
+    certified, keeps = certificate_counts(clearances, margin_m)
+    n_queries = len(plan_times)
+    limits = arm.position_limits_rad
+    extent = math.hypot(limits[0][1] - limits[0][0], limits[1][1] - limits[1][0])
+    extra = {
+        "planner_failures": sum(failures.values()),
+        "failure_reasons": failures,
+        "median_answered_s": float(np.median(answered_times)) if answered_times else None,
+        "time_limit_s": settings.ompl_time_s,
+        "simplify": settings.ompl_simplify,
+        "validity": f"Coal clearance of both links >= {validity_margin_m} m",
+        "validity_margin_m": validity_margin_m,
+        "validity_resolution": settings.ompl_resolution,
+        "validity_resolution_rad": settings.ompl_resolution * extent,
+        "validity_checks_median": float(np.median(checks)),
+        "coal_queries_median": float(np.median(queries_coal)),
+        "waypoints_median": float(np.median(waypoints)) if waypoints else None,
+        "certified_clearance_min_m": min(clearances) if clearances else None,
+        "certified_clearance_median_m": float(np.median(clearances)) if clearances else None,
+    }
+    common = {
+        "obstacles": len(cases),
+        "queries": n_queries,
+        "answered": len(clearances),
+        "certified": certified,
+        "keeps_margin": keeps,
+        "extra": extra,
+    }
+    plan = MethodResult(
+        key="d",
+        label="(d)  OMPL RRT-Connect" + (" + simplify" if settings.ompl_simplify else ""),
+        times_s=tuple(plan_times),
+        note="per query: Coal checker + SimpleSetup + IK of P1/P5 + solve"
+        + (" + simplifySolution" if settings.ompl_simplify else ""),
+        **common,
+    )
+    total = MethodResult(
+        key="d_cert",
+        label="(d+) OMPL path + our certificate",
+        times_s=tuple(total_times),
+        note="(d) + certify_path (piecewise-linear certificate, Coal)",
+        **common,
+    )
+    return plan, total
+
+
+def bench_sweep(source: str, coefficients: Any, arm: PlanarArm, cases: np.ndarray) -> tuple[dict[str, Any], Any]:
+    """Sweep rate of ``verify.sweep.run_cases`` (one process) with and without the certificate.
+
+    Returns:
+        (rates, the certified sweep's case results).
+    """
+    run_cases(source, cases[:1], MeasureSettings(certify=True), jobs=1, coefficients=coefficients, arm=arm)  # warm-up
+    out: dict[str, Any] = {"n_cases": len(cases), "jobs": 1}
+    results = None
+    for key, certify in (("without_certificate", False), ("with_certificate", True)):
+        elapsed, results = _timed(
+            lambda certify=certify: run_cases(
+                source, cases, MeasureSettings(certify=certify), jobs=1, coefficients=coefficients, arm=arm
+            )
+        )
+        out[key] = {"seconds": elapsed, "cases_per_s": len(cases) / elapsed}
+    return out, results
+
+
+def read_build_timing(path: Path) -> dict[str, Any] | None:
+    """Summary of a build_timing.json (None if the file does not exist).
+
+    Raises:
+        DataFileError: the file exists but is malformed.
+    """
+    if not path.is_file():
+        return None
+    data = read_json(path)
+    try:
+        experiments = [float(e["seconds"]) for e in data.get("experiments", [])]
+        return {
+            "source": str(path),
+            "total_s": float(data["total_s"]),
+            "jobs": data.get("jobs"),
+            "experiments": len(experiments),
+            "experiment_seconds": experiments,
+            "experiment_median_s": float(np.median(experiments)) if experiments else None,
+            "coal_queries": int(data["coal_queries"]),
+            "objective_evaluations": data.get("objective_evaluations"),
+        }
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DataFileError(path, f"not a build timing file ({type(exc).__name__}: {exc})") from None
+
+
+def run_reduced_build(levels: int, config: SolverConfig, seed: int, urdf: Path | None) -> dict[str, Any]:
+    """Run ``python -m pipeline.build`` with ``levels`` levels per factor (>= 3) into a temporary
+    folder, with the PSO settings of (c); its build_timing.json, summarised.
+
+    Raises:
+        PipelineError: the build failed.
+    """
+    from pipeline import build
+
+    with tempfile.TemporaryDirectory(prefix="bench-build-") as folder:
+        argv = [
+            "--out",
+            folder,
+            "--quiet",
+            "--seed",
+            str(seed),
+            "--levels",
+            str(levels),
+            "--family",
+            config.family,
+            "--swarm-size",
+            str(config.pso.swarm_size),
+            "--iterations",
+            str(config.pso.iterations),
+            "--restarts",
+            str(config.pso.restarts),
+        ]
+        if not config.polish:
+            argv.append("--no-polish")
+        if urdf is not None:
+            argv += ["--urdf", str(urdf)]
+        build.build(build.parser().parse_args(argv), out=io.StringIO())
+        summary = read_build_timing(Path(folder) / "build_timing.json")
+    assert summary is not None
+    pso = config.pso
+    summary["source"] = (
+        f"build run by the benchmark: {levels} x {levels} levels, PSO swarm {pso.swarm_size}, iterations "
+        f"{pso.iterations}, restarts {pso.restarts}, polish {config.polish}"
+    )
+    return summary

@@ -1,0 +1,223 @@
+"""The benchmark's settings and results: what is timed, with which defaults, and how it came out."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pipeline.exceptions import InvalidParameterError
+from pipeline.validation import check_non_negative, check_positive, check_positive_int
+
+from . import planner
+
+FORMAT = "twolink-bench/1"
+PROG = "python -m verify.bench"
+DEFAULT_COEFFICIENTS = "results/coefficients.json"
+DEFAULT_BUILD_TIMING = "results/build_timing.json"
+DEFAULT_N = 50
+DEFAULT_SEED = 0
+DEFAULT_REPEATS = 200
+DEFAULT_SLOW_REPEATS = 3
+DEFAULT_PSO_CASES = 3
+DEFAULT_OMPL_TIME_S = 1.0
+EXIT_OK, EXIT_USAGE, EXIT_INTERRUPTED = 0, 2, 130
+
+#: Warm-up calls of the cheap methods before timing.
+WARMUP_CALLS = 20
+
+
+@dataclass(frozen=True)
+class MethodResult:
+    """Timings and answer quality of one method.
+
+    Attributes:
+        key: Short key: "a", "a_batch", "b", "c", "d", "d_cert".
+        label: Row label of the table.
+        obstacles: Distinct obstacles queried.
+        times_s: Every timed run, as time per query [s].
+        queries: Queries whose answers are counted (obstacles x runs).
+        answered: Queries that returned an answer (a trajectory or a path).
+        certified: Answers certified collision-free (certified clearance > 0).
+        keeps_margin: Answers whose certified clearance is >= the margin.
+        note: What exactly was timed.
+        extra: Method-specific numbers (repairs, planner failures, Coal queries, ...).
+    """
+
+    key: str
+    label: str
+    obstacles: int
+    times_s: tuple[float, ...]
+    queries: int
+    answered: int
+    certified: int
+    keeps_margin: int
+    note: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def median_s(self) -> float:
+        """Median time per query [s]."""
+        return float(np.median(self.times_s))
+
+    @property
+    def answered_fraction(self) -> float:
+        """Fraction of the queries answered."""
+        return self.answered / self.queries if self.queries else float("nan")
+
+    @property
+    def certified_fraction(self) -> float:
+        """Fraction of the answers certified collision-free."""
+        return self.certified / self.answered if self.answered else float("nan")
+
+    @property
+    def keeps_margin_fraction(self) -> float:
+        """Fraction of the answers whose certified clearance keeps the margin."""
+        return self.keeps_margin / self.answered if self.answered else float("nan")
+
+    def to_json(self, reference_a_s: float, reference_b_s: float | None) -> dict[str, Any]:
+        """Plain-JSON form, with the ratios of the median to (a) and (b)."""
+        return {
+            "key": self.key,
+            "label": self.label,
+            "obstacles": self.obstacles,
+            "timed_runs": len(self.times_s),
+            "median_s": self.median_s,
+            "min_s": float(np.min(self.times_s)),
+            "max_s": float(np.max(self.times_s)),
+            "ratio_to_a": self.median_s / reference_a_s,
+            "ratio_to_b": None if reference_b_s is None else self.median_s / reference_b_s,
+            "queries": self.queries,
+            "answered": self.answered,
+            "answered_fraction": self.answered_fraction,
+            "certified_collision_free": self.certified,
+            "certified_fraction": self.certified_fraction,
+            "keeps_margin": self.keeps_margin,
+            "keeps_margin_fraction": self.keeps_margin_fraction,
+            "note": self.note,
+            "extra": self.extra,
+        }
+
+
+@dataclass(frozen=True)
+class BenchSettings:
+    """What the benchmark runs.
+
+    Attributes:
+        n: Random obstacles [cases].
+        seed: Seed of the obstacle sampler, the PSO and OMPL.
+        repeats: Timed passes over all obstacles for (a) and (a').
+        slow_repeats: Timed passes over all obstacles for (b) and (d).
+        pso_cases: Obstacles (the first ones) on which (c) re-runs the PSO; 0 skips (c).
+        pso_swarm_size, pso_iterations, pso_restarts: PSO settings of (c) and --run-build; None: the
+            coefficients' build settings if recorded (provenance), else PsoConfig's defaults.
+        polish: least_squares polish in (c); None: as the build did (default True).
+        ompl_time_s: RRT-Connect time budget per query [s].
+        ompl_margin_m: Validity margin of (d): a state is valid iff both links' clearance is >= this [m];
+            None: the coefficients' scene margin (the fair comparison: the margin (b) is held to).
+        ompl_simplify: Simplify the RRT-Connect path (timed as part of (d)).
+        ompl_resolution: OMPL's validity checking resolution [fraction of the joint-space extent].
+        run_ompl: Run (d) if ompl is installed.
+        build_timing: build_timing.json to report (None: skip).
+        run_build_levels: If set, also run a reduced build with this many levels per factor.
+        urdf: URDF of the arm (None: the project's).
+    """
+
+    n: int = DEFAULT_N
+    seed: int = DEFAULT_SEED
+    repeats: int = DEFAULT_REPEATS
+    slow_repeats: int = DEFAULT_SLOW_REPEATS
+    pso_cases: int = DEFAULT_PSO_CASES
+    pso_swarm_size: int | None = None
+    pso_iterations: int | None = None
+    pso_restarts: int | None = None
+    polish: bool | None = None
+    ompl_time_s: float = DEFAULT_OMPL_TIME_S
+    ompl_margin_m: float | None = None
+    ompl_simplify: bool = True
+    ompl_resolution: float = planner.OMPL_DEFAULT_RESOLUTION
+    run_ompl: bool = True
+    build_timing: Path | None = Path(DEFAULT_BUILD_TIMING)
+    run_build_levels: int | None = None
+    urdf: Path | None = None
+
+    def __post_init__(self) -> None:
+        check_positive_int("--n", self.n)
+        check_positive_int("--seed", self.seed, minimum=0)
+        check_positive_int("--repeats", self.repeats)
+        check_positive_int("--slow-repeats", self.slow_repeats)
+        check_positive_int("--pso-cases", self.pso_cases, minimum=0)
+        if self.pso_cases > self.n:
+            raise InvalidParameterError("--pso-cases", self.pso_cases, f"at most --n = {self.n}")
+        for name, value, minimum in (
+            ("--pso-swarm-size", self.pso_swarm_size, 2),
+            ("--pso-iterations", self.pso_iterations, 1),
+            ("--pso-restarts", self.pso_restarts, 1),
+        ):
+            if value is not None:
+                check_positive_int(name, value, minimum=minimum)
+        check_positive("--ompl-time", self.ompl_time_s)
+        if self.ompl_margin_m is not None:
+            check_non_negative("--ompl-margin", self.ompl_margin_m)
+        check_positive("--ompl-resolution", self.ompl_resolution)
+        if self.run_build_levels is not None:
+            check_positive_int("--run-build", self.run_build_levels, minimum=3)
+
+
+@dataclass(frozen=True)
+class BenchReport:
+    """Everything one benchmark run measured.
+
+    Attributes:
+        coefficients: Source, family and hash of the coefficients.
+        settings: The settings as plain JSON.
+        cases_m: The obstacles (L, W) [m], shape (n, 2).
+        margin_m: The scene's safety margin [m].
+        methods: One :class:`MethodResult` per method run.
+        skipped: Method key -> why it was skipped.
+        sweep: Sweep rates (None if not run).
+        build: Build timing (None if none was found or run).
+        machine: Python, platform, CPU count, package versions.
+        command: The command line.
+        elapsed_s: Wall time of the whole benchmark [s].
+    """
+
+    coefficients: dict[str, Any]
+    settings: dict[str, Any]
+    cases_m: np.ndarray
+    margin_m: float
+    methods: tuple[MethodResult, ...]
+    skipped: dict[str, str]
+    sweep: dict[str, Any] | None
+    build: dict[str, Any] | None
+    machine: dict[str, Any]
+    command: str
+    elapsed_s: float
+
+    def method(self, key: str) -> MethodResult | None:
+        """The result of method ``key``, or None if it was not run."""
+        return next((m for m in self.methods if m.key == key), None)
+
+    def to_json(self) -> dict[str, Any]:
+        """The --json document."""
+        a = self.method("a")
+        b = self.method("b")
+        reference_a = a.median_s if a else float("nan")
+        reference_b = b.median_s if b else None
+        return {
+            "format": FORMAT,
+            "command": self.command,
+            "note": "ratios measured in one run on this machine, not absolute claims",
+            "coefficients": self.coefficients,
+            "settings": self.settings,
+            "margin_m": self.margin_m,
+            "cases": [[float(length), float(width)] for length, width in self.cases_m],
+            "methods": [m.to_json(reference_a, reference_b) for m in self.methods],
+            "skipped": dict(self.skipped),
+            "sweep": self.sweep,
+            "build": self.build,
+            "machine": self.machine,
+            "elapsed_s": self.elapsed_s,
+        }
