@@ -205,11 +205,6 @@ def solve_experiment(
     )
 
 
-def free_parameter_names(family: str) -> tuple[str, ...]:
-    """Names of the parameters the family searches (and the regression fits)."""
-    return FREE_PARAMETERS[family]
-
-
 def score_parameters(
     arm: PlanarArm, length_m: float, width_m: float, scene: Scene, config: SolverConfig, parameters: np.ndarray
 ) -> dict[str, float]:
