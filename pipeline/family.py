@@ -93,6 +93,14 @@ def inverse_kinematics(point_m: np.ndarray, link_lengths_m: tuple[float, float],
     return np.array([theta1, theta2])
 
 
+def endpoint_context(path, link_lengths_m: tuple[float, float], elbow: int = 1) -> EndpointContext:
+    """Joint angles of P1 and P5 (analytic IK on the given elbow branch) and T, for a
+    :class:`pipeline.path.QuarticPath` ``path``."""
+    start = inverse_kinematics(path.points_m[0], link_lengths_m, elbow)
+    end = inverse_kinematics(path.points_m[-1], link_lengths_m, elbow)
+    return EndpointContext((float(start[0]), float(start[1])), (float(end[0]), float(end[1])), path.duration_s)
+
+
 def expand(family: str, free: np.ndarray, context: EndpointContext | None) -> np.ndarray:
     """The 8 parameters (..., 8) from the family's free parameters (..., k)."""
     free = np.asarray(free, dtype=float)

@@ -23,7 +23,7 @@ import numpy as np
 
 from .clearance import CoalClearance, analytic_link_clearance, check_fast_route
 from .exceptions import InvalidParameterError
-from .family import EndpointContext, check_family, expand, inverse_kinematics
+from .family import EndpointContext, check_family, endpoint_context, expand
 from .obstacle import Obstacle
 from .path import QuarticPath, desired_path
 from .robot import PlanarArm
@@ -162,13 +162,6 @@ class FitnessProblem:
         )
 
 
-def endpoint_context(arm: PlanarArm, path: QuarticPath, elbow: int = 1) -> EndpointContext:
-    """Joint angles of P1 and P5 (analytic IK on the given elbow branch) and T."""
-    start = inverse_kinematics(path.points_m[0], arm.link_lengths_m, elbow)
-    end = inverse_kinematics(path.points_m[-1], arm.link_lengths_m, elbow)
-    return EndpointContext((float(start[0]), float(start[1])), (float(end[0]), float(end[1])), path.duration_s)
-
-
 def fitness_problem(
     arm: PlanarArm,
     length_m: float,
@@ -202,7 +195,7 @@ def fitness_problem(
         path=path,
         config=config,
         family=family,
-        context=endpoint_context(arm, path, config.elbow),
+        context=endpoint_context(path, arm.link_lengths_m, config.elbow),
         times_s=times,
         targets_m=targets,
         weights=weights,

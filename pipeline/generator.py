@@ -14,7 +14,7 @@ import numpy as np
 
 from .coefficients import Coefficients
 from .exceptions import InvalidParameterError, OutOfFittedRangeError, OutOfFittedRangeWarning
-from .family import EndpointContext, expand, inverse_kinematics
+from .family import endpoint_context, expand
 from .obstacle import Obstacle
 from .path import QuarticPath, desired_path
 from .scene import Scene
@@ -69,13 +69,6 @@ def _check_range(coefficients: Coefficients, length_m: float, width_m: float, po
     return not coefficients.in_range(length_m, width_m)
 
 
-def endpoint_context_for(coefficients: Coefficients, path: QuarticPath) -> EndpointContext:
-    """P1 / P5 joint angles (analytic IK with the coefficients' arm and elbow) and T."""
-    start = inverse_kinematics(path.points_m[0], coefficients.link_lengths_m, coefficients.elbow)
-    end = inverse_kinematics(path.points_m[-1], coefficients.link_lengths_m, coefficients.elbow)
-    return EndpointContext((float(start[0]), float(start[1])), (float(end[0]), float(end[1])), path.duration_s)
-
-
 def generate(
     coefficients: Coefficients, length_m: float, width_m: float, *, out_of_range: str = "warn"
 ) -> GeneratedTrajectory:
@@ -98,7 +91,11 @@ def generate(
     path = desired_path(obstacle, scene, (abs(l1 - l2), l1 + l2))
     extrapolated = _check_range(coefficients, obstacle.length_m, obstacle.width_m, out_of_range)
     free = coefficients.predict_free(obstacle.length_m, obstacle.width_m)
-    context = endpoint_context_for(coefficients, path) if coefficients.family != "paper" else None
+    context = (
+        endpoint_context(path, coefficients.link_lengths_m, coefficients.elbow)
+        if coefficients.family != "paper"
+        else None
+    )
     full = expand(coefficients.family, free, context)
     return GeneratedTrajectory(
         length_m=obstacle.length_m,
@@ -113,13 +110,15 @@ def generate(
 
 
 def generate_parameters(coefficients: Coefficients, lengths_m: np.ndarray, widths_m: np.ndarray) -> np.ndarray:
-    """Batched generator: the 8 parameters (n, 8) for n obstacles, equal to :func:`generate`'s,
-    without its checks (use :func:`generate` for validated single queries)."""
-    free = coefficients.predict_free(np.asarray(lengths_m, float), np.asarray(widths_m, float))
+    """Batched generator: the 8 parameters (n, 8) for n obstacles, equal to :func:`generate`'s.
+
+    For the paper family this is the regression alone, vectorised and without checks; the
+    exact-endpoints family needs each obstacle's path and inverse kinematics, so it calls
+    :func:`generate` per obstacle (range checks off).
+    """
     if coefficients.family == "paper":
-        return free
-    rows = []
-    for L, W, f in zip(np.atleast_1d(lengths_m), np.atleast_1d(widths_m), np.atleast_2d(free), strict=True):
-        path = desired_path(Obstacle.in_scene(float(L), float(W), coefficients.scene), coefficients.scene)
-        rows.append(expand(coefficients.family, f, endpoint_context_for(coefficients, path)))
-    return np.array(rows)
+        return coefficients.predict_free(np.asarray(lengths_m, float), np.asarray(widths_m, float))
+    pairs = zip(np.atleast_1d(lengths_m), np.atleast_1d(widths_m), strict=True)
+    return np.array(
+        [generate(coefficients, float(L), float(W), out_of_range="ignore").trajectory.parameters for L, W in pairs]
+    )

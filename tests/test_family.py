@@ -19,11 +19,11 @@ from pipeline.family import (
     EndpointContext,
     canonical_free,
     check_family,
+    endpoint_context,
     expand,
     inverse_kinematics,
     search_bounds,
 )
-from pipeline.fitness import endpoint_context
 from pipeline.obstacle import Obstacle
 from pipeline.path import QuarticPath, desired_path
 from pipeline.robot import PlanarArm
@@ -69,7 +69,7 @@ def unclamped(free: np.ndarray, duration_s: float) -> np.ndarray:
 @pytest.mark.parametrize("elbow", [1, -1])
 def test_exact_endpoints_pin_the_tip_to_p1_and_p5(arm: PlanarArm, size: tuple[float, float], elbow: int) -> None:
     path = path_for(*size)
-    context = endpoint_context(arm, path, elbow)
+    context = endpoint_context(path, arm.link_lengths_m, elbow)
     rng = np.random.default_rng(hash((size, elbow)) % 2**32)
     free = random_free("exact-endpoints", rng, 400)
     free = free[unclamped(free, context.duration_s)]
@@ -88,7 +88,7 @@ def test_exact_endpoints_pin_the_tip_to_p1_and_p5(arm: PlanarArm, size: tuple[fl
 
 def test_endpoint_context_is_the_inverse_kinematics_of_p1_and_p5(arm: PlanarArm) -> None:
     path = path_for(0.25, 0.10)
-    context = endpoint_context(arm, path, 1)
+    context = endpoint_context(path, arm.link_lengths_m, 1)
     assert context.duration_s == path.duration_s
     assert_allclose(eq2(np.array(context.theta_start_rad)), path.points_m[0], rtol=0, atol=1e-12)
     assert_allclose(eq2(np.array(context.theta_end_rad)), path.points_m[-1], rtol=0, atol=1e-12)
@@ -98,7 +98,7 @@ def test_endpoint_context_is_the_inverse_kinematics_of_p1_and_p5(arm: PlanarArm)
 
 def test_clamped_denominator_keeps_a1_bounded(arm: PlanarArm) -> None:
     """Where sin(w1 T + phi1) = sin(phi1) (w1 T = pi - 2 phi1) A1 would be infinite; it is clamped."""
-    context = endpoint_context(arm, path_for(0.25, 0.10), 1)
+    context = endpoint_context(path_for(0.25, 0.10), arm.link_lengths_m, 1)
     T = context.duration_s
     phi1 = 0.3
     w1 = (math.pi - 2 * phi1) / T
@@ -204,7 +204,7 @@ def test_canonical_free_then_expand_is_the_same_motion(arm: PlanarArm, family: s
     """canonical_free + expand reproduces the joint angles of the original free parameters,
     also from non-canonical inputs (w1 < 0, phases beyond [-pi/2, pi/2))."""
     path = path_for(0.25, 0.10)
-    context = endpoint_context(arm, path, 1)
+    context = endpoint_context(path, arm.link_lengths_m, 1)
     rng = np.random.default_rng(11)
     free = random_free(family, rng, 500)
     # Non-canonical equivalents: negate frequencies and shift phases by up to 3 half-turns.
@@ -237,7 +237,7 @@ def test_canonical_free_of_table_2_is_table_2(table2: np.ndarray) -> None:
 def test_exact_endpoints_equal_motions_get_equal_canonical_parameters(arm: PlanarArm) -> None:
     """With phi2 pinned to (pi - w2 T) / 2, joint 2 moves as A2 cos(w2 (t - T/2)) + const, so
     (A2, w2) and (A2, -w2) are the same motion. One canonical form means w2 >= 0 for both."""
-    context = endpoint_context(arm, path_for(0.25, 0.10), 1)
+    context = endpoint_context(path_for(0.25, 0.10), arm.link_lengths_m, 1)
     free = np.array([0.99, 0.46, 1.45, 0.86])
     mirrored = free * np.array([1.0, 1.0, 1.0, -1.0])
     t = np.linspace(0.0, context.duration_s, 101)

@@ -20,8 +20,7 @@ from pipeline.exceptions import (
     OutOfFittedRangeWarning,
     UnreachableObstacleError,
 )
-from pipeline.family import expand
-from pipeline.fitness import endpoint_context
+from pipeline.family import endpoint_context, expand
 from pipeline.generator import generate, generate_parameters
 from pipeline.obstacle import Obstacle
 from pipeline.path import desired_path
@@ -207,7 +206,7 @@ def test_exact_endpoints_generator_pins_the_tip(arm: PlanarArm, exact: Coefficie
     for L, W in QUERIES:
         generated = generate(exact, L, W)
         free = exact.predict_free(L, W)
-        context = endpoint_context(arm, generated.path, exact.elbow)
+        context = endpoint_context(generated.path, arm.link_lengths_m, exact.elbow)
         assert_allclose(generated.trajectory.parameters, expand("exact-endpoints", free, context), rtol=0, atol=1e-12)
         tips = arm.end_effector_planar(generated.q(np.array([0.0, generated.duration_s])))
         assert_allclose(tips[0], generated.path.points_m[0], rtol=0, atol=1e-9)
