@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.certificate import certify_trajectory
-from pipeline.exceptions import DataFileError, PipelineError
+from pipeline.exceptions import PipelineError
 from pipeline.experiment import SolverConfig
 from pipeline.fitness import FitnessConfig
 from pipeline.jsonio import write_json_atomic
@@ -52,7 +52,7 @@ from pipeline.provenance import PACKAGES, package_versions
 from pipeline.pso import PsoConfig
 from pipeline.robot import load_planar_arm
 from pipeline.trajectory import JointTrajectory
-from verify.cli import HelpFormatter, Parser
+from verify.cli import DEFAULT_COEFFICIENTS, HelpFormatter, Parser, load_coefficients_for_cli
 
 from . import planner
 from .bench_methods import (
@@ -69,7 +69,6 @@ from .bench_methods import (
 from .bench_report import format_report
 from .bench_results import (
     DEFAULT_BUILD_TIMING,
-    DEFAULT_COEFFICIENTS,
     EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_USAGE,
@@ -83,16 +82,6 @@ from .sweep import SweepRange, sample_cases
 
 # --------------------------------------------------------------------------------------------
 # Helpers
-
-
-def load_coefficients_checked(source: str) -> Any:
-    """Load coefficients (a file or "paper") with a clear error when the file is missing."""
-    from pipeline.coefficients import load_coefficients
-
-    if source != "paper" and not Path(source).is_file():
-        hint = " (run python -m pipeline.build first, or pass --coefficients paper)"
-        raise DataFileError(source, "coefficients file not found" + (hint if source == DEFAULT_COEFFICIENTS else ""))
-    return load_coefficients(source)
 
 
 def machine_info() -> dict[str, Any]:
@@ -168,7 +157,7 @@ def run_bench(
     """
     started = time.perf_counter()
     machine = machine_info()  # load average at the start
-    coefficients = load_coefficients_checked(source)
+    coefficients = load_coefficients_for_cli(source)
     arm = load_planar_arm(settings.urdf)
     check_arm_matches(coefficients, arm)
     margin = coefficients.scene.margin_m

@@ -15,7 +15,6 @@ from . import planner
 
 FORMAT = "twolink-bench/1"
 PROG = "python -m verify.bench"
-DEFAULT_COEFFICIENTS = "results/coefficients.json"
 DEFAULT_BUILD_TIMING = "results/build_timing.json"
 DEFAULT_N = 50
 DEFAULT_SEED = 0

@@ -3,10 +3,28 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import NoReturn
+
+from pipeline.coefficients import Coefficients, load_coefficients
+from pipeline.exceptions import DataFileError
 
 #: Exit status for bad command-line input (argparse's own convention).
 EXIT_USAGE = 2
+#: Where ``python -m pipeline.build`` writes the coefficients by default.
+DEFAULT_COEFFICIENTS = "results/coefficients.json"
+
+
+def load_coefficients_for_cli(source: str) -> Coefficients:
+    """:func:`pipeline.coefficients.load_coefficients`, with a hint when the default file is missing.
+
+    Raises:
+        DataFileError: missing, unreadable or malformed file.
+    """
+    if source != "paper" and not Path(source).is_file():
+        hint = " (run python -m pipeline.build first, or pass --coefficients paper)"
+        raise DataFileError(source, "coefficients file not found" + (hint if source == DEFAULT_COEFFICIENTS else ""))
+    return load_coefficients(source)
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):

@@ -27,6 +27,7 @@ from pipeline.jsonio import write_json_atomic
 from pipeline.online import RepairConfig, generate_certified
 from pipeline.robot import DEFAULT_URDF, PlanarArm, load_planar_arm
 
+from .cli import DEFAULT_COEFFICIENTS, load_coefficients_for_cli
 from .sweep import SweepRange, sample_cases
 
 
@@ -134,7 +135,7 @@ def parser() -> argparse.ArgumentParser:
         description="Certify-or-repair on random obstacles: each answer certified >= margin, or refused.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    p.add_argument("--coefficients", default="results/coefficients.json", help="coefficients file, or 'paper'")
+    p.add_argument("--coefficients", default=DEFAULT_COEFFICIENTS, help="coefficients file, or 'paper'")
     p.add_argument("--n", type=int, default=1000, help="number of random obstacles")
     p.add_argument("--seed", type=int, default=0, help="random seed of the obstacle sizes")
     p.add_argument(
@@ -156,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.n < 1 or args.jobs < 1 or not 0 <= args.beyond < 10:
             raise PipelineError(f"--n {args.n} and --jobs {args.jobs} must be >= 1, --beyond {args.beyond} in [0, 10)")
-        coefficients = load_coefficients(args.coefficients)
+        coefficients = load_coefficients_for_cli(args.coefficients)
         fitted = SweepRange.from_fitted(coefficients.fitted_range_m)
         grow_l = args.beyond * (fitted.L_m[1] - fitted.L_m[0])
         grow_w = args.beyond * (fitted.W_m[1] - fitted.W_m[0])

@@ -40,13 +40,12 @@ from pipeline.obstacle import Obstacle
 from pipeline.provenance import package_versions, sha256_file
 from pipeline.robot import PlanarArm, load_planar_arm
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
-from verify.cli import HelpFormatter, Parser
+from verify.cli import DEFAULT_COEFFICIENTS, HelpFormatter, Parser, load_coefficients_for_cli
 
 from .metrics import AcceptanceThresholds, CaseResult, MeasureSettings, check_arm_matches, measure_case
 from .sweep_report import format_comparison, format_summary
 
 #: Default coefficients file (relative to the working directory).
-DEFAULT_COEFFICIENTS = "results/coefficients.json"
 DEFAULT_CASES = 1000
 DEFAULT_SEED = 0
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -147,18 +146,6 @@ def on_doe_grid(length_m: float, width_m: float) -> bool:
 # Running cases (in-process or in worker processes)
 
 
-def _load_coefficients(source: str) -> Any:
-    """pipeline.coefficients.load_coefficients with a clear error when the file is missing."""
-    if source != "paper" and not Path(source).is_file():
-        hint = " (fit the coefficients first, or pass --coefficients paper)" if source == DEFAULT_COEFFICIENTS else ""
-        raise DataFileError(source, f"coefficients file not found{hint}")
-    try:
-        from pipeline.coefficients import load_coefficients
-    except ImportError as exc:
-        raise PipelineError(f"cannot load coefficients: pipeline.coefficients is unavailable ({exc})") from None
-    return load_coefficients(source)
-
-
 @dataclass(frozen=True)
 class _Chunk:
     """A batch of cases for one worker call (everything picklable)."""
@@ -173,7 +160,7 @@ class _Chunk:
 def _measure_chunk(chunk: _Chunk, coefficients: Any = None, arm: PlanarArm | None = None) -> list[CaseResult]:
     """Measure a batch of cases; loads the coefficients and arm unless given."""
     if coefficients is None:
-        coefficients = _load_coefficients(chunk.source)
+        coefficients = load_coefficients_for_cli(chunk.source)
         if coefficients.source_sha256 != chunk.sha256:
             raise DataFileError(chunk.source, "changed while the sweep was running (sha256 differs)")
     arm = arm or load_planar_arm(chunk.urdf_path)
@@ -225,7 +212,7 @@ def run_cases(
     """
     jobs = resolve_jobs(jobs)
     cases = np.asarray(cases_m, dtype=float).reshape(-1, 2)
-    coefficients = coefficients if coefficients is not None else _load_coefficients(source)
+    coefficients = coefficients if coefficients is not None else load_coefficients_for_cli(source)
     indexed = [(i, float(length), float(width)) for i, (length, width) in enumerate(cases)]
     size = max(1, min(16, math.ceil(len(indexed) / (4 * jobs))))
     chunks = [
@@ -431,7 +418,7 @@ def run_sweep(
         PipelineError: bad coefficients, range or settings.
     """
     settings = settings or MeasureSettings()
-    coefficients = _load_coefficients(source)
+    coefficients = load_coefficients_for_cli(source)
     fitted = SweepRange.from_fitted(coefficients.fitted_range_m)
     chosen = sweep_range or fitted
     cases = sample_cases(chosen, n, seed) if cases_m is None else np.asarray(cases_m, dtype=float).reshape(-1, 2)
@@ -781,7 +768,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         settings = _settings_from_args(args)
         viewer = _viewer(args)
         sources = list(args.compare) if args.compare else [args.coefficients]
-        coefficients = [_load_coefficients(s) for s in sources]
+        coefficients = [load_coefficients_for_cli(s) for s in sources]
         if args.range is not None:
             chosen: SweepRange | None = SweepRange((args.range[0], args.range[1]), (args.range[2], args.range[3]))
         elif len(coefficients) > 1:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning, PipelineError
 from pipeline.robot import DEFAULT_URDF, load_planar_arm
-from verify.cli import Parser
+from verify.cli import Parser, load_coefficients_for_cli
 
 PROG = "python -m verify.view"
 
@@ -160,12 +160,11 @@ def _run(args: argparse.Namespace) -> int:
     if args.paper_test1:
         case = paper_test1_case(arm)
     else:
-        from pipeline.coefficients import load_coefficients
         from pipeline.generator import generate
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", OutOfFittedRangeWarning)
-            generated = generate(load_coefficients(args.coefficients), args.L, args.W)
+            generated = generate(load_coefficients_for_cli(args.coefficients), args.L, args.W)
         for warning in caught:
             print(f"{PROG}: warning: {warning.message}", file=sys.stderr)
         case = case_from_generated(generated, arm)
