@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.metadata
 import importlib.util
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 import pytest
@@ -71,6 +72,26 @@ _TABLE2 = (
     (-0.786, 0.992, 0.549, 1.178, 1.397, 0.895, 0.153, 0.514, 0.25, 0.08),
     (-0.797, 0.993, 0.602, 1.222, 1.323, 0.955, 0.167, 0.574, 0.20, 0.08),
 )
+
+
+# Eq. 9 of the paper, typed from the paper: name -> coefficients of 1, L, W, L^2, L W, W^2.
+_EQ9 = {
+    "A1": (-1.475, 2.963, 6.987, -2.869, -19.07, -8.39),
+    "w1": (0.4736, 2.15, 6.109, -2.338, -14.8, -10.74),
+    "phi1": (1.6, -3.08, -9.415, 1.539, 16.82, 6.086),
+    "gamma1": (2.286, -3.97, -9.70, 4.052, 16.95, 11.19),
+    "A2": (1.734, -2.731, -5.85, 5.735, 17.88, 16.36),
+    "w2": (1.208, -0.9549, -0.04626, -0.1239, -1.739, -4.679),
+    "phi2": (0.801, -2.273, -6.41, 1.942, 12.59, 9.89),
+    "gamma2": (-0.2707, 3.232, 10.7, -6.575, -15.95, -24.3),
+}
+
+
+@pytest.fixture(scope="session")
+def paper_eq9() -> MappingProxyType:
+    """Eq. 9 of the paper as typed from it (independent of the shipped data file), read-only:
+    name -> (b0..b5) on the basis 1, L, W, L^2, L W, W^2, in the paper's parameter order."""
+    return MappingProxyType(_EQ9)
 
 
 @pytest.fixture(scope="session")

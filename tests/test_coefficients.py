@@ -27,18 +27,6 @@ from pipeline.regression import BASIS
 from pipeline.scene import Scene
 from pipeline.trajectory import PARAMETER_NAMES
 
-# Eq. 9 of the paper, in BASIS order.
-EQ9 = {
-    "A1": (-1.475, 2.963, 6.987, -2.869, -19.07, -8.39),
-    "w1": (0.4736, 2.15, 6.109, -2.338, -14.8, -10.74),
-    "phi1": (1.6, -3.08, -9.415, 1.539, 16.82, 6.086),
-    "gamma1": (2.286, -3.97, -9.70, 4.052, 16.95, 11.19),
-    "A2": (1.734, -2.731, -5.85, 5.735, 17.88, 16.36),
-    "w2": (1.208, -0.9549, -0.04626, -0.1239, -1.739, -4.679),
-    "phi2": (0.801, -2.273, -6.41, 1.942, 12.59, 9.89),
-    "gamma2": (-0.2707, 3.232, 10.7, -6.575, -15.95, -24.3),
-}
-
 
 def paper_document() -> dict:
     return json.loads(paper_data_path("paper_eq9_coefficients.json").read_text(encoding="utf-8"))
@@ -71,13 +59,13 @@ def exact_endpoints_coefficients() -> Coefficients:
 # The paper's Eq. 9.
 
 
-def test_load_paper(table2: np.ndarray) -> None:
+def test_load_paper(table2: np.ndarray, paper_eq9) -> None:
     paper = load_coefficients("paper")
     assert paper.family == "paper"
     assert paper.source == "paper"
     assert list(paper.parameters) == list(PARAMETER_NAMES)
     for name in PARAMETER_NAMES:
-        assert_allclose(paper.parameters[name], EQ9[name], rtol=0, atol=0)
+        assert_allclose(paper.parameters[name], paper_eq9[name], rtol=0, atol=0)
     assert paper.fitted_range_m == {"L": (0.2, 0.3), "W": (0.08, 0.12)}
     assert paper.scene.is_close(Scene())
     assert paper.link_lengths_m == (0.3, 0.35)

@@ -29,22 +29,11 @@ from pipeline.scene import Scene
 from pipeline.trajectory import PARAMETER_NAMES, joint_angles
 
 D, SPEED = 0.56, 0.2
-# Eq. 9 of the paper, typed from the paper, in the order 1, L, W, L^2, LW, W^2.
-EQ9 = {
-    "A1": (-1.475, 2.963, 6.987, -2.869, -19.07, -8.39),
-    "w1": (0.4736, 2.15, 6.109, -2.338, -14.8, -10.74),
-    "phi1": (1.6, -3.08, -9.415, 1.539, 16.82, 6.086),
-    "gamma1": (2.286, -3.97, -9.70, 4.052, 16.95, 11.19),
-    "A2": (1.734, -2.731, -5.85, 5.735, 17.88, 16.36),
-    "w2": (1.208, -0.9549, -0.04626, -0.1239, -1.739, -4.679),
-    "phi2": (0.801, -2.273, -6.41, 1.942, 12.59, 9.89),
-    "gamma2": (-0.2707, 3.232, 10.7, -6.575, -15.95, -24.3),
-}
 QUERIES = [(0.25, 0.10), (0.22, 0.09), (0.28, 0.115), (0.2, 0.08), (0.3, 0.12), (0.215, 0.105)]
 
 
-def eq9_by_hand(L: float, W: float) -> np.ndarray:
-    return np.array([b[0] + b[1] * L + b[2] * W + b[3] * L * L + b[4] * L * W + b[5] * W * W for b in EQ9.values()])
+def eq9_by_hand(eq9, L: float, W: float) -> np.ndarray:
+    return np.array([b[0] + b[1] * L + b[2] * W + b[3] * L * L + b[4] * L * W + b[5] * W * W for b in eq9.values()])
 
 
 def duration_by_hand(L: float, W: float) -> float:
@@ -91,11 +80,11 @@ def exact() -> Coefficients:
 
 
 @pytest.mark.parametrize(("L", "W"), QUERIES)
-def test_generate_gives_eq9_and_the_path_duration(paper: Coefficients, L: float, W: float) -> None:
+def test_generate_gives_eq9_and_the_path_duration(paper: Coefficients, paper_eq9, L: float, W: float) -> None:
     trajectory = generate(paper, L, W)
     assert trajectory.family == "paper"
     assert not trajectory.extrapolated
-    assert_allclose(trajectory.trajectory.parameters, eq9_by_hand(L, W), rtol=0, atol=1e-12)
+    assert_allclose(trajectory.trajectory.parameters, eq9_by_hand(paper_eq9, L, W), rtol=0, atol=1e-12)
     scene = Scene()
     expected_path = desired_path(Obstacle.in_scene(L, W, scene), scene)
     assert trajectory.duration_s == expected_path.duration_s
@@ -103,7 +92,7 @@ def test_generate_gives_eq9_and_the_path_duration(paper: Coefficients, L: float,
     assert_allclose(trajectory.path.points_m, expected_path.points_m, rtol=0, atol=0)
     # q(t) is Eq. 1 with those parameters.
     t = np.linspace(0, trajectory.duration_s, 7)
-    a1, w1, p1, g1, a2, w2, p2, g2 = eq9_by_hand(L, W)
+    a1, w1, p1, g1, a2, w2, p2, g2 = eq9_by_hand(paper_eq9, L, W)
     assert_allclose(
         trajectory.q(t),
         np.column_stack([a1 * np.sin(w1 * t + p1) + g1, a2 * np.sin(w2 * t + p2) + g2]),
@@ -122,7 +111,7 @@ def test_generate_at_test_5_is_close_to_table_2(paper: Coefficients, table2: np.
 
 
 @pytest.mark.parametrize(("L", "W"), [(0.31, 0.10), (0.19, 0.10), (0.25, 0.13), (0.25, 0.07), (0.35, 0.06)])
-def test_out_of_range_policies(paper: Coefficients, L: float, W: float) -> None:
+def test_out_of_range_policies(paper: Coefficients, paper_eq9, L: float, W: float) -> None:
     with pytest.warns(OutOfFittedRangeWarning):
         warned = generate(paper, L, W, out_of_range="warn")
     assert warned.extrapolated
@@ -133,7 +122,7 @@ def test_out_of_range_policies(paper: Coefficients, L: float, W: float) -> None:
         warnings.simplefilter("error")
         ignored = generate(paper, L, W, out_of_range="ignore")
     assert ignored.extrapolated
-    assert_allclose(ignored.trajectory.parameters, eq9_by_hand(L, W), rtol=0, atol=1e-12)
+    assert_allclose(ignored.trajectory.parameters, eq9_by_hand(paper_eq9, L, W), rtol=0, atol=1e-12)
     assert ignored.trajectory.parameters == warned.trajectory.parameters
 
 
@@ -216,5 +205,5 @@ def test_exact_endpoints_generator_pins_the_tip(arm: PlanarArm, exact: Coefficie
         }
 
 
-def test_parameter_names_order() -> None:
-    assert tuple(EQ9) == PARAMETER_NAMES
+def test_parameter_names_order(paper_eq9) -> None:
+    assert tuple(paper_eq9) == PARAMETER_NAMES
