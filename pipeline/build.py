@@ -31,6 +31,7 @@ from .obstacle import Obstacle
 from .path import desired_path
 from .provenance import package_versions, sha256_file
 from .pso import PsoConfig
+from .regress import add_regression_arguments, endpoint_constraint
 from .robot import DEFAULT_URDF, load_planar_arm
 from .scene import Scene
 from .trajectory import PARAMETER_NAMES
@@ -95,6 +96,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--speed", type=float, default=defaults_scene.speed_m_s, help="end-effector speed v along the path [m/s]"
     )
+    add_regression_arguments(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar or tables")
     return p
 
@@ -139,6 +141,7 @@ def build(args: argparse.Namespace, out=None) -> int:
     arm = load_planar_arm(args.urdf)
     scene = Scene(margin_m=args.margin, corner_radius_m=args.corner_radius, speed_m_s=args.speed)
     design = Design(args.levels, tuple(args.L_range), tuple(args.W_range))
+    constraint = endpoint_constraint(args, args.family)
     config = SolverConfig(
         family=args.family,
         fitness=FitnessConfig(
@@ -180,7 +183,9 @@ def build(args: argparse.Namespace, out=None) -> int:
     doe_text = dumps(document)
     doe = doe_from_json(json.loads(doe_text), str(doe_path))
     coefficients, _ = fit_coefficients(
-        doe, {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_text.encode()).hexdigest()}}
+        doe,
+        {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_text.encode()).hexdigest()}},
+        constraint,
     )
     doe_replaced, coefficients_replaced = write_pair(
         doe_path, doe_text, coefficients_path, dumps(coefficients.to_json())

@@ -16,10 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .exceptions import DataFileError, PipelineError
+from .endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
+from .exceptions import DataFileError, InvalidParameterError, PipelineError
 from .family import FAMILY_NAMES, FREE_PARAMETERS
 from .jsonio import dumps, read_json, write_text_atomic
-from .regression import BASIS, predict
+from .regression import BASIS, fit_quadratic, predict
 from .scene import Scene
 
 FORMAT = "twolink-coefficients/1"
@@ -184,31 +185,51 @@ def load_coefficients(source: str | Path) -> Coefficients:
     return coefficients_from_json(document, label, sha256)
 
 
-def fit_coefficients(doe, extra: dict | None = None) -> tuple[Coefficients, object]:
+def fit_coefficients(
+    doe, extra: dict | None = None, endpoint_constraint: EndpointConstraint | None = None
+) -> tuple[Coefficients, object]:
     """Regress a DOE (a :class:`pipeline.doe.DoeData`) into coefficients.
 
     Every optimum is first mapped to the canonical form of Eq. 8, then each free
-    parameter of the family is fitted on the quadratic basis.
+    parameter of the family is fitted on the quadratic basis: by plain least squares (the
+    paper's Eq. 9), or, given an :class:`pipeline.endpoint_regression.EndpointConstraint`
+    (paper family only), with the endpoint errors held within its tolerance over the range.
 
     Returns:
         (coefficients, the :class:`pipeline.regression.QuadraticFit` with R^2 and LOO errors).
-    """
-    from .regression import fit_quadratic
 
-    fit = fit_quadratic(doe.lengths_m, doe.widths_m, doe.free_parameters())
+    Raises:
+        InvalidParameterError: an endpoint constraint for a family that is exact by
+            construction, or as :func:`pipeline.regression.fit_quadratic`.
+    """
+    fitted_range = {
+        "L": (float(doe.lengths_m.min()), float(doe.lengths_m.max())),
+        "W": (float(doe.widths_m.min()), float(doe.widths_m.max())),
+    }
+    if endpoint_constraint is None:
+        fit = fit_quadratic(doe.lengths_m, doe.widths_m, doe.free_parameters())
+        method = {"regression": "least squares"}
+    elif doe.family != "paper":
+        raise InvalidParameterError(
+            "endpoint_constraint", endpoint_constraint, f"None for the {doe.family} family (exact by construction)"
+        )
+    else:
+        targets = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.grid_points)
+        fit, report = fit_with_endpoints(
+            doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, endpoint_constraint
+        )
+        method = {"regression": "least squares + endpoint constraint", "endpoint_constraint": report}
     quality = {
         "r_squared": fit.r_squared,
         "loo_rmse": fit.loo_rmse,
         "max_residual": fit.max_residual,
         "experiments": len(doe.lengths_m),
+        **method,
     }
     coefficients = Coefficients(
         family=doe.family,
         parameters=fit.coefficients,
-        fitted_range_m={
-            "L": (float(doe.lengths_m.min()), float(doe.lengths_m.max())),
-            "W": (float(doe.widths_m.min()), float(doe.widths_m.max())),
-        },
+        fitted_range_m=fitted_range,
         scene=doe.scene,
         link_lengths_m=doe.link_lengths_m,
         link_radii_m=doe.link_radii_m,

@@ -75,6 +75,10 @@ class OutOfFittedRangeWarning(UserWarning):
     """(L, W) lies outside the fitted range and extrapolation was allowed."""
 
 
+class EndpointConstraintWarning(UserWarning):
+    """The endpoint-constrained regression stopped before meeting its tolerance everywhere."""
+
+
 class DataFileError(PipelineError):
     """A DOE or coefficients file is missing, unreadable or malformed.
 

@@ -93,6 +93,14 @@ def inverse_kinematics(point_m: np.ndarray, link_lengths_m: tuple[float, float],
     return np.array([theta1, theta2])
 
 
+def forward_kinematics(theta_rad: np.ndarray, link_lengths_m: tuple[float, float]) -> np.ndarray:
+    """Tip (x, y) [m] of joint angles (..., 2) [rad] by the paper's Eq. 2: shape (..., 2)."""
+    theta = np.asarray(theta_rad, dtype=float)
+    l1, l2 = link_lengths_m
+    a1, a12 = theta[..., 0], theta[..., 0] + theta[..., 1]
+    return np.stack([l1 * np.cos(a1) + l2 * np.cos(a12), l1 * np.sin(a1) + l2 * np.sin(a12)], -1)
+
+
 def endpoint_context(path, link_lengths_m: tuple[float, float], elbow: int = 1) -> EndpointContext:
     """Joint angles of P1 and P5 (analytic IK on the given elbow branch) and T, for a
     :class:`pipeline.path.QuarticPath` ``path``."""

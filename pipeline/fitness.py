@@ -39,7 +39,10 @@ class FitnessConfig:
     """Settings of the objective.
 
     Attributes:
-        n_points: n, path points of Eq. 5 (uniform in x from P1 to P5).
+        n_points: n, path points of Eq. 5 (uniform in x from P1 to P5). The paper does not
+            give n. With 11, its three weighted points at each end span a fifth of the path and
+            the DOE optima vary smoothly with (L, W); with 51 they jump between local optima
+            from one obstacle to the next, and no quadratic regression follows them (README).
         weighted_points: Points at each end weighted by ``endpoint_weight`` (paper: 3).
         endpoint_weight: Weight of those points (paper: 100).
         clearance_samples: Times, uniform in [0, T], at which the clearance is penalised.
@@ -56,7 +59,7 @@ class FitnessConfig:
             the stretched-out singularity).
     """
 
-    n_points: int = 51
+    n_points: int = 11
     weighted_points: int = 3
     endpoint_weight: float = 100.0
     clearance_samples: int = 121

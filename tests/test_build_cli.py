@@ -20,6 +20,7 @@ from numpy.testing import assert_allclose
 from pipeline import build, regress
 from pipeline.coefficients import load_coefficients, paper_data_path
 from pipeline.doe import load_doe
+from pipeline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
 from pipeline.regression import fit_quadratic, predict
 from pipeline.trajectory import PARAMETER_NAMES
 
@@ -87,8 +88,22 @@ def test_build_writes_doe_and_coefficients(reference: dict) -> None:
     assert coefficients.family == "paper"
     assert list(coefficients.parameters) == list(PARAMETER_NAMES)
     assert coefficients.fitted_range_m == {"L": (0.2, 0.3), "W": (0.08, 0.12)}
-    # The coefficients are the regression of the DOE file written beside them.
+    # The coefficients are the (endpoint-constrained, the default) regression of the DOE file
+    # written beside them.
     assert coefficients.provenance["doe_sha256"] == sha256(out / "doe.json")
+    assert coefficients.extra["fit"]["regression"] == "least squares + endpoint constraint"
+    targets = endpoint_targets(coefficients.fitted_range_m, doe.scene, doe.link_lengths_m, 21)
+    fit, _ = fit_with_endpoints(doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, EndpointConstraint())
+    for name in PARAMETER_NAMES:
+        assert_allclose(coefficients.parameters[name], fit.coefficients[name], rtol=1e-12, atol=1e-12)
+
+
+def test_build_plain_regression_is_the_least_squares_fit(reference: dict, monkeypatch, tmp_path: Path) -> None:
+    replay(monkeypatch, reference)
+    assert build.main([*TINY, "--seed", "0", "--plain", "--out", str(tmp_path)]) == 0
+    coefficients = load_coefficients(tmp_path / "coefficients.json")
+    assert coefficients.extra["fit"]["regression"] == "least squares"
+    doe = load_doe(tmp_path / "doe.json")
     fit = fit_quadratic(doe.lengths_m, doe.widths_m, doe.free_parameters())
     for name in PARAMETER_NAMES:
         assert_allclose(coefficients.parameters[name], fit.coefficients[name], rtol=1e-12, atol=1e-12)
@@ -312,7 +327,8 @@ def eq9_max_prediction_difference(coefficients_path: Path) -> float:
 def test_regress_table_2_reproduces_eq9(tmp_path: Path, capsys: pytest.CaptureFixture, source: str) -> None:
     table2 = paper_data_path("paper_table2_doe.json")
     out = tmp_path / "coefficients.json"
-    assert regress.main([str(table2) if source == "path" else "paper", "-o", str(out), "--quiet"]) == 0
+    source_args = [str(table2) if source == "path" else "paper", "--plain"]
+    assert regress.main([*source_args, "-o", str(out), "--quiet"]) == 0
     assert "wrote" in capsys.readouterr().out
     coefficients = load_coefficients(out)
     assert coefficients.family == "paper"
