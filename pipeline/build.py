@@ -217,6 +217,7 @@ def build(args: argparse.Namespace, out=None) -> int:
         paper_eq9 = load_coefficients("paper").parameters if args.family == "paper" else None
         print("\nEq. 9 (ours, paper below):", file=out)
         print(report.equation9(coefficients.parameters, paper_eq9, coefficients.extra["fit"]), file=out)
+        print(report.regression_method(coefficients.extra["fit"]), file=out)
         print(
             f"\nTiming: {total:.1f} s total, "
             + ", ".join(f"{r.seconds:.1f}" for r in results)

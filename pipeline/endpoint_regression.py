@@ -130,6 +130,24 @@ def _tip_jacobian(theta: np.ndarray, link_lengths_m: tuple[float, float]) -> np.
     return np.stack([np.stack([-l1 * s1 - l2 * s12, -l2 * s12], -1), np.stack([l1 * c1 + l2 * c12, l2 * c12], -1)], -2)
 
 
+def endpoint_slack(b: np.ndarray, X_grid: np.ndarray, targets: EndpointTargets, tolerance_m: float) -> np.ndarray:
+    """1 - (e / tolerance)^2 for every grid obstacle and end, (2 G,): >= 0 where the endpoint
+    error e is within the tolerance. ``b`` is the (6, 8) coefficient matrix, row-major
+    (basis x parameter); ``X_grid`` the design matrix of the grid."""
+    delta, _, _ = _ends(X_grid @ np.reshape(b, (6, 8)), targets)
+    return (1.0 - np.sum(delta * delta, -1) / tolerance_m**2).ravel()
+
+
+def endpoint_slack_jacobian(
+    b: np.ndarray, X_grid: np.ndarray, targets: EndpointTargets, tolerance_m: float
+) -> np.ndarray:
+    """d :func:`endpoint_slack` / d b, shape (2 G, 48), in closed form."""
+    delta, theta, d_theta = _ends(X_grid @ np.reshape(b, (6, 8)), targets)
+    d_theta_sq = np.einsum("gex,gexj->gej", delta, _tip_jacobian(theta, targets.link_lengths_m))
+    d_p = (d_theta_sq[..., None] * d_theta).reshape(*delta.shape[:2], 8)  # joint-major = names order
+    return (-2.0 / tolerance_m**2 * np.einsum("gep,gk->gekp", d_p, X_grid)).reshape(-1, 48)
+
+
 def fit_with_endpoints(
     length_m: np.ndarray,
     width_m: np.ndarray,
@@ -160,21 +178,10 @@ def fit_with_endpoints(
     X_data = design_matrix(length_m, width_m)  # (n, 6)
     X_grid = design_matrix(targets.lengths_m, targets.widths_m)  # (G, 6)
     Y = np.stack([np.asarray(values[name], dtype=float) for name in PARAMETER_NAMES], -1)  # (n, 8)
-    tolerance_sq = constraint.tolerance_m**2
 
     def objective(b: np.ndarray) -> tuple[float, np.ndarray]:
         residual = X_data @ b.reshape(6, 8) - Y
         return float(np.sum(residual * residual)), (2.0 * X_data.T @ residual).ravel()
-
-    def slack(b: np.ndarray) -> np.ndarray:  # 1 - (e / tolerance)^2 >= 0 per grid obstacle and end
-        delta, _, _ = _ends(X_grid @ b.reshape(6, 8), targets)
-        return (1.0 - np.sum(delta * delta, -1) / tolerance_sq).ravel()
-
-    def slack_jacobian(b: np.ndarray) -> np.ndarray:
-        delta, theta, d_theta = _ends(X_grid @ b.reshape(6, 8), targets)
-        d_theta_sq = np.einsum("gex,gexj->gej", delta, _tip_jacobian(theta, targets.link_lengths_m))
-        d_p = (d_theta_sq[..., None] * d_theta).reshape(*delta.shape[:2], 8)  # joint-major = names order
-        return (-2.0 / tolerance_sq * np.einsum("gep,gk->gekp", d_p, X_grid)).reshape(-1, 48)
 
     start = np.stack([plain.coefficients[name] for name in PARAMETER_NAMES], -1).ravel()  # (6, 8) row-major
     result = minimize(
@@ -182,7 +189,14 @@ def fit_with_endpoints(
         start,
         jac=True,
         method="SLSQP",
-        constraints=[{"type": "ineq", "fun": slack, "jac": slack_jacobian}],
+        constraints=[
+            {
+                "type": "ineq",
+                "fun": endpoint_slack,
+                "jac": endpoint_slack_jacobian,
+                "args": (X_grid, targets, constraint.tolerance_m),
+            }
+        ],
         options={"maxiter": constraint.max_iterations, "ftol": 1e-12},
     )
     B = result.x.reshape(6, 8)

@@ -80,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.quiet:
         paper = load_coefficients("paper").parameters if doe.family == "paper" else None
         print(report.equation9(coefficients.parameters, paper, coefficients.extra["fit"]))
+        print(report.regression_method(coefficients.extra["fit"]))
     print(f"wrote {args.output}")
     return 0
 

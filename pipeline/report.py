@@ -1,4 +1,4 @@
-"""Text tables the CLIs print: our Table 2 and Eq. 9 beside the paper's."""
+"""Text tables the CLIs print: our Table 2 and Eq. 9 beside the paper's, and how the regression was fitted."""
 
 from __future__ import annotations
 
@@ -53,3 +53,19 @@ def equation9(
         if paper is not None and name in paper:
             lines.append(f"{'':>7} {'paper':>5} " + " ".join(f"{v:9.4g}" for v in paper[name]))
     return "\n".join(lines)
+
+
+def regression_method(quality: Mapping) -> str:
+    """One line: plain least squares, or what the endpoint constraint did (tolerance, grid
+    endpoint error of the plain and the constrained fit, largest move from a DOE optimum)."""
+    report = quality.get("endpoint_constraint")
+    if report is None:
+        return f"regression: {quality.get('regression', 'least squares')} per parameter (the paper's method)"
+    status = "" if report["converged"] else " (NOT converged)"
+    return (
+        f"regression: {quality['regression']}{status}: endpoint error on a {report['grid_points']}x"
+        f"{report['grid_points']} grid over the fitted range {report['grid_endpoint_error_max_plain_m'] * 1e3:.2f} mm"
+        f" (plain fit) -> {report['grid_endpoint_error_max_m'] * 1e3:.2f} mm (tolerance"
+        f" {report['tolerance_m'] * 1e3:.2f} mm); largest move from a DOE optimum"
+        f" {report['max_deviation_from_doe']:.4f} rad or rad/s"
+    )

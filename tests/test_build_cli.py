@@ -5,6 +5,7 @@ crash) and ``python -m pipeline.regress`` (Table 2 -> Eq. 9, bad input)."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import io
 import json
@@ -24,7 +25,9 @@ from pipeline.endpoint_regression import EndpointConstraint, endpoint_targets, f
 from pipeline.regression import fit_quadratic, predict
 from pipeline.trajectory import PARAMETER_NAMES
 
-TINY = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--n-points", "15", "--quiet"]
+# Plumbing settings: optima this rough are no data for the endpoint-constrained regression
+# (tested on Table 2 below and in test_endpoint_regression.py), hence --plain.
+TINY = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--n-points", "15", "--plain", "--quiet"]
 OUTPUTS = ("doe.json", "coefficients.json")
 
 
@@ -88,25 +91,56 @@ def test_build_writes_doe_and_coefficients(reference: dict) -> None:
     assert coefficients.family == "paper"
     assert list(coefficients.parameters) == list(PARAMETER_NAMES)
     assert coefficients.fitted_range_m == {"L": (0.2, 0.3), "W": (0.08, 0.12)}
-    # The coefficients are the (endpoint-constrained, the default) regression of the DOE file
-    # written beside them.
+    # The coefficients are the regression of the DOE file written beside them.
     assert coefficients.provenance["doe_sha256"] == sha256(out / "doe.json")
-    assert coefficients.extra["fit"]["regression"] == "least squares + endpoint constraint"
-    targets = endpoint_targets(coefficients.fitted_range_m, doe.scene, doe.link_lengths_m, 21)
-    fit, _ = fit_with_endpoints(doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, EndpointConstraint())
-    for name in PARAMETER_NAMES:
-        assert_allclose(coefficients.parameters[name], fit.coefficients[name], rtol=1e-12, atol=1e-12)
-
-
-def test_build_plain_regression_is_the_least_squares_fit(reference: dict, monkeypatch, tmp_path: Path) -> None:
-    replay(monkeypatch, reference)
-    assert build.main([*TINY, "--seed", "0", "--plain", "--out", str(tmp_path)]) == 0
-    coefficients = load_coefficients(tmp_path / "coefficients.json")
     assert coefficients.extra["fit"]["regression"] == "least squares"
-    doe = load_doe(tmp_path / "doe.json")
     fit = fit_quadratic(doe.lengths_m, doe.widths_m, doe.free_parameters())
     for name in PARAMETER_NAMES:
         assert_allclose(coefficients.parameters[name], fit.coefficients[name], rtol=1e-12, atol=1e-12)
+
+
+def test_build_default_regression_holds_the_endpoints(
+    reference: dict, table2: np.ndarray, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """Without --plain the build fits with the endpoint constraint. The DOE is replayed with
+    the paper's Table 2 as optima (real optima, unlike TINY's), so the fit converges."""
+    results = [
+        dataclasses.replace(
+            r,
+            parameters=dict(zip(PARAMETER_NAMES, row[:8], strict=True)),
+            free_parameters=dict(zip(PARAMETER_NAMES, row[:8], strict=True)),
+        )
+        for r, row in zip(reference["results"], table2, strict=True)
+    ]
+    monkeypatch.setattr(build, "run_doe", lambda *args, **kwargs: results)
+    tiny_default = [a for a in TINY if a != "--plain"]
+    assert build.main([*tiny_default, "--seed", "0", "--endpoint-tolerance", "0.003", "--out", str(tmp_path)]) == 0
+    coefficients = load_coefficients(tmp_path / "coefficients.json")
+    fit_block = coefficients.extra["fit"]
+    assert fit_block["regression"] == "least squares + endpoint constraint"
+    assert fit_block["endpoint_constraint"]["converged"] is True
+    assert fit_block["endpoint_constraint"]["tolerance_m"] == 0.003
+    doe = load_doe(tmp_path / "doe.json")
+    assert_allclose(doe.parameters, table2[:, :8], rtol=0, atol=1e-12)
+    targets = endpoint_targets(coefficients.fitted_range_m, doe.scene, doe.link_lengths_m, 21)
+    fit, report = fit_with_endpoints(
+        doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, EndpointConstraint(tolerance_m=0.003)
+    )
+    assert report["grid_endpoint_error_max_m"] <= 0.003 * (1 + 1e-6) < report["grid_endpoint_error_max_plain_m"]
+    for name in PARAMETER_NAMES:
+        assert_allclose(coefficients.parameters[name], fit.coefficients[name], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("tolerance", ["0", "-0.001", "nan"])
+def test_build_bad_endpoint_tolerance_exits_2_before_the_doe(
+    tolerance: str, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.setattr(build, "run_doe", lambda *args, **kwargs: pytest.fail("the DOE ran"))
+    tiny_default = [a for a in TINY if a != "--plain"]
+    line = assert_one_line_error(
+        capsys, build.main([*tiny_default, "--endpoint-tolerance", tolerance, "--out", str(tmp_path)])
+    )
+    assert "tolerance_m" in line
 
 
 def test_same_seed_with_two_jobs_is_byte_identical(reference: dict, tmp_path: Path) -> None:
@@ -346,7 +380,7 @@ def test_regress_as_a_module(tmp_path: Path) -> None:
     out = tmp_path / "c.json"
     table2 = paper_data_path("paper_table2_doe.json")
     done = subprocess.run(
-        [sys.executable, "-m", "pipeline.regress", str(table2), "-o", str(out)],
+        [sys.executable, "-m", "pipeline.regress", str(table2), "--plain", "-o", str(out)],
         capture_output=True,
         text=True,
         timeout=120,
@@ -370,7 +404,7 @@ def test_regress_is_deterministic_and_refuses_to_overwrite(tmp_path: Path, capsy
 
 def test_regress_of_a_build_doe(reference: dict, tmp_path: Path) -> None:
     out = tmp_path / "c.json"
-    assert regress.main([str(reference["out"] / "doe.json"), "-o", str(out), "--quiet"]) == 0
+    assert regress.main([str(reference["out"] / "doe.json"), "--plain", "-o", str(out), "--quiet"]) == 0
     ours = load_coefficients(out)
     built = load_coefficients(reference["out"] / "coefficients.json")
     assert ours.parameters == built.parameters

@@ -1,0 +1,188 @@
+"""Endpoint-constrained regression (pipeline.endpoint_regression), on the paper's own Table 2:
+its plain fit (Eq. 9) misses P1/P5 by more than the tolerance between the DOE points, the
+constrained fit does not, checked by Pinocchio's kinematics (not Eq. 2) through the online
+generator; the constraint's Jacobian against finite differences; an inactive constraint gives
+back the plain fit; bad settings and non-convergence are reported."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from pipeline.coefficients import fit_coefficients, paper_data_path
+from pipeline.doe import load_doe
+from pipeline.endpoint_regression import (
+    EndpointConstraint,
+    endpoint_errors_m,
+    endpoint_slack,
+    endpoint_slack_jacobian,
+    endpoint_targets,
+    fit_with_endpoints,
+)
+from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError
+from pipeline.generator import generate
+from pipeline.regression import design_matrix, predict
+from pipeline.trajectory import PARAMETER_NAMES
+
+RANGE = {"L": (0.2, 0.3), "W": (0.08, 0.12)}
+TOLERANCE_M = 0.002
+
+
+@pytest.fixture(scope="module")
+def table2():
+    return load_doe(paper_data_path("paper_table2_doe.json"))
+
+
+@pytest.fixture(scope="module")
+def targets(table2):
+    return endpoint_targets(RANGE, table2.scene, table2.link_lengths_m, 21)
+
+
+@pytest.fixture(scope="module")
+def constrained(table2):
+    """(coefficients file, plain-fit coefficients file) of Table 2."""
+    plain, _ = fit_coefficients(table2)
+    ours, _ = fit_coefficients(table2, endpoint_constraint=EndpointConstraint(tolerance_m=TOLERANCE_M))
+    return ours, plain
+
+
+def grid_parameters(coefficients, targets) -> np.ndarray:
+    ordered = {name: coefficients.parameters[name] for name in PARAMETER_NAMES}
+    return predict(ordered, targets.lengths_m, targets.widths_m)
+
+
+def test_constraint_holds_on_the_grid_where_the_plain_fit_breaks_it(constrained, targets) -> None:
+    ours, plain = constrained
+    plain_errors = endpoint_errors_m(grid_parameters(plain, targets), targets)
+    assert plain_errors.max() > 2 * TOLERANCE_M  # Eq. 9 misses by > 4 mm somewhere in its own range
+    errors = endpoint_errors_m(grid_parameters(ours, targets), targets)
+    assert errors.max() <= TOLERANCE_M * (1 + 1e-6)
+    report = ours.extra["fit"]["endpoint_constraint"]
+    assert report["converged"] is True
+    assert_allclose(report["grid_endpoint_error_max_m"], errors.max(), rtol=1e-9)
+    assert_allclose(report["grid_endpoint_error_max_plain_m"], plain_errors.max(), rtol=1e-9)
+    assert ours.extra["fit"]["regression"] == "least squares + endpoint constraint"
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(0.2, 0.3), st.floats(0.08, 0.12))
+def test_generated_trajectory_starts_and_ends_within_tolerance_by_pinocchio(constrained, arm, L, W) -> None:
+    """Between grid points too, by Pinocchio's frame placement of the URDF's end effector
+    (independent of the Eq. 2 the fit uses); the grid spacing allows a little overshoot."""
+    ours, _ = constrained
+    generated = generate(ours, L, W, out_of_range="error")
+    ends = arm.to_plane(
+        np.array([arm.end_effector_position(q) for q in generated.q(np.array([0.0, generated.duration_s]))])
+    )
+    errors = np.linalg.norm(ends - generated.path.points_m[[0, -1]], axis=-1)
+    assert errors.max() <= TOLERANCE_M + 1e-4
+
+
+def test_fit_stays_close_to_the_doe_optima(constrained, table2) -> None:
+    ours, plain = constrained
+    deviation = ours.extra["fit"]["endpoint_constraint"]["max_deviation_from_doe"]
+    fitted = predict({n: ours.parameters[n] for n in PARAMETER_NAMES}, table2.lengths_m, table2.widths_m)
+    observed = np.stack([table2.free_parameters()[n] for n in PARAMETER_NAMES], -1)
+    assert_allclose(np.abs(fitted - observed).max(), deviation, rtol=1e-9)
+    assert 0 < deviation < 0.1  # rad or rad/s: a correction, not a different motion
+    assert ours.parameters != plain.parameters
+
+
+def test_slack_jacobian_matches_finite_differences(constrained, targets) -> None:
+    ours, _ = constrained
+    b = np.stack([ours.parameters[n] for n in PARAMETER_NAMES], -1).ravel()
+    X = design_matrix(targets.lengths_m, targets.widths_m)
+    analytic = endpoint_slack_jacobian(b, X, targets, TOLERANCE_M)
+    numeric = np.empty_like(analytic)
+    step = 1e-7
+    for k in range(b.size):
+        bump = np.zeros_like(b)
+        bump[k] = step
+        numeric[:, k] = (
+            endpoint_slack(b + bump, X, targets, TOLERANCE_M) - endpoint_slack(b - bump, X, targets, TOLERANCE_M)
+        ) / (2 * step)
+    assert_allclose(analytic, numeric, rtol=1e-5, atol=1e-3 * np.abs(analytic).max())
+
+
+def test_slack_is_one_minus_squared_error_ratio(constrained, targets) -> None:
+    ours, _ = constrained
+    b = np.stack([ours.parameters[n] for n in PARAMETER_NAMES], -1).ravel()
+    X = design_matrix(targets.lengths_m, targets.widths_m)
+    errors = endpoint_errors_m(X @ b.reshape(6, 8), targets)
+    assert_allclose(endpoint_slack(b, X, targets, 0.004), 1 - (errors.ravel() / 0.004) ** 2, atol=1e-12)
+
+
+def test_loose_tolerance_gives_back_the_plain_fit(table2, targets) -> None:
+    plain, _ = fit_coefficients(table2)
+    fit, report = fit_with_endpoints(
+        table2.lengths_m, table2.widths_m, table2.free_parameters(), targets, EndpointConstraint(tolerance_m=1.0)
+    )
+    for name in PARAMETER_NAMES:
+        assert_allclose(fit.coefficients[name], plain.parameters[name], rtol=1e-9, atol=1e-9)
+    assert report["max_deviation_from_doe"] == pytest.approx(max(plain.extra["fit"]["max_residual"].values()))
+
+
+def test_tighter_tolerance_moves_further_from_the_data(table2, targets) -> None:
+    deviations = []
+    for tolerance in (0.004, 0.002, 0.001):
+        _, report = fit_with_endpoints(
+            table2.lengths_m, table2.widths_m, table2.free_parameters(), targets, EndpointConstraint(tolerance)
+        )
+        assert report["grid_endpoint_error_max_m"] <= tolerance * (1 + 1e-6)
+        deviations.append(report["max_deviation_from_doe"])
+    assert deviations[0] < deviations[1] < deviations[2]
+
+
+def test_same_input_same_coefficients(table2) -> None:
+    a, _ = fit_coefficients(table2, endpoint_constraint=EndpointConstraint())
+    b, _ = fit_coefficients(table2, endpoint_constraint=EndpointConstraint())
+    assert a.parameters == b.parameters
+
+
+def test_non_convergence_warns_and_says_so(table2, targets) -> None:
+    with pytest.warns(EndpointConstraintWarning, match="did not converge"):
+        _, report = fit_with_endpoints(
+            table2.lengths_m, table2.widths_m, table2.free_parameters(), targets, EndpointConstraint(max_iterations=1)
+        )
+    assert report["converged"] is False
+
+
+def test_converged_fit_does_not_warn(table2, targets) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fit_with_endpoints(table2.lengths_m, table2.widths_m, table2.free_parameters(), targets, EndpointConstraint())
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"tolerance_m": 0.0},
+        {"tolerance_m": -0.001},
+        {"tolerance_m": float("nan")},
+        {"grid_points": 1},
+        {"grid_points": 2.5},
+        {"max_iterations": 0},
+    ],
+)
+def test_bad_settings_are_refused(kwargs: dict) -> None:
+    with pytest.raises(InvalidParameterError):
+        EndpointConstraint(**kwargs)
+
+
+def test_only_the_paper_family_takes_the_constraint(table2, targets) -> None:
+    values = dict(table2.free_parameters())
+    values.pop("A1")
+    with pytest.raises(InvalidParameterError, match="paper family"):
+        fit_with_endpoints(table2.lengths_m, table2.widths_m, values, targets, EndpointConstraint())
+
+
+def test_exact_endpoints_doe_refuses_a_constraint(table2) -> None:
+    exact = dataclasses.replace(table2, family="exact-endpoints")
+    with pytest.raises(InvalidParameterError, match="exact by construction"):
+        fit_coefficients(exact, endpoint_constraint=EndpointConstraint())
