@@ -8,10 +8,12 @@ import contextlib
 import io
 import json
 import math
+import warnings
 from pathlib import Path
 
 import pytest
 
+from pipeline.exceptions import EndpointConstraintWarning
 from pipeline.jsonio import write_json_atomic
 from verify import bench, bench_results, planner
 from verify.bench import EXIT_OK, EXIT_USAGE, build_parser, main
@@ -83,7 +85,10 @@ def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[int, str, dict]:
     )
     out_json = folder / "bench.json"
     stdout = io.StringIO()
-    with contextlib.redirect_stdout(stdout):
+    # The reduced build's tiny PSO gives optima too rough for the endpoint-constrained
+    # regression to converge; it is timed here, not judged.
+    with contextlib.redirect_stdout(stdout), warnings.catch_warnings():
+        warnings.simplefilter("ignore", EndpointConstraintWarning)
         status = main([*TINY, "--build-timing", str(timing), "--run-build", "3", "--json", str(out_json)])
     return status, stdout.getvalue(), json.loads(out_json.read_text())
 
