@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import RobotModelError
+from .family import forward_kinematics
 
 #: The paper's arm, shipped with the project.
 DEFAULT_URDF = Path(__file__).resolve().parent.parent / "urdf" / "planar_2link.urdf"
@@ -89,10 +90,7 @@ class PlanarArm:
     def end_effector_planar(self, q: np.ndarray) -> np.ndarray:
         """End-effector (x, y) [m] in the motion plane by the paper's Eq. 2 (closed form)."""
         q = np.asarray(q, dtype=float)
-        l1, l2 = self.link_lengths_m
-        a1 = q[..., 0]
-        a12 = q[..., 0] + q[..., 1] + self.elbow_offset_rad
-        return np.stack([l1 * np.cos(a1) + l2 * np.cos(a12), l1 * np.sin(a1) + l2 * np.sin(a12)], -1)
+        return forward_kinematics(q + np.array([0.0, self.elbow_offset_rad]), self.link_lengths_m)
 
     def to_plane(self, points_m: np.ndarray) -> np.ndarray:
         """Coordinates (x, y) [m] in the motion plane of base-frame points [m]."""
