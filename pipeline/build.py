@@ -22,6 +22,7 @@ from tqdm import tqdm
 from . import report
 from .coefficients import fit_coefficients, load_coefficients, paper_data_path
 from .doe import Design, doe_document, doe_from_json, load_doe, run_doe
+from .endpoint_regression import EndpointConstraint
 from .exceptions import OutputExistsError, PipelineError
 from .experiment import SolverConfig, score_parameters
 from .family import FAMILY_NAMES
@@ -96,7 +97,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--speed", type=float, default=defaults_scene.speed_m_s, help="end-effector speed v along the path [m/s]"
     )
-    add_regression_arguments(p)
+    add_regression_arguments(p, default_tolerance_m=EndpointConstraint.tolerance_m)
     p.add_argument("--quiet", action="store_true", help="no progress bar or tables")
     return p
 

@@ -1,10 +1,11 @@
 """``python -m pipeline.regress DOE.json -o coefficients.json``: the regression step alone.
 
 Works on any DOE file: ours (``results/doe.json``) or the paper's Table 2
-(``paper`` names the copy shipped with the package). ``--plain`` is the paper's own fit
-(``python -m pipeline.regress paper --plain`` reproduces Eq. 9); the default holds the
-paper family's endpoint errors within ``--endpoint-tolerance`` (see
-:mod:`pipeline.endpoint_regression`), as the build does.
+(``paper`` names the copy shipped with the package). By default the fit is the paper's,
+least squares per parameter (``python -m pipeline.regress paper`` reproduces Eq. 9);
+``--endpoint-tolerance M`` fits subject to the paper family's endpoint errors <= M over the
+fitted range (:mod:`pipeline.endpoint_regression`), as ``python -m pipeline.build`` does by
+default with M = 0.002.
 """
 
 from __future__ import annotations
@@ -21,12 +22,23 @@ from .endpoint_regression import EndpointConstraint
 from .exceptions import PipelineError
 
 
-def add_regression_arguments(p: argparse.ArgumentParser) -> None:
-    """The regression options shared by this CLI and ``python -m pipeline.build``."""
+def add_regression_arguments(p: argparse.ArgumentParser, default_tolerance_m: float | None) -> None:
+    """The regression options of this CLI (default: plain, the paper's method) and of
+    ``python -m pipeline.build`` (default: the endpoint constraint, which ``--plain`` turns off)."""
+    if default_tolerance_m is None:
+        p.add_argument(
+            "--endpoint-tolerance",
+            type=float,
+            default=None,
+            metavar="M",
+            help="paper family: fit subject to endpoint errors <= M over the fitted range [m], as the build does"
+            f" (its default: {EndpointConstraint.tolerance_m}); omitted: plain least squares per parameter (Eq. 9)",
+        )
+        return
     p.add_argument(
         "--endpoint-tolerance",
         type=float,
-        default=EndpointConstraint.tolerance_m,
+        default=default_tolerance_m,
         metavar="M",
         help="paper family: hold the regressed trajectory's endpoint errors within this over the fitted range [m]",
     )
@@ -44,7 +56,7 @@ def endpoint_constraint(args: argparse.Namespace, family: str) -> EndpointConstr
     Raises:
         InvalidParameterError: a non-positive or NaN tolerance.
     """
-    if args.plain or family != "paper":
+    if getattr(args, "plain", False) or args.endpoint_tolerance is None or family != "paper":
         return None
     return EndpointConstraint(tolerance_m=args.endpoint_tolerance)
 
@@ -58,7 +70,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("doe", help="DOE file (JSON), or 'paper' for the paper's Table 2")
     p.add_argument("-o", "--output", type=Path, required=True, help="coefficients file to write (JSON)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
-    add_regression_arguments(p)
+    add_regression_arguments(p, default_tolerance_m=None)
     p.add_argument("--quiet", action="store_true", help="do not print the coefficient table")
     return p
 

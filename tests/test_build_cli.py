@@ -361,8 +361,7 @@ def eq9_max_prediction_difference(coefficients_path: Path) -> float:
 def test_regress_table_2_reproduces_eq9(tmp_path: Path, capsys: pytest.CaptureFixture, source: str) -> None:
     table2 = paper_data_path("paper_table2_doe.json")
     out = tmp_path / "coefficients.json"
-    source_args = [str(table2) if source == "path" else "paper", "--plain"]
-    assert regress.main([*source_args, "-o", str(out), "--quiet"]) == 0
+    assert regress.main([str(table2) if source == "path" else "paper", "-o", str(out), "--quiet"]) == 0
     assert "wrote" in capsys.readouterr().out
     coefficients = load_coefficients(out)
     assert coefficients.family == "paper"
@@ -376,11 +375,30 @@ def test_regress_table_2_reproduces_eq9(tmp_path: Path, capsys: pytest.CaptureFi
         assert coefficients.parameters[name] == fit.coefficients[name]
 
 
+def test_regress_with_endpoint_tolerance_is_the_build_regression(tmp_path: Path, capsys) -> None:
+    table2 = paper_data_path("paper_table2_doe.json")
+    out = tmp_path / "c.json"
+    assert regress.main(["paper", "--endpoint-tolerance", "0.002", "-o", str(out)]) == 0
+    assert "plain fit) -> 2.00 mm" in capsys.readouterr().out
+    coefficients = load_coefficients(out)
+    assert coefficients.extra["fit"]["regression"] == "least squares + endpoint constraint"
+    doe = load_doe(table2)
+    targets = endpoint_targets(coefficients.fitted_range_m, doe.scene, doe.link_lengths_m, 21)
+    fit, _ = fit_with_endpoints(doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, EndpointConstraint())
+    for name in PARAMETER_NAMES:
+        assert coefficients.parameters[name] == fit.coefficients[name]
+    assert eq9_max_prediction_difference(out) > 1e-2  # not Eq. 9 any more: the constraint moved it
+    line = assert_one_line_error(
+        capsys, regress.main(["paper", "--endpoint-tolerance", "nan", "-o", str(tmp_path / "x.json")])
+    )
+    assert "tolerance_m" in line and not (tmp_path / "x.json").exists()
+
+
 def test_regress_as_a_module(tmp_path: Path) -> None:
     out = tmp_path / "c.json"
     table2 = paper_data_path("paper_table2_doe.json")
     done = subprocess.run(
-        [sys.executable, "-m", "pipeline.regress", str(table2), "--plain", "-o", str(out)],
+        [sys.executable, "-m", "pipeline.regress", str(table2), "-o", str(out)],
         capture_output=True,
         text=True,
         timeout=120,
@@ -404,7 +422,7 @@ def test_regress_is_deterministic_and_refuses_to_overwrite(tmp_path: Path, capsy
 
 def test_regress_of_a_build_doe(reference: dict, tmp_path: Path) -> None:
     out = tmp_path / "c.json"
-    assert regress.main([str(reference["out"] / "doe.json"), "--plain", "-o", str(out), "--quiet"]) == 0
+    assert regress.main([str(reference["out"] / "doe.json"), "-o", str(out), "--quiet"]) == 0
     ours = load_coefficients(out)
     built = load_coefficients(reference["out"] / "coefficients.json")
     assert ours.parameters == built.parameters
