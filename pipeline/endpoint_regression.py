@@ -28,7 +28,7 @@ from .exceptions import EndpointConstraintWarning, InvalidParameterError
 from .family import forward_kinematics
 from .obstacle import Obstacle
 from .path import desired_path
-from .regression import QuadraticFit, design_matrix, fit_quadratic
+from .regression import QuadraticFit, coefficient_of_determination, design_matrix, fit_quadratic
 from .scene import Scene
 from .trajectory import PARAMETER_NAMES
 from .validation import check_positive, check_positive_int
@@ -204,8 +204,7 @@ def fit_with_endpoints(
     coefficients, r_squared, max_residual = {}, {}, {}
     for i, name in enumerate(PARAMETER_NAMES):
         residual = Y[:, i] - fitted[:, i]
-        total = float(np.sum((Y[:, i] - Y[:, i].mean()) ** 2))
-        r_squared[name] = 1.0 - float(np.sum(residual**2)) / total if total > 0 else 1.0
+        r_squared[name] = coefficient_of_determination(Y[:, i], residual)
         max_residual[name] = float(np.max(np.abs(residual)))
         coefficients[name] = tuple(float(v) for v in B[:, i])
     after = float(endpoint_errors_m(X_grid @ B, targets).max())

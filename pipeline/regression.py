@@ -23,6 +23,12 @@ def design_matrix(length_m: np.ndarray, width_m: np.ndarray) -> np.ndarray:
     return np.stack([np.ones_like(L), L, W, L * L, L * W, W * W], -1)
 
 
+def coefficient_of_determination(observed: np.ndarray, residual: np.ndarray) -> float:
+    """R^2 = 1 - SS_residual / SS_total of one parameter's fit (1 for a constant parameter)."""
+    total = float(np.sum((observed - observed.mean()) ** 2))
+    return 1.0 - float(np.sum(residual**2)) / total if total > 0 else 1.0
+
+
 @dataclass(frozen=True)
 class QuadraticFit:
     """Fitted coefficients and quality per parameter.
@@ -65,8 +71,7 @@ def fit_quadratic(length_m: np.ndarray, width_m: np.ndarray, values: Mapping[str
             raise InvalidParameterError(name, raw, f"{X.shape[0]} finite values")
         beta, *_ = np.linalg.lstsq(X, y, rcond=None)
         residual = y - X @ beta
-        total = float(np.sum((y - y.mean()) ** 2))
-        r_squared[name] = 1.0 - float(np.sum(residual**2)) / total if total > 0 else 1.0
+        r_squared[name] = coefficient_of_determination(y, residual)
         with np.errstate(divide="ignore", invalid="ignore"):
             press = residual / (1.0 - leverage)
         loo[name] = float(np.sqrt(np.mean(press**2))) if np.all(leverage < 1 - 1e-9) else float("nan")
