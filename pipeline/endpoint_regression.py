@@ -25,7 +25,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from .exceptions import EndpointConstraintWarning, InvalidParameterError
-from .family import forward_kinematics
+from .family import forward_kinematics, reach_annulus_m
 from .obstacle import Obstacle
 from .path import desired_path
 from .regression import QuadraticFit, coefficient_of_determination, design_matrix, fit_quadratic
@@ -84,21 +84,18 @@ def endpoint_targets(
     Raises:
         UnreachableObstacleError: a grid obstacle's path leaves the arm's reach.
     """
-    l1, l2 = link_lengths_m
+    reach_m = reach_annulus_m(link_lengths_m)
     axes = [np.linspace(*fitted_range_m[name], grid_points) for name in ("L", "W")]
     lengths, widths = np.meshgrid(*axes)
     lengths, widths = lengths.ravel(), widths.ravel()
-    paths = [
-        desired_path(Obstacle.in_scene(L, W, scene), scene, (abs(l1 - l2), l1 + l2))
-        for L, W in zip(lengths, widths, strict=True)
-    ]
+    paths = [desired_path(Obstacle.in_scene(L, W, scene), scene, reach_m) for L, W in zip(lengths, widths, strict=True)]
     return EndpointTargets(
         lengths_m=lengths,
         widths_m=widths,
         start_m=np.array([p.points_m[0] for p in paths]),
         end_m=np.array([p.points_m[-1] for p in paths]),
         duration_s=np.array([p.duration_s for p in paths]),
-        link_lengths_m=(float(l1), float(l2)),
+        link_lengths_m=(float(link_lengths_m[0]), float(link_lengths_m[1])),
     )
 
 

@@ -75,6 +75,12 @@ def polish_bounds(family: str) -> tuple[np.ndarray, np.ndarray]:
     return np.where(phases, -np.inf, lower), np.where(phases, np.inf, upper)
 
 
+def reach_annulus_m(link_lengths_m: tuple[float, float]) -> tuple[float, float]:
+    """Radii of the annulus the tip can reach around joint 1 [m]: (|l1 - l2|, l1 + l2)."""
+    l1, l2 = link_lengths_m
+    return abs(l1 - l2), l1 + l2
+
+
 def inverse_kinematics(point_m: np.ndarray, link_lengths_m: tuple[float, float], elbow: int = 1) -> np.ndarray:
     """Joint angles [rad] placing the tip at ``point_m`` (x, y) [m]; ``elbow`` = +1 or -1 picks the branch.
 
@@ -86,7 +92,7 @@ def inverse_kinematics(point_m: np.ndarray, link_lengths_m: tuple[float, float],
     radius = float(np.hypot(x, y))
     cos2 = (radius**2 - l1**2 - l2**2) / (2 * l1 * l2)
     if not -1.0 - 1e-12 <= cos2 <= 1.0 + 1e-12:
-        raise UnreachableObstacleError("target", radius, (abs(l1 - l2), l1 + l2))
+        raise UnreachableObstacleError("target", radius, reach_annulus_m(link_lengths_m))
     cos2 = min(1.0, max(-1.0, cos2))
     theta2 = elbow * float(np.arccos(cos2))
     theta1 = float(np.arctan2(y, x) - np.arctan2(l2 * np.sin(theta2), l1 + l2 * np.cos(theta2)))

@@ -14,7 +14,7 @@ import numpy as np
 
 from .coefficients import Coefficients
 from .exceptions import InvalidParameterError, OutOfFittedRangeError, OutOfFittedRangeWarning
-from .family import endpoint_context, expand
+from .family import endpoint_context, expand, reach_annulus_m
 from .obstacle import Obstacle
 from .path import QuarticPath, desired_path
 from .scene import Scene
@@ -87,8 +87,7 @@ def generate(
     """
     scene = coefficients.scene
     obstacle = Obstacle.in_scene(length_m, width_m, scene)
-    l1, l2 = coefficients.link_lengths_m
-    path = desired_path(obstacle, scene, (abs(l1 - l2), l1 + l2))
+    path = desired_path(obstacle, scene, reach_annulus_m(coefficients.link_lengths_m))
     extrapolated = _check_range(coefficients, obstacle.length_m, obstacle.width_m, out_of_range)
     free = coefficients.predict_free(obstacle.length_m, obstacle.width_m)
     context = (

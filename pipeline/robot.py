@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from .exceptions import RobotModelError
-from .family import forward_kinematics
+from .family import forward_kinematics, reach_annulus_m
 
 #: The paper's arm, shipped with the project.
 DEFAULT_URDF = Path(__file__).resolve().parent.parent / "urdf" / "planar_2link.urdf"
@@ -68,8 +68,7 @@ class PlanarArm:
     @property
     def reach_m(self) -> tuple[float, float]:
         """Radii of the reachable annulus around joint 1 [m]: (|l1 - l2|, l1 + l2)."""
-        l1, l2 = self.link_lengths_m
-        return abs(l1 - l2), l1 + l2
+        return reach_annulus_m(self.link_lengths_m)
 
     @property
     def is_horizontal_xy(self) -> bool:

@@ -65,7 +65,7 @@ from pipeline.certificate import (
 )
 from pipeline.clearance import CoalClearance
 from pipeline.exceptions import InvalidParameterError
-from pipeline.family import inverse_kinematics
+from pipeline.family import inverse_kinematics, reach_annulus_m
 from pipeline.obstacle import Obstacle
 from pipeline.path import desired_path
 from pipeline.robot import PlanarArm
@@ -399,8 +399,7 @@ def start_goal_configurations(
     obstacle: Obstacle, scene: Scene, link_lengths_m: tuple[float, float], elbow: int = 1
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles [rad] at P1 and P5 of the obstacle's desired path (analytic IK, one elbow branch)."""
-    l1, l2 = link_lengths_m
-    path = desired_path(obstacle, scene, (abs(l1 - l2), l1 + l2))
+    path = desired_path(obstacle, scene, reach_annulus_m(link_lengths_m))
     start = inverse_kinematics(path.points_m[0], link_lengths_m, elbow)
     goal = inverse_kinematics(path.points_m[-1], link_lengths_m, elbow)
     return start, goal
