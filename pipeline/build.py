@@ -1,265 +1,254 @@
 """``python -m pipeline.build``: DOE -> PSO per experiment -> regression -> coefficients.
 
-Writes ``DIR/doe.json`` and ``DIR/coefficients.json`` atomically (deterministic for a seed:
-no timestamps, independent of --jobs) and ``DIR/build_timing.json`` (wall times and query
-counts, which vary run to run). Prints our Table 2 and Eq. 9 beside the paper's.
+A thin command line on :func:`pipeline.offline.build.run_build` (call that from Python, with a
+:class:`pipeline.offline.build.BuildConfig`). Writes ``DIR/doe.json`` and
+``DIR/coefficients.json`` atomically (deterministic for a seed: no timestamps, independent of
+--jobs) and ``DIR/build_timing.json``; prints our Table 2 and Eq. 9 beside the paper's.
+
+Exit status: 0 written; 1 the build did not converge (nothing written, the failing experiments
+named; ``--allow-unconverged`` writes anyway, marked); 2 bad input (one line, before any work);
+130 interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
-import hashlib
-import json
-import os
 import sys
-import time
-from dataclasses import asdict
 from pathlib import Path
+from typing import TextIO
 
-import numpy as np
 from tqdm import tqdm
 
-from pipeline.exceptions import OutputExistsError, PipelineError
-from pipeline.io.jsonio import dumps, write_json_atomic, write_text_atomic
-from pipeline.io.provenance import package_versions, sha256_file
-from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
-from pipeline.model.obstacle import Obstacle
-from pipeline.model.scene import Scene
-from pipeline.motion.families import FAMILY_NAMES, PAPER, PAPER_SOURCE, family_from_name
-from pipeline.motion.path import desired_path
-from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.cli import EXIT_FAILED, EXIT_OK, Parser, jobs_count, run_cli
+from pipeline.exceptions import BuildNotConvergedError
+from pipeline.model.arm import DEFAULT_URDF
+from pipeline.model.scene import SCENE_FIELDS, Scene
+from pipeline.motion.families import FAMILY_NAMES, PAPER, PAPER_SOURCE
 from pipeline.offline import report
-from pipeline.offline.coefficients import fit_coefficients, load_coefficients, paper_data_path
-from pipeline.offline.doe import Design, doe_document, doe_from_json, load_doe, run_doe
+from pipeline.offline.build import SCENE_OPTIONS, BuildConfig, BuildResult, run_build, scene_from_options
+from pipeline.offline.coefficients import load_coefficients
+from pipeline.offline.convergence import ConvergenceCriteria
 from pipeline.offline.endpoint_regression import EndpointConstraint
-from pipeline.offline.experiment import SolverConfig, score_parameters
-from pipeline.offline.fitness import FitnessConfig
-from pipeline.offline.pso import PsoConfig
-from pipeline.regress import add_regression_arguments, endpoint_constraint
+from pipeline.regress import OVERWRITE_RULE, add_regression_arguments
+
+PROG = "python -m pipeline.build"
 
 
-def parser() -> argparse.ArgumentParser:
-    defaults_pso, defaults_fit, defaults_scene = PsoConfig(), FitnessConfig(), Scene()
-    p = argparse.ArgumentParser(
-        prog="python -m pipeline.build",
+def _scene_arguments(p: argparse.ArgumentParser) -> None:
+    scene = Scene()
+    group = p.add_argument_group(
+        "scene",
+        "the scene is the defaults below, then the keys of --scene FILE, then these options; it is stored in "
+        "coefficients.json and every later step reads it from there",
+    )
+    group.add_argument(
+        "--scene",
+        type=Path,
+        metavar="FILE",
+        help="scene file, TOML (.toml) or JSON (.json), whose keys are the scene's fields as stored in "
+        f"coefficients.json ({', '.join(SCENE_FIELDS)}), e.g. top_y_m = 0.54; an unknown key is refused",
+    )
+    for field_name, text in (
+        ("top_y_m", "d, the y of the obstacle's far edge [m]"),
+        ("start_y_m", "y1 = y5, the height of the start and goal points [m] (default: d)"),
+        ("speed_m_s", "end-effector speed v along the path [m/s]"),
+        ("margin_m", "safety margin between links and obstacle [m]"),
+        ("corner_radius_m", "obstacle corner radius [m]"),
+    ):
+        option = SCENE_OPTIONS[field_name]
+        default = getattr(scene, field_name)
+        if default is not None:
+            text += f" (default: {default}, or the scene file's)"
+        group.add_argument(
+            option, type=float, dest=field_name, metavar="M" if "speed" not in option else "V", help=text
+        )
+
+
+def _convergence_arguments(p: argparse.ArgumentParser) -> None:
+    criteria = ConvergenceCriteria()
+    group = p.add_argument_group(
+        "convergence",
+        "the build exits 1 and writes nothing if a DOE optimum's dense Coal clearance is below the margin (for "
+        "exact-endpoints: below the margin or its end poses' clearance, whichever is smaller), if a DOE optimum "
+        "misses P1 or P5 by more than --max-doe-endpoint-error, or if the endpoint-constrained regression misses "
+        "--endpoint-tolerance on its grid",
+    )
+    group.add_argument(
+        "--max-doe-endpoint-error",
+        type=float,
+        default=criteria.endpoint_error_max_m,
+        metavar="M",
+        help="largest endpoint error of a DOE optimum [m] (the default build's optima: up to 6.1 mm)",
+    )
+    group.add_argument(
+        "--allow-unconverged",
+        action="store_true",
+        help='write the files anyway, marked "converged": false with the reasons; loading them warns',
+    )
+
+
+def parser() -> Parser:
+    """The command line's options (every default is :class:`pipeline.offline.build.BuildConfig`'s)."""
+    d = BuildConfig()
+    p = Parser(
+        prog=PROG,
         description="Run the DOE (PSO + exact Coal clearance per obstacle) and regress the coefficients.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        epilog=f"{OVERWRITE_RULE} Exit status: 0 written, 1 not converged (nothing written), 2 bad input, "
+        "130 interrupted.",
     )
     p.add_argument(
-        "--out",
-        type=Path,
-        default=Path("results"),
-        help="output folder (doe.json, coefficients.json, build_timing.json)",
+        "--out", type=Path, default=d.out_folder, help="output folder (doe.json, coefficients.json, build_timing.json)"
     )
     p.add_argument(
         "--seed",
         type=int,
-        default=0,
-        help="master random seed [integer]; the same seed gives byte-identical coefficients",
+        default=d.seed,
+        help="master random seed [integer >= 0]; the same seed, the same files (default: 0)",
     )
-    p.add_argument("--levels", type=int, default=3, help="levels per factor [count], K x K design, K >= 3")
-    p.add_argument("--L-range", nargs=2, type=float, default=[0.20, 0.30], metavar=("MIN", "MAX"), help="L range [m]")
-    p.add_argument("--W-range", nargs=2, type=float, default=[0.08, 0.12], metavar=("MIN", "MAX"), help="W range [m]")
+    p.add_argument("--levels", type=int, default=d.levels, help="levels per factor [count], K x K design, K >= 3")
+    p.add_argument(
+        "--L-range", nargs=2, type=float, default=list(d.length_range_m), metavar=("MIN", "MAX"), help="L range [m]"
+    )
+    p.add_argument(
+        "--W-range", nargs=2, type=float, default=list(d.width_range_m), metavar=("MIN", "MAX"), help="W range [m]"
+    )
     p.add_argument("--family", choices=FAMILY_NAMES, default=PAPER.name, help="trajectory family")
-    p.add_argument("--jobs", type=int, default=1, help="worker processes [count]; does not change the result")
-    p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm")
-    p.add_argument("--swarm-size", type=int, default=defaults_pso.swarm_size, help="PSO particles per swarm [count]")
-    p.add_argument("--iterations", type=int, default=defaults_pso.iterations, help="PSO iterations per restart [count]")
     p.add_argument(
-        "--restarts", type=int, default=defaults_pso.restarts, help="independent PSO swarms [count], each polished"
+        "--jobs", type=jobs_count, default=d.jobs, help="worker processes [count], 0 = every CPU; same result"
     )
-    p.add_argument("--no-polish", action="store_true", help="skip the least_squares polish after PSO")
-    p.add_argument(
-        "--n-points", type=int, default=defaults_fit.n_points, help="path points n of Eq. 5 [count], uniform in x"
-    )
-    p.add_argument(
+    p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm (default: the paper's arm)")
+    _scene_arguments(p)
+    pso = p.add_argument_group("optimiser")
+    pso.add_argument("--swarm-size", type=int, default=d.swarm_size, help="PSO particles per swarm [count]")
+    pso.add_argument("--iterations", type=int, default=d.iterations, help="PSO iterations per restart [count]")
+    pso.add_argument("--restarts", type=int, default=d.restarts, help="independent PSO swarms [count], each polished")
+    pso.add_argument("--no-polish", action="store_true", help="skip the least_squares polish after PSO")
+    pso.add_argument("--n-points", type=int, default=d.n_points, help="path points n of Eq. 5 [count], uniform in x")
+    pso.add_argument(
         "--endpoint-weight",
         type=float,
-        default=defaults_fit.endpoint_weight,
+        default=d.endpoint_weight,
         help="weight of the first and last 3 path points in Eq. 5 [-]",
     )
-    p.add_argument(
+    pso.add_argument(
         "--penalty-weight",
         type=float,
-        default=defaults_fit.penalty_weight,
+        default=d.penalty_weight,
         help="clearance penalty weight [1/m^2 relative to Eq. 5's m^2]",
     )
-    p.add_argument("--margin", type=float, default=defaults_scene.margin_m, help="safety margin [m]")
-    p.add_argument(
+    pso.add_argument(
         "--margin-buffer",
         type=float,
-        default=defaults_fit.margin_buffer_m,
+        default=d.margin_buffer_m,
+        metavar="M",
         help="extra clearance the optimiser aims for beyond the margin [m]",
     )
-    p.add_argument(
-        "--corner-radius", type=float, default=defaults_scene.corner_radius_m, help="obstacle corner radius [m]"
-    )
-    p.add_argument(
-        "--speed", type=float, default=defaults_scene.speed_m_s, help="end-effector speed v along the path [m/s]"
-    )
     add_regression_arguments(p, default_tolerance_m=EndpointConstraint.tolerance_m)
+    _convergence_arguments(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar or tables")
     return p
 
 
-def write_pair(first: Path, first_text: str, second: Path, second_text: str) -> tuple[bool, bool]:
-    """Write two files atomically as a pair: if the second write fails, the first file is put
-    back as it was (or removed if it was new), so doe.json and coefficients.json always match.
+def config_from_args(args: argparse.Namespace) -> BuildConfig:
+    """The :class:`BuildConfig` of parsed options.
 
-    Returns:
-        Whether each file replaced an existing one.
+    Raises:
+        InvalidParameterError, DataFileError: a bad value or scene file (naming the option or key).
     """
-    previous = first.read_bytes() if first.is_file() else None
-    first_replaced = write_text_atomic(first, first_text)
-    try:
-        second_replaced = write_text_atomic(second, second_text)
-    except BaseException:
-        if previous is None:
-            first.unlink(missing_ok=True)
-        else:
-            write_text_atomic(first, previous.decode("utf-8"))
-        raise
-    return first_replaced, second_replaced
-
-
-def check_output_folder(folder: Path) -> None:
-    """Fail early (before minutes of PSO) if ``folder`` cannot hold the outputs."""
-    if folder.exists() and not folder.is_dir():
-        raise OutputExistsError(f"--out {folder} exists and is not a folder")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputExistsError(f"--out {folder} cannot be created ({exc.strerror})") from None
-    if not os.access(folder, os.W_OK):
-        raise OutputExistsError(f"--out {folder} is not writable")
-
-
-def build(args: argparse.Namespace, out=None) -> int:
-    """Run the whole offline pipeline for parsed arguments; returns the exit status."""
-    out = sys.stdout if out is None else out
-    started = time.perf_counter()
-    check_output_folder(args.out)
-    arm = load_planar_arm(args.urdf)
-    scene = Scene(margin_m=args.margin, corner_radius_m=args.corner_radius, speed_m_s=args.speed)
-    design = Design(args.levels, tuple(args.L_range), tuple(args.W_range))
-    family = family_from_name(args.family)
-    constraint = endpoint_constraint(args, family)
-    config = SolverConfig(
-        family=family,
-        fitness=FitnessConfig(
-            n_points=args.n_points,
-            endpoint_weight=args.endpoint_weight,
-            penalty_weight=args.penalty_weight,
-            margin_buffer_m=args.margin_buffer,
-        ),
-        pso=PsoConfig(swarm_size=args.swarm_size, iterations=args.iterations, restarts=args.restarts),
+    scene = scene_from_options(args.scene, **{name: getattr(args, name) for name in SCENE_OPTIONS})
+    return BuildConfig(
+        out_folder=args.out,
+        seed=args.seed,
+        levels=args.levels,
+        length_range_m=tuple(args.L_range),
+        width_range_m=tuple(args.W_range),
+        family=args.family,
+        jobs=args.jobs,
+        urdf_path=args.urdf,
+        scene=scene,
+        swarm_size=args.swarm_size,
+        iterations=args.iterations,
+        restarts=args.restarts,
         polish=not args.no_polish,
-    )
-    # Check every experiment's geometry before spending minutes on PSO.
-    for L, W in design.points():
-        desired_path(Obstacle.in_scene(L, W, scene), scene, arm.reach_m)
-
-    bar = tqdm(total=len(design.points()), desc="DOE", unit="exp", disable=args.quiet, file=sys.stderr)
-    results = run_doe(arm, design, scene, config, args.seed, args.jobs, progress=lambda _: bar.update())
-    bar.close()
-
-    provenance = {
-        "seed": args.seed,
-        "levels": args.levels,
-        "family": family.name,
-        "urdf": arm.urdf_path.name,
-        "urdf_sha256": sha256_file(arm.urdf_path),
-        "pso": asdict(config.pso),
-        "fitness": config.fitness.to_json(),
-        "polish": config.polish,
-        "versions": package_versions(),
-    }
-    document = doe_document(results, design, scene, arm, config, provenance, config.fitness.elbow)
-    paper_rows = _paper_rows(arm, scene, config, design)
-    if paper_rows is not None:
-        for row, paper in zip(document["experiments"], paper_rows, strict=True):
-            row["paper_table2"] = {k: paper[k] for k in ("fitness", "clearance_m")}
-            row["beats_paper"] = bool(row["fitness"] < paper["fitness"])
-
-    doe_path, coefficients_path = args.out / "doe.json", args.out / "coefficients.json"
-    doe_text = dumps(document)
-    doe = doe_from_json(json.loads(doe_text), str(doe_path))
-    coefficients, _ = fit_coefficients(
-        doe,
-        {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_text.encode()).hexdigest()}},
-        constraint,
-    )
-    doe_replaced, coefficients_replaced = write_pair(
-        doe_path, doe_text, coefficients_path, dumps(coefficients.to_json())
+        n_points=args.n_points,
+        endpoint_weight=args.endpoint_weight,
+        penalty_weight=args.penalty_weight,
+        margin_buffer_m=args.margin_buffer,
+        endpoint_tolerance_m=None if args.plain else args.endpoint_tolerance,
+        doe_endpoint_error_max_m=args.max_doe_endpoint_error,
+        allow_unconverged=args.allow_unconverged,
     )
 
-    total = time.perf_counter() - started
-    timing = {
-        "total_s": total,
-        "jobs": args.jobs,
-        "experiments": [
-            {
-                "test": i + 1,
-                "L": r.length_m,
-                "W": r.width_m,
-                "seconds": r.seconds,
-                "coal_queries": r.coal_queries,
-                "objective_evaluations": r.objective_evaluations,
-            }
-            for i, r in enumerate(results)
-        ],
-        "coal_queries": int(sum(r.coal_queries for r in results)),
-        "objective_evaluations": int(sum(r.objective_evaluations for r in results)),
-    }
-    write_json_atomic(args.out / "build_timing.json", timing)
 
-    if not args.quiet:
-        print("Table 2 (ours, with the paper's row below where the design matches it):", file=out)
-        print(report.table2(document["experiments"], paper_rows), file=out)
-        paper_eq9 = load_coefficients(PAPER_SOURCE).parameters if family == PAPER else None
-        print("\nEq. 9 (ours, paper below):", file=out)
-        print(report.equation9(coefficients.parameters, paper_eq9, coefficients.extra["fit"]), file=out)
-        print(report.regression_method(coefficients.extra["fit"]), file=out)
+def print_report(result: BuildResult, out: TextIO) -> None:
+    """Our Table 2 and Eq. 9 beside the paper's, the regression method and the timing."""
+    coefficients, timing = result.coefficients, result.timing
+    print("Table 2 (ours, with the paper's row below where the design matches it):", file=out)
+    print(report.table2(result.doe_document["experiments"], result.paper_rows), file=out)
+    paper_eq9 = load_coefficients(PAPER_SOURCE).parameters if coefficients.family == PAPER else None
+    print("\nEq. 9 (ours, paper below):", file=out)
+    print(report.equation9(coefficients.parameters, paper_eq9, coefficients.extra["fit"]), file=out)
+    print(report.regression_method(coefficients.extra["fit"]), file=out)
+    print(
+        f"\nTiming: {timing['total_s']:.1f} s total, "
+        + ", ".join(f"{r.seconds:.1f}" for r in result.experiments)
+        + f" s per experiment; {timing['coal_queries']} Coal distance queries, "
+        f"{timing['objective_evaluations']} objective evaluations (analytic route)",
+        file=out,
+    )
+
+
+def _problem_lines(problems) -> str:
+    return "".join(f"\n  {problem}" for problem in problems)
+
+
+def build(args: argparse.Namespace, out: TextIO | None = None) -> int:
+    """Run the build for parsed options; returns the exit status (0 written, 1 not converged).
+
+    Kept for callers of the old entry point; from Python, call
+    :func:`pipeline.offline.build.run_build` with a :class:`pipeline.offline.build.BuildConfig`.
+
+    Raises:
+        PipelineError: bad input (``main`` prints it as one line).
+    """
+    out = sys.stdout if out is None else out
+    config = config_from_args(args)
+    bar: list[tqdm] = []
+
+    def progress(done: int, total: int) -> None:
+        if not bar:
+            bar.append(tqdm(total=total, desc="DOE", unit="exp", disable=args.quiet, file=sys.stderr))
+        bar[0].update(done - bar[0].n)
+
+    try:
+        result = run_build(config, progress=progress)
+    except BuildNotConvergedError as exc:
         print(
-            f"\nTiming: {total:.1f} s total, "
-            + ", ".join(f"{r.seconds:.1f}" for r in results)
-            + f" s per experiment; {timing['coal_queries']} Coal distance queries, "
-            f"{timing['objective_evaluations']} objective evaluations (analytic route)",
-            file=out,
+            f"{PROG}: error: the build did not converge, nothing written (--allow-unconverged writes it, marked):"
+            + _problem_lines(exc.problems),
+            file=sys.stderr,
         )
-    for path, replaced in ((doe_path, doe_replaced), (coefficients_path, coefficients_replaced)):
+        return EXIT_FAILED
+    finally:
+        if bar:
+            bar[0].close()
+    if not args.quiet:
+        print_report(result, out)
+    for path, replaced in result.written[:2]:
         print(f"{'replaced' if replaced else 'wrote'} {path}", file=out)
-    solvers = sorted({r.solver for r in results})
-    print(f"solver: {', '.join(solvers)}", file=out)
-    return 0
-
-
-def _paper_rows(arm, scene: Scene, config: SolverConfig, design: Design) -> list[dict] | None:
-    """The paper's Table 2 rows scored on our fitness, if our design is the paper's grid.
-
-    The fitness is a function of the 8 parameters, so the comparison holds for either family."""
-    paper = load_doe(paper_data_path("paper_table2_doe.json"))
-    points = design.points()
-    if len(points) != len(paper.lengths_m) or not np.allclose(points, np.c_[paper.lengths_m, paper.widths_m]):
-        return None
-    rows = []
-    for (L, W), params in zip(points, paper.parameters, strict=True):
-        score = score_parameters(arm, L, W, scene, config, params)
-        rows.append({"L": L, "W": W, "parameters": dict(zip(PARAMETER_NAMES, params, strict=True)), **score})
-    return rows
+    print(f"solver: {', '.join(sorted({r.solver for r in result.experiments}))}", file=out)
+    if not result.converged:
+        print(
+            f'{PROG}: warning: the build did not converge; written with "converged": false:'
+            + _problem_lines(result.problems),
+            file=sys.stderr,
+        )
+    return EXIT_OK
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: parse ``argv``, run, print one line per error; returns the exit status."""
-    args = parser().parse_args(argv)
-    try:
-        return build(args)
-    except PipelineError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted: outputs are either the previous pair or the new pair, never half-written", file=sys.stderr)
-        return 130
+    """Entry point: parse ``argv``, run, one line per usage error; returns the exit status."""
+    return run_cli(parser(), build, argv)
 
 
 if __name__ == "__main__":

@@ -125,3 +125,25 @@ class NoCertifiedTrajectoryError(PipelineError):
 
 class ViewerError(PipelineError):
     """The Meshcat viewer or the headless browser could not start, serve or render."""
+
+
+class UnconvergedCoefficientsWarning(UserWarning):
+    """A coefficients file was written by a build that did not converge (``--allow-unconverged``):
+    its DOE optima or its regression missed the build's thresholds (the file lists which)."""
+
+
+class BuildNotConvergedError(PipelineError):
+    """A build's DOE optima or regression missed the thresholds; nothing was written.
+
+    Attributes:
+        problems: What was missed, one entry per failing experiment (and the regression).
+        result: The build's unwritten result, for a caller that wants to look at it.
+    """
+
+    def __init__(self, problems: list, result: object = None) -> None:
+        self.problems = list(problems)
+        self.result = result
+        super().__init__(
+            f"the build did not converge ({len(self.problems)} problem(s)): "
+            + " | ".join(str(p) for p in self.problems)
+        )

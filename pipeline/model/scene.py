@@ -6,10 +6,19 @@ All lengths in metres, speeds in metres per second. Defaults follow the paper an
 
 from __future__ import annotations
 
+import difflib
+import json
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
 
+from pipeline.exceptions import DataFileError
 from pipeline.validation import check_finite, check_non_negative, check_positive
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 
 @dataclass(frozen=True)
@@ -64,7 +73,8 @@ class Scene:
 
     @classmethod
     def from_dict(cls, data: dict) -> Scene:
-        """Inverse of :meth:`to_dict`; unknown keys are ignored."""
+        """Inverse of :meth:`to_dict`; unknown keys are ignored (a coefficients file's scene
+        block also holds the arm's data). :func:`read_scene_file` is the strict reader."""
         names = {f for f in cls.__dataclass_fields__}
         return cls(**{k: v for k, v in data.items() if k in names})
 
@@ -76,3 +86,55 @@ class Scene:
             or (a[k] is not None and b[k] is not None and math.isclose(a[k], b[k], abs_tol=1e-12))
             for k in a
         )
+
+
+#: The scene's fields, the keys of a scene file and of a coefficients file's scene block.
+SCENE_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Scene))
+#: Keys of a coefficients file's scene block that come from the arm, not from the scene.
+ARM_KEYS: tuple[str, ...] = ("link_lengths_m", "link_radii_m", "elbow")
+
+
+def read_scene_file(path: str | Path) -> dict[str, float | None]:
+    """Scene values from a TOML (``.toml``) or JSON (``.json``) file whose keys are
+    :data:`SCENE_FIELDS` (e.g. ``top_y_m = 0.54``), lengths in metres, speeds in m/s.
+
+    Only the keys present are returned; the caller fills in the rest (defaults, options).
+    ``start_y_m`` may be null in JSON (y1 = d); in TOML leave it out.
+
+    Raises:
+        DataFileError: the file is missing, unreadable, neither TOML nor JSON, not a table of
+            keys, has an unknown (misspelt) or arm key, or a value that is not a number.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".toml", ".json"):
+        raise DataFileError(path, f"a scene file must end in .toml or .json, not {suffix or 'nothing'!r}")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DataFileError(path, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataFileError(path, f"cannot be read ({exc.__class__.__name__})") from None
+    try:
+        document = tomllib.loads(text) if suffix == ".toml" else json.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise DataFileError(path, f"not valid TOML ({exc})") from None
+    except json.JSONDecodeError as exc:
+        raise DataFileError(path, f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+    if not isinstance(document, dict):
+        raise DataFileError(path, f"expected a table of scene keys, found {type(document).__name__}")
+    values: dict[str, float | None] = {}
+    for key, value in document.items():
+        if key in ARM_KEYS:
+            raise DataFileError(path, f"key {key!r} comes from the arm's URDF, not from the scene file; remove it")
+        if key not in SCENE_FIELDS:
+            close = difflib.get_close_matches(key, SCENE_FIELDS, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise DataFileError(path, f"unknown key {key!r}{hint}; the scene's keys are {', '.join(SCENE_FIELDS)}")
+        if value is None and key == "start_y_m":
+            values[key] = None
+            continue
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise DataFileError(path, f"{key} = {value!r} is not a number")
+        values[key] = float(value)
+    return values

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import hashlib
 import math
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
+from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError, UnconvergedCoefficientsWarning
 from pipeline.io.jsonio import dumps, read_json, write_text_atomic
 from pipeline.model.scene import Scene
 from pipeline.motion.families import PAPER_SOURCE, TrajectoryFamily, family_from_name
@@ -25,6 +26,10 @@ from pipeline.offline.regression import BASIS, fit_quadratic, predict
 
 FORMAT = "twolink-coefficients/1"
 PAPER = PAPER_SOURCE
+#: Top-level key of a file written by a build that did not converge: ``false`` (absent: converged).
+CONVERGED_KEY = "converged"
+#: Top-level key listing what such a build missed (one string per failing experiment or fit).
+UNCONVERGED_REASONS_KEY = "unconverged_reasons"
 
 
 def paper_data_path(name: str) -> Path:
@@ -59,6 +64,21 @@ class Coefficients:
     extra: dict = field(default_factory=dict)
     source: str = ""
     source_sha256: str = ""
+
+    @property
+    def converged(self) -> bool:
+        """False if the file was written by a build that did not converge (``--allow-unconverged``)."""
+        return self.extra.get(CONVERGED_KEY, True) is not False
+
+    @property
+    def unconverged_reasons(self) -> tuple[str, ...]:
+        """What the build missed (empty if it converged)."""
+        return tuple(str(r) for r in self.extra.get(UNCONVERGED_REASONS_KEY, ()))
+
+    def marked_unconverged(self, reasons) -> Coefficients:
+        """A copy marked as written by a build that did not converge, with ``reasons`` (strings)."""
+        extra = {**self.extra, CONVERGED_KEY: False, UNCONVERGED_REASONS_KEY: [str(r) for r in reasons]}
+        return replace(self, extra=extra)
 
     @property
     def provenance(self) -> dict:
@@ -158,6 +178,12 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
     elbow = scene_doc.get("elbow", 1)
     if elbow not in (1, -1):
         raise DataFileError(source, f"scene.elbow is {elbow!r}, expected 1 or -1")
+    converged = document.get(CONVERGED_KEY, True)
+    reasons = document.get(UNCONVERGED_REASONS_KEY, [])
+    if not isinstance(converged, bool) or not isinstance(reasons, list):
+        raise DataFileError(
+            source, f"{CONVERGED_KEY!r} must be true or false and {UNCONVERGED_REASONS_KEY!r} a list of strings"
+        )
     known = {"format", "family", "basis", "parameters", "fitted_range", "scene"}
     return Coefficients(
         family=family,
@@ -176,6 +202,10 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
 def load_coefficients(source: str | Path) -> Coefficients:
     """Load a coefficients file, or the paper's Eq. 9 for ``"paper"``.
 
+    Warns:
+        UnconvergedCoefficientsWarning: the file is marked ``"converged": false`` (a build
+            with ``--allow-unconverged`` that missed its thresholds).
+
     Raises:
         DataFileError: the file is missing, unreadable, not JSON, or malformed.
     """
@@ -183,7 +213,15 @@ def load_coefficients(source: str | Path) -> Coefficients:
     document = read_json(path)
     sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
     label = PAPER if str(source) == PAPER else str(path)
-    return coefficients_from_json(document, label, sha256)
+    coefficients = coefficients_from_json(document, label, sha256)
+    if not coefficients.converged:
+        reasons = "; ".join(coefficients.unconverged_reasons) or "no reasons recorded"
+        warnings.warn(
+            f"{label} was written by a build that did not converge (--allow-unconverged): {reasons}",
+            UnconvergedCoefficientsWarning,
+            stacklevel=2,
+        )
+    return coefficients
 
 
 def fit_coefficients(
