@@ -147,3 +147,32 @@ class BuildNotConvergedError(PipelineError):
             f"the build did not converge ({len(self.problems)} problem(s)): "
             + " | ".join(str(p) for p in self.problems)
         )
+
+
+class InfeasibleSceneError(PipelineError):
+    """Somewhere in the (L, W) range the arm's pose at P1 or P5 itself collides with the obstacle,
+    so no trajectory that ends there is collision-free: the scene or the range must change.
+
+    Attributes:
+        length_m, width_m: The obstacle with the deepest collision [m].
+        point_name: "P1" or "P5".
+        clearance_m: The pose's clearance there [m] (<= 0).
+        count: How many obstacles of the checked grid have such a pose.
+        checked: How many obstacles were checked.
+    """
+
+    def __init__(
+        self, length_m: float, width_m: float, point_name: str, clearance_m: float, count: int, checked: int
+    ) -> None:
+        self.length_m = length_m
+        self.width_m = width_m
+        self.point_name = point_name
+        self.clearance_m = clearance_m
+        self.count = count
+        self.checked = checked
+        super().__init__(
+            f"the arm's pose at {point_name} collides with the obstacle at {count} of {checked} sizes of the range "
+            f"(deepest: L = {length_m:.3f} m, W = {width_m:.3f} m, clearance {clearance_m * 1e3:.2f} mm), so no "
+            "trajectory ending there is collision-free: narrow --L-range/--W-range or move the obstacle "
+            "(--top-y, --scene)"
+        )

@@ -54,11 +54,14 @@ from pipeline.offline.coefficients import (
 from pipeline.offline.convergence import (
     ConvergenceCriteria,
     ConvergenceProblem,
+    end_pose_collisions,
     experiment_problems,
+    grid_problems,
+    regression_collisions,
     regression_problems,
 )
 from pipeline.offline.doe import Design, doe_document, doe_from_json, load_doe, run_doe
-from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets
+from pipeline.offline.endpoint_regression import EndpointConstraint
 from pipeline.offline.experiment import ExperimentResult, SolverConfig, score_parameters
 from pipeline.offline.fitness import FitnessConfig, fitness_problem
 from pipeline.offline.pso import PsoConfig
@@ -338,8 +341,9 @@ def check_output_file(path: str | Path, option: str) -> Path:
     return path
 
 
-def _check_before_work(config: BuildConfig, arm: PlanarArm) -> None:
-    """Every obstacle's path and IK, and the regression's endpoint grid, before any PSO."""
+def _check_before_work(config: BuildConfig, arm: PlanarArm) -> list:
+    """Every obstacle's path and IK, and those of a grid over the range (where no end pose may
+    collide), before any PSO; returns the grid's problems for the check after the regression."""
     solver = config.solver()
     for L, W in config.design().points():
         try:
@@ -347,10 +351,9 @@ def _check_before_work(config: BuildConfig, arm: PlanarArm) -> None:
         except InvalidParameterError as exc:  # a scene value that does not fit this obstacle
             option = SCENE_OPTIONS.get(exc.name, f"--scene key {exc.name}")
             raise InvalidParameterError(option, exc.value, f"{exc.expected} (obstacle L = {L} m, W = {W} m)") from None
-    constraint = config.endpoint_constraint()
-    if constraint is not None:
-        fitted = {"L": config.length_range_m, "W": config.width_range_m}
-        endpoint_targets(fitted, config.scene, arm.link_lengths_m, constraint.grid_points)
+    grid = grid_problems(arm, config.scene, solver.fitness, solver.family, config.length_range_m, config.width_range_m)
+    end_pose_collisions(grid)
+    return grid
 
 
 def _paper_rows(arm: PlanarArm, config: BuildConfig) -> list[dict] | None:
@@ -456,16 +459,16 @@ def run_build(config: BuildConfig, progress: Callable[[int, int], None] | None =
         The result, with the files written (``result.written``).
 
     Raises:
-        InvalidParameterError, DataFileError, RobotModelError, UnreachableObstacleError: bad
-            configuration, output folder or URDF, or an obstacle the arm cannot pass (all
-            before any work; nothing written or created).
+        InvalidParameterError, DataFileError, RobotModelError, UnreachableObstacleError,
+        InfeasibleSceneError: bad configuration, output folder or URDF, an obstacle the arm
+            cannot pass or whose end pose collides (all before any work; nothing written or created).
         BuildNotConvergedError: the results missed the thresholds and ``allow_unconverged``
             is False (nothing written; ``exc.result`` holds the unwritten result).
     """
     started = time.perf_counter()
     check_output_folder(config.out_folder)
     arm = load_planar_arm(config.urdf_path)
-    _check_before_work(config, arm)
+    grid = _check_before_work(config, arm)
     solver, design = config.solver(), config.design()
 
     total, done = len(design.points()), []
@@ -503,6 +506,7 @@ def run_build(config: BuildConfig, progress: Callable[[int, int], None] | None =
             config.endpoint_constraint(),
         )
     problems += regression_problems(coefficients.extra["fit"])
+    problems += regression_collisions(coefficients.predict_free, grid)
     if problems:
         coefficients = coefficients.marked_unconverged(problems)
     timing = _timing_document(results, config.jobs)

@@ -10,12 +10,24 @@ therefore judges its own results before it writes them:
   poses (with exact endpoints and W near 0.12 m the pose at P5 itself is within 8 mm of the
   obstacle; no trajectory of that family keeps 1 cm there, and that is not a convergence failure);
 * **every DOE optimum ends near P1 and P5**: both endpoint errors at most
-  :attr:`ConvergenceCriteria.endpoint_error_max_m` (10 mm by default: the default build's
-  optima miss by at most 6.1 mm, a 2-iteration PSO's by 168 mm). The 2 mm endpoint tolerance
-  of the build is the *regression's*, held over the whole fitted range; a DOE optimum is a
-  compromise between tracking the path and keeping the margin and may miss by more;
+  :attr:`ConvergenceCriteria.endpoint_error_max_m`, 50 mm by default. The default build's
+  optima miss by at most 6.1 mm; with the obstacle moved 2 cm towards the base
+  (``top_y_m = 0.54``) the optima at W = 0.12 m miss P5 by up to 27 mm, a compromise between
+  tracking and keeping the margin that a single sinusoid per joint cannot avoid; a PSO stopped
+  after 2 iterations misses by 168 mm. The 2 mm endpoint tolerance of the build is the
+  *regression's*, held over the whole fitted range, not the optima's;
 * **the endpoint-constrained regression met its constraint**: SLSQP converged and the largest
-  endpoint error on its grid is within the tolerance (plus 1 nm for rounding).
+  endpoint error on its grid is within the tolerance (plus 1 nm for rounding);
+* **the regressed trajectories do not collide**: on a 21 x 21 grid over the fitted range, each
+  trajectory the coefficients give has a positive clearance at 1001 uniform times (a sampled
+  check, the configured clearance route; ``python -m verify.sweep`` certifies it in continuous
+  time). Holding the endpoints within 2 mm moves the optima, and where the end pose is close to
+  the obstacle it can move them into it.
+
+Before any of that, :func:`end_pose_collisions` finds obstacles of the range where the pose at P1
+or P5 itself collides (on the family's elbow branch): there no trajectory that ends at the
+point is collision-free, and the build refuses to start (e.g. ``top_y_m = 0.54`` with W up to
+0.12 m: the pose at P5 is 5.8 mm inside the obstacle's corner).
 """
 
 from __future__ import annotations
@@ -25,16 +37,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.exceptions import InfeasibleSceneError
 from pipeline.geometry.clearance import CoalClearance
 from pipeline.model.arm import PlanarArm
 from pipeline.model.scene import Scene
+from pipeline.motion.families import TrajectoryFamily
 from pipeline.motion.trajectory import PARAMETER_NAMES, joint_angles
 from pipeline.offline.experiment import ExperimentResult
-from pipeline.offline.fitness import FitnessConfig, fitness_problem
+from pipeline.offline.fitness import FitnessConfig, FitnessProblem, fitness_problem
 from pipeline.validation import check_non_negative, check_positive
 
 #: Rounding allowed above the regression's endpoint tolerance [m].
 TOLERANCE_ROUNDING_M = 1e-9
+#: Obstacle sizes per axis of the grids over the fitted range (as the endpoint constraint's).
+GRID_POINTS = 21
+#: Uniform times per trajectory of the regression's sampled collision check.
+COLLISION_SAMPLES = 1001
 
 
 @dataclass(frozen=True)
@@ -47,7 +65,7 @@ class ConvergenceCriteria:
             required of it (the margin, or the end poses' clearance) [m]; covers rounding.
     """
 
-    endpoint_error_max_m: float = 0.010
+    endpoint_error_max_m: float = 0.050
     clearance_slack_m: float = 1e-6
 
     def __post_init__(self) -> None:
@@ -129,3 +147,73 @@ def regression_problems(fit: Mapping) -> list[ConvergenceProblem]:
             f"> tolerance {tolerance_m * 1e3:.2f} mm"
         )
     return [ConvergenceProblem(None, None, None, "; ".join(missed))] if missed else []
+
+
+def grid_problems(
+    arm: PlanarArm,
+    scene: Scene,
+    fitness: FitnessConfig,
+    family: TrajectoryFamily,
+    length_range_m: tuple[float, float],
+    width_range_m: tuple[float, float],
+    grid_points: int = GRID_POINTS,
+) -> list[FitnessProblem]:
+    """The objective's precomputed problem (path, IK context, clearance function) for every obstacle
+    of a grid_points x grid_points grid over the range.
+
+    Raises:
+        UnreachableObstacleError: a grid obstacle's path leaves the arm's reach.
+    """
+    lengths = np.linspace(*length_range_m, grid_points)
+    widths = np.linspace(*width_range_m, grid_points)
+    return [fitness_problem(arm, L, W, scene, fitness, family) for W in widths for L in lengths]
+
+
+def end_pose_collisions(problems: list[FitnessProblem]) -> None:
+    """Refuse a range where the pose at P1 or P5 (inverse kinematics on the family's elbow
+    branch) collides with the obstacle.
+
+    Raises:
+        InfeasibleSceneError: at least one such obstacle (the deepest one is named).
+    """
+    worst, count = None, 0
+    for problem in problems:
+        q = np.array([problem.context.theta_start_rad, problem.context.theta_end_rad])
+        clearance = problem.clearance_at(q).min(axis=-1)
+        if clearance.min() <= 0:
+            count += 1
+            index = int(np.argmin(clearance))
+            if worst is None or clearance[index] < worst[3]:
+                worst = (problem.obstacle.length_m, problem.obstacle.width_m, ("P1", "P5")[index], clearance[index])
+    if worst is not None:
+        raise InfeasibleSceneError(worst[0], worst[1], worst[2], float(worst[3]), count, len(problems))
+
+
+def regression_collisions(free_at, problems: list[FitnessProblem]) -> list[ConvergenceProblem]:
+    """The regressed trajectories that collide at :data:`COLLISION_SAMPLES` uniform times.
+
+    Args:
+        free_at: (L, W) [m] -> the family's free parameters the coefficients give there.
+        problems: :func:`grid_problems` over the fitted range.
+    """
+    worst, count = None, 0
+    for problem in problems:
+        L, W = problem.obstacle.length_m, problem.obstacle.width_m
+        full = problem.full_parameters(free_at(L, W))
+        times = np.linspace(0.0, problem.path.duration_s, COLLISION_SAMPLES)
+        clearance = float(problem.clearance_at(joint_angles(full, times)).min())
+        if clearance <= 0:
+            count += 1
+            if worst is None or clearance < worst[2]:
+                worst = (L, W, clearance)
+    if worst is None:
+        return []
+    return [
+        ConvergenceProblem(
+            None,
+            None,
+            None,
+            f"its trajectories collide at {count} of {len(problems)} grid obstacles (sampled clearance down to "
+            f"{worst[2] * 1e3:.2f} mm at L = {worst[0]:.3f} m, W = {worst[1]:.3f} m)",
+        )
+    ]

@@ -1,0 +1,181 @@
+"""A battery of bad inputs to ``python -m pipeline.build``, ``python -m pipeline.regress`` and the
+public API: each is refused with a non-zero exit (or the project's error), exactly one line
+naming the offending option or value, no traceback, and nothing left on disk; the build's
+cases are refused before any work (the DOE is replaced by a function that fails the test)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import pipeline
+from pipeline import build, regress
+from pipeline.exceptions import PipelineError
+from pipeline.offline import build as build_library
+from pipeline.offline.build import BuildConfig, run_build, scene_from_options
+from pipeline.offline.doe import Design, load_doe
+
+TINY = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--quiet"]
+
+
+def files_under(folder: Path) -> set[Path]:
+    return {p for p in folder.rglob("*")}
+
+
+@pytest.fixture
+def place(tmp_path: Path) -> dict[str, Path]:
+    """Files the bad inputs point at: a regular file, a misspelt scene, a broken JSON, a text 'URDF'."""
+    (tmp_path / "a_file").write_text("not a folder", encoding="utf-8")
+    (tmp_path / "misspelt.toml").write_text("top_y = 0.54\n", encoding="utf-8")
+    (tmp_path / "broken.json").write_text("{", encoding="utf-8")
+    (tmp_path / "text.urdf").write_text("not xml", encoding="utf-8")
+    (tmp_path / "folder").mkdir()
+    return {"tmp": tmp_path}
+
+
+def substitute(arguments: list[str], tmp: Path) -> list[str]:
+    return [a.replace("TMP", str(tmp)) for a in arguments]
+
+
+BUILD_CASES = [
+    (["--seed", "-1"], "--seed"),
+    (["--seed", "one"], "--seed"),
+    (["--jobs", "-1"], "--jobs"),
+    (["--jobs", "two"], "--jobs"),
+    (["--levels", "2"], "--levels"),
+    (["--L-range", "0.3", "0.2"], "--L-range"),
+    (["--W-range", "nan", "0.1"], "--W-range"),
+    (["--family", "spline"], "--family"),
+    (["--swarm-size", "1"], "--swarm-size"),
+    (["--iterations", "0"], "--iterations"),
+    (["--restarts", "0"], "--restarts"),
+    (["--n-points", "3"], "--n-points"),
+    (["--penalty-weight", "nan"], "--penalty-weight"),
+    (["--speed", "0"], "--speed"),
+    (["--margin", "-0.01"], "--margin"),
+    (["--corner-radius", "0.5"], "--corner-radius"),
+    (["--top-y", "inf"], "--top-y"),
+    (["--top-y", "0.9"], "P1"),
+    (["--top-y", "0.54"], "pose at P5 collides"),
+    (["--endpoint-tolerance", "0"], "--endpoint-tolerance"),
+    (["--max-doe-endpoint-error", "0"], "--max-doe-endpoint-error"),
+    (["--scene", "TMP/misspelt.toml"], "'top_y' (did you mean 'top_y_m'?)"),
+    (["--scene", "TMP/none.toml"], "none.toml"),
+    (["--scene", "TMP/broken.json"], "broken.json"),
+    (["--urdf", "TMP/none.urdf"], "none.urdf"),
+    (["--urdf", "TMP/text.urdf"], "text.urdf"),
+    (["--out", "TMP/a_file"], "--out"),
+    (["--out", "TMP/a_file/under"], "--out"),
+    (["--out", "/proc/twolink-out"], "--out"),
+    (["--unknown-option"], "--unknown-option"),
+]
+
+
+@pytest.mark.parametrize(("arguments", "needle"), BUILD_CASES, ids=[" ".join(a) for a, _ in BUILD_CASES])
+def test_build_refuses_before_any_work(
+    arguments: list[str], needle: str, place: dict, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    tmp = place["tmp"]
+    monkeypatch.setattr(build_library, "run_doe", lambda *a, **k: pytest.fail("the DOE ran despite bad input"))
+    before = files_under(tmp)
+    arguments = substitute(arguments, tmp)
+    argv = [*TINY, "--out", str(tmp / "out"), *arguments]  # a later --out wins
+    started = time.perf_counter()
+    status = build.main(argv)
+    assert time.perf_counter() - started < 5.0
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert status == 2, captured.err
+    assert len(lines) == 1, captured.err
+    assert lines[0].startswith("python -m pipeline.build: error: ") and needle in lines[0], lines[0]
+    assert "Traceback" not in captured.err + captured.out and ".tmp" not in lines[0]
+    assert files_under(tmp) == before  # no --out folder, no temporary file
+
+
+REGRESS_CASES = [
+    (["TMP/none.json", "-o", "TMP/c.json"], "none.json"),
+    (["TMP/broken.json", "-o", "TMP/c.json"], "broken.json"),
+    (["TMP/a_file", "-o", "TMP/c.json"], "a_file"),
+    (["paper", "-o", "/proc/twolink-c.json"], "-o"),
+    (["paper", "-o", "TMP/folder"], "-o"),
+    (["paper", "-o", "TMP/a_file/c.json"], "-o"),
+    (["paper", "-o", "TMP/c.json", "--endpoint-tolerance", "-1"], "--endpoint-tolerance"),
+    (["paper"], "-o"),
+]
+
+
+@pytest.mark.parametrize(("arguments", "needle"), REGRESS_CASES, ids=[" ".join(a) for a, _ in REGRESS_CASES])
+def test_regress_refuses(arguments: list[str], needle: str, place: dict, capsys: pytest.CaptureFixture) -> None:
+    tmp = place["tmp"]
+    before = files_under(tmp)
+    status = regress.main([*substitute(arguments, tmp), "--quiet"])
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert status == 2 and len(lines) == 1, captured.err
+    assert lines[0].startswith("python -m pipeline.regress: error: ") and needle in lines[0], lines[0]
+    assert "Traceback" not in captured.err + captured.out
+    assert files_under(tmp) == before
+
+
+def _api_cases(tmp: Path) -> list[tuple[str, object, str]]:
+    return [
+        ("load_coefficients missing", lambda: pipeline.load_coefficients(tmp / "none.json"), "none.json"),
+        ("load_coefficients broken", lambda: pipeline.load_coefficients(tmp / "broken.json"), "broken.json"),
+        ("load_planar_arm missing", lambda: pipeline.load_planar_arm(tmp / "none.urdf"), "none.urdf"),
+        ("load_planar_arm text", lambda: pipeline.load_planar_arm(tmp / "text.urdf"), "text.urdf"),
+        ("load_doe broken", lambda: load_doe(tmp / "broken.json"), "broken.json"),
+        ("Design levels", lambda: Design(levels=2), "levels"),
+        ("BuildConfig seed", lambda: BuildConfig(seed=-1), "--seed"),
+        ("BuildConfig family", lambda: BuildConfig(family="spline"), "spline"),
+        ("scene misspelt", lambda: scene_from_options(tmp / "misspelt.toml"), "top_y"),
+        ("scene option", lambda: scene_from_options(speed_m_s=-1.0), "--speed"),
+        ("run_build out", lambda: run_build(BuildConfig(out_folder=tmp / "a_file")), "--out"),
+    ]
+
+
+@pytest.mark.parametrize("index", range(11))
+def test_public_api_raises_the_projects_error(index: int, place: dict) -> None:
+    tmp = place["tmp"]
+    name, call, needle = _api_cases(tmp)[index]
+    before = files_under(tmp)
+    with pytest.raises(PipelineError) as info:
+        call()
+    message = str(info.value)
+    assert needle in message and "\n" not in message, (name, message)
+    assert files_under(tmp) == before
+
+
+@pytest.mark.parametrize(
+    ("module", "arguments", "needle"),
+    [
+        ("pipeline.build", ["--seed", "-1"], "--seed"),
+        ("pipeline.build", ["--out", "/proc/twolink-out"], "--out"),
+        ("pipeline.build", ["--scene", "TMP/misspelt.toml"], "top_y"),
+        ("pipeline.regress", ["paper", "-o", "/proc/twolink-c.json"], "-o"),
+    ],
+)
+def test_as_a_process_no_traceback(module: str, arguments: list[str], needle: str, place: dict) -> None:
+    tmp = place["tmp"]
+    before = files_under(tmp)
+    # Run in the scratch folder (so a default --out would land there) with this checkout's pipeline.
+    root = str(Path(pipeline.__file__).resolve().parents[1])
+    environment = {**os.environ, "PYTHONPATH": root + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    done = subprocess.run(
+        [sys.executable, "-m", module, *substitute(arguments, tmp)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+        cwd=tmp,
+        env=environment,
+    )
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1, done.stderr
+    assert lines[0].startswith(f"python -m {module}: error: ") and needle in lines[0]
+    assert "Traceback" not in done.stderr and files_under(tmp) == before
+    assert not (tmp / "results").exists()
