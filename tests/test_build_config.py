@@ -289,3 +289,20 @@ def test_unconverged_regression_in_regress(tmp_path: Path, capsys: pytest.Captur
     assert regress.main(["paper", "--endpoint-tolerance", "0.002", "-o", str(out), "--quiet"]) == 1
     err = capsys.readouterr().err
     assert "regression: " in err and "> tolerance 2.00 mm" in err and not out.exists()
+
+
+def test_a_crash_while_writing_removes_the_folders_the_build_created(
+    tiny: dict, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: list(tiny["result"].experiments))
+    real_write = build_library.write_text_atomic
+
+    def crash(path, *args, **kwargs):
+        if Path(path).name == "coefficients.json":
+            raise OSError("disk full")
+        return real_write(path, *args, **kwargs)
+
+    monkeypatch.setattr(build_library, "write_text_atomic", crash)
+    with pytest.raises(OSError, match="disk full"):
+        run_build(BuildConfig(out_folder=tmp_path / "new" / "out", allow_unconverged=True, **TINY))
+    assert list(tmp_path.iterdir()) == []  # neither new/ nor new/out/ is left

@@ -194,11 +194,12 @@ class BuildConfig:
         self.criteria()
 
     @staticmethod
-    def _named(build: Callable, field_name: str | None = None):
+    def _named(build: Callable):
+        """``build()``, with a sub-configuration's error renamed to the command-line option."""
         try:
             return build()
         except InvalidParameterError as exc:
-            name = field_name or _SUB_NAMES.get(exc.name, exc.name)
+            name = _SUB_NAMES.get(exc.name, exc.name)
             raise _renamed(exc, OPTIONS.get(name, name)) from None
 
     def design(self) -> Design:
@@ -207,6 +208,7 @@ class BuildConfig:
             value = getattr(self, name)
             if not isinstance(value, tuple | list) or len(value) != 2:
                 raise InvalidParameterError(OPTIONS[name], value, "(min, max) [m]")
+            object.__setattr__(self, name, tuple(value))
         return self._named(lambda: Design(self.levels, tuple(self.length_range_m), tuple(self.width_range_m)))
 
     def solver(self) -> SolverConfig:
