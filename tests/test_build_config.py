@@ -306,3 +306,15 @@ def test_a_crash_while_writing_removes_the_folders_the_build_created(
     with pytest.raises(OSError, match="disk full"):
         run_build(BuildConfig(out_folder=tmp_path / "new" / "out", allow_unconverged=True, **TINY))
     assert list(tmp_path.iterdir()) == []  # neither new/ nor new/out/ is left
+
+
+@pytest.mark.parametrize("command", [build, regress])
+def test_help_states_units_rules_and_only_meaningful_defaults(command, capsys: pytest.CaptureFixture) -> None:
+    assert command.main(["--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "(default: None)" not in text and "(default: False)" not in text
+    assert "replaced atomically" in text and "Exit status: 0 written, 1 not converged" in text
+    if command is build:
+        assert "--max-doe-endpoint-error M largest endpoint error of a DOE optimum [m]" in text
+        assert "(default: 0.05)" in text and "0 = every CPU" in text and "(default: 0)" in text
+        assert "top_y_m = 0.54" in text and "an unknown key is refused" in text
