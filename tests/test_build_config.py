@@ -99,6 +99,7 @@ def test_family_by_name_and_paths_as_strings() -> None:
     assert config.endpoint_constraint() is None  # exact by construction: nothing to constrain
     assert BuildConfig().endpoint_constraint().tolerance_m == 0.002
     assert BuildConfig(endpoint_tolerance_m=None).endpoint_constraint() is None
+    assert BuildConfig(urdf_path=None) == BuildConfig()
 
 
 # --------------------------------------------------------------------------------------------

@@ -129,7 +129,7 @@ class BuildConfig:
         length_range_m, width_range_m: (min, max) of L and W [m].
         family: Trajectory family (object or name, e.g. "paper", "exact-endpoints").
         jobs: Worker processes (>= 1; does not change the result).
-        urdf_path: URDF of the arm.
+        urdf_path: URDF of the arm (None: the paper's arm shipped with the package).
         scene: The scene (obstacle placement, path, speed, margin); see :func:`scene_from_options`.
         swarm_size, iterations, restarts: PSO settings (:class:`pipeline.offline.pso.PsoConfig`).
         polish: Polish every PSO restart with least_squares.
@@ -168,6 +168,8 @@ class BuildConfig:
         if not isinstance(self.out_folder, str | os.PathLike):
             raise InvalidParameterError(OPTIONS["out_folder"], self.out_folder, "a folder path")
         object.__setattr__(self, "out_folder", Path(self.out_folder))
+        if self.urdf_path is None:
+            object.__setattr__(self, "urdf_path", DEFAULT_URDF)
         if not isinstance(self.urdf_path, str | os.PathLike):
             raise InvalidParameterError(OPTIONS["urdf_path"], self.urdf_path, "a URDF file path")
         object.__setattr__(self, "urdf_path", Path(self.urdf_path))
