@@ -219,7 +219,8 @@ def generate(
         L = _size(length_m, (length_m, width_m), "L")
         W = _size(width_m, (length_m, width_m), "W")
     plan = _PLANS.get(coefficients) or _plan(coefficients)
-    (matrix_t, (l_lo, l_hi), (w_lo, w_hi), reach, top, y1, start_dx, approach_dx, approach_dy, apex_dy, speed) = plan[:11]
+    matrix_t, (l_lo, l_hi), (w_lo, w_hi), reach, top, y1 = plan[:6]
+    start_dx, approach_dx, approach_dy, apex_dy, speed = plan[6:11]
     smallest = plan.smallest
     if L < smallest or W < smallest or plan.height < smallest:
         raise ObstacleSizeError(
