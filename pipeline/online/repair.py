@@ -1,20 +1,23 @@
 """Certify-or-repair: the online generator that never returns an uncertified trajectory as safe.
 
+0. Refuse an arm the coefficients were not fitted for (:func:`pipeline.online.arm_check.check_arm_matches`).
 1. Generate the trajectory from the regression (:func:`pipeline.online.generator.generate`).
-2. Certify it (:func:`pipeline.geometry.sinusoid_certificate.certify_trajectory`): a rigorous lower bound on
-   the clearance over the whole of [0, T].
+2. Certify it (:func:`pipeline.geometry.sinusoid_certificate.certify_trajectory`, adaptive, Coal): a
+   rigorous lower bound on the clearance over the whole of [0, T]; by default it only decides
+   whether the clearance exceeds the margin (``decide_above_m``), the fastest question; with
+   ``RepairConfig(certificate_tolerance_m=...)`` it tightens the bound to that tolerance.
 3. If the certified clearance is below the margin, repair: a short
    ``scipy.optimize.least_squares`` on the build's objective (Eq. 5 + clearance penalty),
    warm-started from the regression's parameters, stopped at the first point whose sampled
    clearance exceeds the margin by half the build's buffer, and bounded in wall time and evaluations; then
-   certify again.
+   certify again. Its wall time is returned (``CertifiedTrajectory.repair_seconds``).
 4. Return the trajectory with its certificate, or raise NoCertifiedTrajectoryError saying why.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -27,6 +30,7 @@ from pipeline.model.arm import PlanarArm
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.fitness import FitnessConfig, fitness_problem
+from pipeline.online.arm_check import check_arm_matches
 from pipeline.online.generator import GeneratedTrajectory, generate
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
@@ -42,6 +46,9 @@ class RepairConfig:
         max_seconds: Wall-time budget of the repair's optimisation [s].
         max_evaluations: Budget of objective evaluations of the repair.
         fitness: Objective of the repair (the build's, by default).
+        certificate_tolerance_m: None (default): the certificate only decides whether the clearance
+            exceeds the margin, and its bound may lie well below the true minimum; a value [m]: the
+            bound is tightened to within that of the smallest sampled clearance (slower).
     """
 
     margin_m: float | None = None
@@ -50,12 +57,15 @@ class RepairConfig:
     max_seconds: float = 0.5
     max_evaluations: int = 400
     fitness: FitnessConfig = field(default_factory=FitnessConfig)
+    certificate_tolerance_m: float | None = None
 
     def __post_init__(self) -> None:
         if self.margin_m is not None:
             check_non_negative("margin_m", self.margin_m)
         check_positive("max_seconds", self.max_seconds)
         check_positive_int("max_evaluations", self.max_evaluations)
+        if self.certificate_tolerance_m is not None:
+            check_positive("certificate_tolerance_m", self.certificate_tolerance_m)
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,6 +98,9 @@ class CertifiedTrajectory:
     def certified_clearance_m(self) -> float:
         """Certified lower bound on the clearance over [0, T] [m]."""
         return self.certificate.certified_clearance_m
+
+
+_DEFAULT_CONFIG = RepairConfig()
 
 
 class _Stop(Exception):
@@ -148,18 +161,31 @@ def generate_certified(
 ) -> CertifiedTrajectory:
     """Generate, certify and if needed repair the trajectory for the obstacle L x W [m].
 
+    Args:
+        coefficients: The regression coefficients.
+        length_m, width_m: Obstacle size [m].
+        arm: The arm; it must be the one the coefficients were fitted for.
+        out_of_range: As :func:`pipeline.online.generator.generate`.
+        config: Margin, route, repair budget, certificate mode.
+
     Raises:
+        ArmMismatchError: the arm's link lengths or radii differ from the coefficients'.
         NoCertifiedTrajectoryError: neither the regression's answer nor its repair has a
             certified clearance of at least the margin.
         InvalidParameterError, UnreachableObstacleError, OutOfFittedRangeError: as
             :func:`pipeline.online.generator.generate`.
     """
-    config = config if config is not None else RepairConfig()
+    check_arm_matches(coefficients, arm)
+    config = _DEFAULT_CONFIG if config is None else config
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     generated = generate(coefficients, length_m, width_m, out_of_range=out_of_range)
 
     def certify(trajectory: JointTrajectory) -> Certificate:
-        return certify_trajectory(trajectory, arm, generated.obstacle, route=config.route, decide_above_m=margin)
+        if config.certificate_tolerance_m is None:
+            return certify_trajectory(trajectory, arm, generated.obstacle, route=config.route, decide_above_m=margin)
+        return certify_trajectory(
+            trajectory, arm, generated.obstacle, route=config.route, tolerance_m=config.certificate_tolerance_m
+        )
 
     first = certify(generated.trajectory)
     if first.certified_clearance_m >= margin:
@@ -173,7 +199,7 @@ def generate_certified(
     seconds = time.perf_counter() - started
     second = certify(repaired)
     if second.certified_clearance_m >= margin:
-        fixed = GeneratedTrajectory(**{**generated.__dict__, "trajectory": repaired})
+        fixed = replace(generated, trajectory=repaired)
         return CertifiedTrajectory(fixed, second, margin, True, first, seconds)
     best = max(first.certified_clearance_m, second.certified_clearance_m)
     raise NoCertifiedTrajectoryError(
