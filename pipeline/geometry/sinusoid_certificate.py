@@ -29,14 +29,14 @@ Derivation
    :data:`MIN_INITIAL_SAMPLES` samples: a few dozen for link 2 of the paper's motions and about
    ten for the slower link 1, against about 3,300 configurations at today's 1 mm. Then, **per
    link**, only the intervals that need it are split, with one clearance evaluation of that link
-   per new point: in decide mode (``decide_above_m``) the intervals whose bound is at or below
-   that value (and more than ``tolerance_m`` below the smallest sample), until none is or a sample
-   (minus the distance error) is at or below it; in tolerance mode the intervals whose bound is
-   more than ``tolerance_m`` below the smallest sampled value (both links). An interval is split
-   into ``k`` equal parts, ``k = ceil(1.5 V h / (2 g))`` clipped to 2..8, where ``g`` is how far its
-   lower end value lies above the value its bound must reach: the number of parts that would
-   settle it if the clearance stayed at its end values (a bisection when it is nearly settled),
-   so that most trajectories need one round. The interval bound (step 2 of
+   per new point. In tolerance mode the intervals whose bound is more than ``tolerance_m`` below
+   the smallest sampled value (both links) are bisected. In decide mode (``decide_above_m``) the
+   intervals whose bound is at or below that value (and more than ``tolerance_m`` below the
+   smallest sample) are split, until none is or a sample (minus the distance error) is at or below
+   it; an interval is split into ``k`` equal parts, ``k = ceil(1.5 V h / (2 g))`` clipped to 2..8,
+   where ``g`` is how far its lower end value lies above the value its bound must reach: the number
+   of parts that would settle it if the clearance stayed at its end values (a bisection when it is
+   nearly settled), so that most trajectories need one round. The interval bound (step 2 of
    :mod:`pipeline.geometry.motion_certificate`) and the distance error are the same as on a dense
    grid, so the result is as rigorous; a coarse grid only means more splitting where the bound is
    close, and none elsewhere. ``initial="dense"`` keeps the former route (a uniform grid at
@@ -330,15 +330,16 @@ class _AdaptiveCertificate:
                     refine[:] = False
                 else:
                     refine &= lower <= decide
-            if refine.any():
-                # Split each refined interval in as many parts as should settle them (step 3).
-                target = floor - tolerance if decide is None else min(floor - tolerance, decide)
-                gap = np.minimum(da, db)[refine] - target
+            if not refine.any():
+                count = 0
+            elif decide is None:  # tolerance mode: bisect
+                inner = np.ones(int(np.count_nonzero(refine)), dtype=int)
+                count = inner.size
+            else:  # decide mode: split each interval in as many parts as should settle it (step 3)
+                gap = np.minimum(da, db)[refine] - min(floor - tolerance, decide)
                 parts = np.clip(np.ceil(SPLIT_SAFETY * speed[refine] * h[refine] / (2.0 * gap)), 2, MAX_SPLIT)
                 inner = parts.astype(int) - 1
                 count = int(inner.sum())
-            else:
-                count = 0
             if count > max_evaluations - (evaluations - initial):
                 converged, refine[:], count = False, False, 0
             settled = ~refine
