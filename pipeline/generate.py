@@ -29,6 +29,7 @@ import os
 import sys
 import tempfile
 import time
+import types
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -290,6 +291,18 @@ def work(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status."""
     return run_cli(build_parser(), work, argv)
+
+
+class _CallableModule(types.ModuleType):
+    """Importing this module binds the package attribute ``pipeline.generate`` to it, shadowing the
+    public :func:`pipeline.online.generator.generate` that ``pipeline`` exports under that name. Calling
+    this module calls that function, so ``pipeline.generate(coefficients, L, W)`` keeps working."""
+
+    def __call__(self, *args, **kwargs):
+        return generate(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ depth, the analytic route minus the radii), so "clearance > 0" means the same fo
 
 from __future__ import annotations
 
+import math
 import weakref
 from abc import ABC, abstractmethod
 from collections.abc import Callable
@@ -175,6 +176,8 @@ class CoalClearance:
         Returns shape (2,) or (m, 2): the minimum over each link's geometries.
         """
         q = np.asarray(q, dtype=float)
+        if q.shape == (2,):
+            return self._one_configuration(q)
         batch = np.atleast_2d(q)
         placements = self._geometry.geometry_placements(batch)
         out = np.full((batch.shape[0], 2), np.inf)
@@ -188,6 +191,22 @@ class CoalClearance:
             out[:, link] = np.minimum(out[:, link], distances)
         self.queries += batch.shape[0] * len(self._calls)
         return out[0] if q.ndim == 1 else out
+
+    def _one_configuration(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`link_clearance` of one configuration (2,), without batch machinery (a planner's checker)."""
+        s1, s2 = math.sin(q[0]), math.sin(q[1])
+        v1, v2 = 1.0 - math.cos(q[0]), 1.0 - math.cos(q[1])
+        features = np.array([1.0, s2, v2, s1, s1 * s2, s1 * v2, v1, v1 * s2, v1 * v2])
+        best = [math.inf, math.inf]
+        for g, link, functor, tf, obstacle_tf, request, result, _ in self._calls:
+            placed = features.dot(self._geometry.maps[g])
+            tf.setTransform(placed[:9].reshape(3, 3), placed[9:])
+            result.clear()
+            distance = functor(tf, obstacle_tf, request, result)
+            if distance < best[link]:
+                best[link] = distance
+        self.queries += len(self._calls)
+        return np.array(best)
 
     def link_distances(self, q: np.ndarray, link: int) -> np.ndarray:
         """Clearance [m] of one link (0 or 1) for configurations q (m, 2) [rad]: shape (m,)."""
