@@ -146,3 +146,31 @@ def test_radii_are_checked_too(paper, arm: PlanarArm) -> None:
     thick = replace(paper, link_radii_m=(0.005, 0.006))
     with pytest.raises(ArmMismatchError, match=r"radii 0\.005, 0\.006 m"):
         generate_certified(thick, 0.25, 0.1, arm)
+
+
+def test_adaptive_speed_bounds_hold_for_every_point(arm: PlanarArm) -> None:
+    """The adaptive route's interval speed bounds against brute force: finite differences of every
+    point of both capsules (ends and surface points) at 2001 times per interval."""
+    from pipeline.geometry.clearance import link_segments
+    from pipeline.geometry.sinusoid_certificate import _AdaptiveCertificate, arm_reach
+    from pipeline.motion.trajectory import JointTrajectory
+
+    rng = np.random.default_rng(8)
+    reach = arm_reach(arm)
+    radius = arm.link_radii_m[1]
+    for _ in range(200):
+        parameters = rng.uniform([-2, -3, -3, -3, -2, -3, -3, -3], [2, 3, 3, 3, 2, 3, 3, 3])
+        trajectory = JointTrajectory(tuple(parameters), 10.0)
+        core = _AdaptiveCertificate(trajectory, reach)
+        ta = rng.uniform(0.0, 8.0)
+        h = rng.choice([1e-3, 0.05, 0.5, 2.0])
+        v1, v2 = core.speeds(np.array([ta]), np.array([ta + h]))
+        t = np.linspace(ta, ta + h, 2001)
+        elbow, tip = link_segments(trajectory.q(t), arm.link_lengths_m)
+        direction = (tip - elbow) / np.linalg.norm(tip - elbow, axis=1)[:, None]
+        normal = np.stack([-direction[:, 1], direction[:, 0]], -1)
+        far_tip = tip + direction * radius + normal * radius  # a surface point of link 2's capsule
+        step = t[1] - t[0]
+        for points, bound in ((elbow * (1 + arm.link_radii_m[0] / arm.link_lengths_m[0]), v1[0]), (far_tip, v2[0])):
+            speeds = np.linalg.norm(np.diff(points, axis=0), axis=1) / step
+            assert np.max(speeds) <= bound * (1 + 1e-6) + 1e-9

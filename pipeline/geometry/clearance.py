@@ -78,7 +78,14 @@ class _ArmGeometry:
         for j in (1, 2):
             cross = _cross_matrix(_joint_axis(model.joints[j]))
             powers.append((np.eye(3), cross, cross @ cross))
-        self.shapes, self.links, self.maps = [], [], []
+        self.shapes, self.links, self.maps, self.joints1, self.maps_joint1 = [], [], [], [], []
+        # Shared by every CoalClearance of this arm (one query at a time, as Python runs them).
+        self.request = coal.DistanceRequest()
+        # Coal's default GJK tolerance (1e-6) overestimates distances by up to ~1e-6 m;
+        # 1e-10 makes it exact to ~1e-15 at no measurable cost.
+        self.request.gjk_tolerance = GJK_TOLERANCE
+        self.result = coal.DistanceResult()
+        self.identity = np.eye(3)
         for link, ids in enumerate(arm.link_geometry_ids):
             for geometry_id in ids:
                 geometry = arm.collision_model.geometryObjects[geometry_id]
@@ -101,24 +108,32 @@ class _ArmGeometry:
                 self.shapes.append(geometry.geometry)
                 self.links.append(link)
                 self.maps.append(linear.reshape(9, 12))
+                # On joint 1 only the features with b = 1 (k = 0) carry weight: a (3, 12) map of a.
+                self.joints1.append(geometry.parentJoint == 1)
+                self.maps_joint1.append(np.ascontiguousarray(linear[:, 0, :]))
 
-    def features(self, q: np.ndarray) -> np.ndarray:
-        """The nine features a_i b_k (m, 9) of configurations q (m, 2)."""
-        s, c = np.sin(q), np.cos(q)
-        a = np.stack([np.ones(q.shape[0]), s[:, 0], 1.0 - c[:, 0]], -1)
-        b = np.stack([np.ones(q.shape[0]), s[:, 1], 1.0 - c[:, 1]], -1)
-        return (a[:, :, None] * b[:, None, :]).reshape(-1, 9)
+    def features(self, q: np.ndarray, joint1_only: bool = False) -> np.ndarray:
+        """The nine features a_i b_k (m, 9) of configurations q (m, 2), or only a (m, 3) if ``joint1_only``."""
+        terms = np.empty((q.shape[0], 2, 3))
+        terms[:, :, 0] = 1.0
+        np.sin(q, out=terms[:, :, 1])
+        np.cos(q, out=terms[:, :, 2])
+        np.subtract(1.0, terms[:, :, 2], out=terms[:, :, 2])
+        if joint1_only:
+            return terms[:, 0, :]
+        return (terms[:, 0, :, None] * terms[:, 1, None, :]).reshape(-1, 9)
 
     def geometry_placements(self, q: np.ndarray, link: int | None = None) -> list[tuple[np.ndarray, np.ndarray] | None]:
         """Per link geometry: rotations (m, 3, 3) and translations (m, 3) in the base frame, for q (m, 2)
         (only the geometries of ``link`` if given, None for the others)."""
-        features = self.features(q)
+        joint1_only = link is not None and all(self.joints1[g] for g in range(len(self.maps)) if self.links[g] == link)
+        features = self.features(q, joint1_only)
         placements = []
-        for linear, own_link in zip(self.maps, self.links, strict=True):
+        for g, (linear, own_link) in enumerate(zip(self.maps, self.links, strict=True)):
             if link is not None and own_link != link:
                 placements.append(None)
                 continue
-            placed = features @ linear
+            placed = features @ (self.maps_joint1[g] if joint1_only else linear)
             placements.append((placed[:, :9].reshape(-1, 3, 3), placed[:, 9:]))
         return placements
 
@@ -157,14 +172,10 @@ class CoalClearance:
     _calls: list = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self._geometry = _arm_geometry(self.arm)
+        self._geometry = geometry = _arm_geometry(self.arm)
         box = self.obstacle.coal_shape()
-        obstacle_tf = coal.Transform3s(np.eye(3), self.obstacle.center_m)
-        request = coal.DistanceRequest()
-        # Coal's default GJK tolerance (1e-6) overestimates distances by up to ~1e-6 m;
-        # 1e-10 makes it exact to ~1e-15 at no measurable cost.
-        request.gjk_tolerance = GJK_TOLERANCE
-        result = coal.DistanceResult()
+        obstacle_tf = coal.Transform3s(geometry.identity, self.obstacle.center_m)
+        request, result = geometry.request, geometry.result
         self._calls = [
             (g, link, coal.ComputeDistance(shape, box), coal.Transform3s(), obstacle_tf, request, result, box)
             for g, (shape, link) in enumerate(zip(self._geometry.shapes, self._geometry.links, strict=True))

@@ -21,7 +21,12 @@ Derivation
    by ``min(W_1 + W_2, |w_1(tm) + w_2(tm)| + (tb - ta)/2 * (Acc_1 + Acc_2))`` with ``W_i``
    and ``Acc_i`` the closed-form interval maxima of ``|w_i|`` and ``|dw_i/dt|`` and ``tm``
    the midpoint (the sum of rates is Lipschitz with constant ``Acc_1 + Acc_2``). Every
-   speed bound is inflated by a relative ``1e-9`` against rounding.
+   speed bound is inflated by a relative ``1e-9`` against rounding. The adaptive route (step 3)
+   bounds ``W_i`` and ``Acc_i`` from the phase ``u_m`` at the midpoint instead: every phase of the
+   interval is ``u_m + x`` with ``|x| <= delta = |w_i| h / 2``, so
+   ``|cos u| <= |cos u_m| |cos x| + |sin u_m| |sin x| <= |cos u_m| + |sin u_m| sin(min(delta, pi/2))``
+   (capped at 1; likewise for ``|sin u|``), within ``O(delta^2)`` of the closed form, from one
+   sine and one cosine per joint and interval.
 
 3. **Adaptive sampling** (``initial="adaptive"``, the default). The initial grid is coarse: uniform
    in time, per link, so that no point of that link moves more than :data:`COARSE_RESOLUTION_M`
@@ -248,33 +253,51 @@ class _AdaptiveCertificate:
         self.rate_peak = np.abs(self.amplitude * self.w)  # max |dtheta_i/dt| [rad/s]
         self.acceleration_peak = np.abs(self.amplitude * self.w * self.w)  # max |d2theta_i/dt2| [rad/s^2]
         self.rate_amplitude = self.amplitude * self.w
-        self.rho1, self.e, self.rho2 = reach.link1_radius_m, reach.elbow_distance_m, reach.link2_radius_m
+        self.half_w, self.half_abs_w = self.w / 2.0, np.abs(self.w) / 2.0
+        rho1, e, rho2 = reach.link1_radius_m, reach.elbow_distance_m, reach.link2_radius_m
+        # The link_point_speed_bounds factors, inflated by SPEED_SLACK against rounding.
+        self.link1_factor = rho1 * SPEED_SLACK
+        self.link2_factors = ((e + rho2) * SPEED_SLACK, rho2 * SPEED_SLACK, e * SPEED_SLACK)
 
     def q(self, t: np.ndarray) -> np.ndarray:
         """Joint angles (m, 2) [rad] at times t (m,) [s] (Eq. 1)."""
         return np.sin(np.multiply.outer(t, self.w) + self.phi) * self.amplitude + self.gamma
 
     def speeds(self, ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds [m/s] on every point's speed of link 1 and of link 2 over each [ta, tb] (step 2),
-        the same closed forms as :func:`link_speed_bounds`."""
-        ua = np.multiply.outer(ta, self.w) + self.phi
-        ub = np.multiply.outer(tb, self.w) + self.phi
-        lo, hi = np.minimum(ua, ub), np.maximum(ua, ub)
-        # Peaks of |cos| at k pi, of |sin| (that is |cos(u - pi/2)|) at pi/2 + k pi.
-        cos_peak = np.ceil(lo / np.pi) * np.pi <= hi
-        sin_peak = np.ceil((lo - np.pi / 2) / np.pi) * np.pi <= hi - np.pi / 2
-        rate = self.rate_peak * np.where(cos_peak, 1.0, np.maximum(np.abs(np.cos(ua)), np.abs(np.cos(ub))))
-        acceleration = self.acceleration_peak * np.where(
-            sin_peak, 1.0, np.maximum(np.abs(np.sin(ua)), np.abs(np.sin(ub)))
-        )
-        mid_rates = np.cos((ua + ub) / 2.0) * self.rate_amplitude
+        """Bounds [m/s] on every point's speed of link 1 and of link 2 over each [ta, tb] (step 2).
+
+        With ``u_m`` the phase at the midpoint and ``delta = |w| h / 2`` (at most pi/2), every phase
+        of the interval is ``u_m + x``, ``|x| <= delta``, so ``|cos u| <= |cos u_m| + |sin u_m| sin delta``
+        and ``|sin u| <= |sin u_m| + |cos u_m| sin delta`` (both capped at 1): the interval maxima of
+        the joint rates and accelerations, within O(delta^2) of the closed forms of
+        :func:`link_speed_bounds`, from one sine and one cosine per joint.
+        """
+        h = tb - ta
+        um = np.multiply.outer(ta + tb, self.half_w)
+        um += self.phi
+        spread = np.multiply.outer(h, self.half_abs_w)
+        np.minimum(spread, np.pi / 2, out=spread)
+        np.sin(spread, out=spread)
+        sine, cosine = np.sin(um), np.cos(um)
+        abs_sine, abs_cosine = np.abs(sine), np.abs(cosine)
+        rate = abs_sine * spread
+        rate += abs_cosine
+        np.minimum(rate, 1.0, out=rate)
+        rate *= self.rate_peak
+        acceleration = abs_cosine * spread
+        acceleration += abs_sine
+        np.minimum(acceleration, 1.0, out=acceleration)
+        acceleration *= self.acceleration_peak
+        mid_rates = cosine * self.rate_amplitude
         w1, w2 = rate[:, 0], rate[:, 1]
-        sum_rate = np.minimum(
-            w1 + w2,
-            np.abs(mid_rates[:, 0] + mid_rates[:, 1]) + (tb - ta) / 2.0 * (acceleration[:, 0] + acceleration[:, 1]),
+        sum_rate = np.abs(mid_rates[:, 0] + mid_rates[:, 1])
+        sum_rate += h * (acceleration[:, 0] + acceleration[:, 1]) / 2.0
+        np.minimum(sum_rate, w1 + w2, out=sum_rate)
+        v1 = w1 * self.link1_factor
+        v2 = np.minimum(
+            w1 * self.link2_factors[0] + w2 * self.link2_factors[1],
+            w1 * self.link2_factors[2] + sum_rate * self.link2_factors[1],
         )
-        v1 = w1 * (self.rho1 * SPEED_SLACK)
-        v2 = np.minimum(w1 * (self.e + self.rho2) + w2 * self.rho2, w1 * self.e + sum_rate * self.rho2) * SPEED_SLACK
         return v1, v2
 
     def run(
@@ -298,7 +321,8 @@ class _AdaptiveCertificate:
             for k in (0, 1):
                 times = np.linspace(0.0, self.duration, n[k])
                 grids.append((times, np.asarray(link_clearance(self.q(times), k), dtype=float).reshape(n[k])))
-            initial = int(np.union1d(grids[0][0], grids[1][0]).size)
+            # Distinct times of the two grids: both ends, and gcd(n1 - 1, n2 - 1) - 1 common inner points.
+            initial = n[0] + n[1] - math.gcd(n[0] - 1, n[1] - 1) - 1
         observed, observed_time, sampled_time = [], [], []  # per link, over every sample [m, s]
         for times, values in grids:
             if not np.all(np.isfinite(values)):
