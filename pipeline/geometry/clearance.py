@@ -111,6 +111,15 @@ class _ArmGeometry:
                 # On joint 1 only the features with b = 1 (k = 0) carry weight: a (3, 12) map of a.
                 self.joints1.append(geometry.parentJoint == 1)
                 self.maps_joint1.append(np.ascontiguousarray(linear[:, 0, :]))
+        # Per link: are all its geometries on joint 1 (then only the features of q1 are needed)?
+        self.link_on_joint1 = [
+            all(j for j, k in zip(self.joints1, self.links, strict=True) if k == link) for link in (0, 1)
+        ]
+        self.link_counts = [self.links.count(link) for link in (0, 1)]
+        # The map each geometry's link_distances uses: (3, 12) of a on joint-1-only links, else (9, 12).
+        self.link_maps = [
+            self.maps_joint1[g] if self.link_on_joint1[link] else self.maps[g] for g, link in enumerate(self.links)
+        ]
 
     def features(self, q: np.ndarray, joint1_only: bool = False) -> np.ndarray:
         """The nine features a_i b_k (m, 9) of configurations q (m, 2), or only a (m, 3) if ``joint1_only``."""
@@ -221,22 +230,20 @@ class CoalClearance:
 
     def link_distances(self, q: np.ndarray, link: int) -> np.ndarray:
         """Clearance [m] of one link (0 or 1) for configurations q (m, 2) [rad]: shape (m,)."""
-        batch = np.atleast_2d(np.asarray(q, dtype=float))
-        placements = self._geometry.geometry_placements(batch, link)
-        out = np.full(batch.shape[0], np.inf)
-        calls = 0
+        batch = q if type(q) is np.ndarray and q.ndim == 2 else np.atleast_2d(np.asarray(q, dtype=float))
+        features = self._geometry.features(batch, self._geometry.link_on_joint1[link])
+        out = None
         for g, own_link, functor, tf, obstacle_tf, request, result, _ in self._calls:
             if own_link != link:
                 continue
+            placed = features @ self._geometry.link_maps[g]
             distances = []
-            rotations, translations = placements[g]
-            for rotation, translation in zip(rotations, translations, strict=True):
+            for rotation, translation in zip(placed[:, :9].reshape(-1, 3, 3), placed[:, 9:], strict=True):
                 tf.setTransform(rotation, translation)
                 result.clear()
                 distances.append(functor(tf, obstacle_tf, request, result))
-            np.minimum(out, distances, out=out)
-            calls += 1
-        self.queries += batch.shape[0] * calls
+            out = np.array(distances) if out is None else np.minimum(out, distances)
+        self.queries += batch.shape[0] * self._geometry.link_counts[link]
         return out
 
 

@@ -30,7 +30,7 @@ Derivation
 
 3. **Adaptive sampling** (``initial="adaptive"``, the default). The initial grid is coarse: uniform
    in time, per link, so that no point of that link moves more than :data:`COARSE_RESOLUTION_M`
-   (10 cm) between its samples (speed bound from the peak joint rates ``|A_i w_i|``), at least
+   (15 cm) between its samples (speed bound from the peak joint rates ``|A_i w_i|``), at least
    :data:`MIN_INITIAL_SAMPLES` samples: a few dozen for link 2 of the paper's motions and about
    ten for the slower link 1, against about 3,300 configurations at today's 1 mm. Then, **per
    link**, only the intervals that need it are split, with one clearance evaluation of that link
@@ -87,7 +87,7 @@ from pipeline.motion.trajectory import JointTrajectory
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
 #: Motion resolution of the adaptive initial grid [m]: no link point moves more than this between samples.
-COARSE_RESOLUTION_M = 0.1
+COARSE_RESOLUTION_M = 0.15
 #: Fewest initial samples of the adaptive grid, per link.
 MIN_INITIAL_SAMPLES = 8
 #: Safety factor of the split count: an interval of bound-deficit is split into
@@ -300,6 +300,17 @@ class _AdaptiveCertificate:
         )
         return v1, v2
 
+    @staticmethod
+    def _refine(lower: np.ndarray, floor: float, tolerance: float, decide: float | None) -> np.ndarray:
+        """Which intervals to refine (step 3): loose ones, or in decide mode the undecided loose ones."""
+        refine = lower < floor - tolerance
+        if decide is not None:
+            if floor <= decide:
+                refine[:] = False
+            else:
+                refine &= lower <= decide
+        return refine
+
     def run(
         self,
         n: tuple[int, int],
@@ -319,13 +330,15 @@ class _AdaptiveCertificate:
         else:
             grids = []
             for k in (0, 1):
-                times = np.linspace(0.0, self.duration, n[k])
+                times = np.arange(n[k], dtype=float)
+                times *= self.duration / (n[k] - 1)  # as np.linspace, the last exactly T
+                times[-1] = self.duration
                 grids.append((times, np.asarray(link_clearance(self.q(times), k), dtype=float).reshape(n[k])))
             # Distinct times of the two grids: both ends, and gcd(n1 - 1, n2 - 1) - 1 common inner points.
             initial = n[0] + n[1] - math.gcd(n[0] - 1, n[1] - 1) - 1
         observed, observed_time, sampled_time = [], [], []  # per link, over every sample [m, s]
         for times, values in grids:
-            if not np.all(np.isfinite(values)):
+            if not math.isfinite(float(values.sum())):  # NaN and +-inf propagate into the sum
                 raise InvalidParameterError(
                     "clearance", "non-finite values", "finite distances from the clearance function"
                 )
@@ -342,18 +355,24 @@ class _AdaptiveCertificate:
         link = np.repeat(np.array([False, True]), [n[0] - 1, n[1] - 1])
         best = [(math.inf, 0.0), (math.inf, 0.0)]  # per link: (lowest settled bound, where) [m, s]
         evaluations, rounds, converged = initial, 0, True
+        # Speed bounds: first the global ones (peak joint rates), then, where an interval is refined,
+        # its own (step 2); a sub-interval inherits its parent's, valid on it, until it is refined.
+        rate1, rate2 = (float(v) for v in self.rate_peak)
+        global_speed = (rate1 * self.link1_factor, rate1 * self.link2_factors[0] + rate2 * self.link2_factors[1])
+        speed = np.where(link, global_speed[1], global_speed[0])
+        own = np.zeros(ta.size, dtype=bool)  # True where ``speed`` is the interval's own bound
         while ta.size:
-            v1, v2 = self.speeds(ta, tb)
-            speed = np.where(link, v2, v1)
             h = tb - ta
             lower = (da + db - speed * h) / 2.0
             floor = min(observed) - error
-            refine = lower < floor - tolerance
-            if decide is not None:
-                if floor <= decide:
-                    refine[:] = False
-                else:
-                    refine &= lower <= decide
+            refine = self._refine(lower, floor, tolerance, decide)
+            stale = refine & ~own
+            if stale.any():
+                v1, v2 = self.speeds(ta[stale], tb[stale])
+                speed[stale] = np.where(link[stale], v2, v1)
+                own[stale] = True
+                lower = (da + db - speed * h) / 2.0
+                refine = self._refine(lower, floor, tolerance, decide)
             if not refine.any():
                 count = 0
             elif decide is None:  # tolerance mode: bisect
@@ -378,6 +397,7 @@ class _AdaptiveCertificate:
                 break
             rounds += 1
             ta, tb, da, db, link, h = ta[refine], tb[refine], da[refine], db[refine], link[refine], h[refine]
+            speed = speed[refine]
             # New points: j / parts of the way through each interval, j = 1 .. parts - 1.
             owner = np.repeat(np.arange(ta.size), inner)
             last = np.cumsum(inner) - 1
@@ -388,7 +408,7 @@ class _AdaptiveCertificate:
             for k, mask in ((0, ~point_link), (1, point_link)):
                 if mask.any():
                     got = np.asarray(link_clearance(self.q(points[mask]), k), dtype=float)
-                    if not np.all(np.isfinite(got)):
+                    if not math.isfinite(float(got.sum())):
                         raise InvalidParameterError(
                             "clearance", "non-finite values", "finite distances from the clearance function"
                         )
@@ -405,6 +425,8 @@ class _AdaptiveCertificate:
             ta, tb = np.concatenate([previous_t, points[last]]), np.concatenate([points, tb])
             da, db = np.concatenate([previous_d, values[last]]), np.concatenate([values, db])
             link = np.concatenate([point_link, link])
+            speed = np.concatenate([speed[owner], speed])
+            own = np.zeros(ta.size, dtype=bool)
         bounds = [min(best[k][0], observed[k] - error) for k in (0, 1)]
         where = [best[k][1] if best[k][0] <= observed[k] - error else observed_time[k] for k in (0, 1)]
         k = 0 if bounds[0] <= bounds[1] else 1
