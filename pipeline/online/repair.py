@@ -10,7 +10,8 @@
    ``scipy.optimize.least_squares`` on the build's objective (Eq. 5 + clearance penalty),
    warm-started from the regression's parameters, its Jacobian one vectorised forward
    difference, stopped at the first point whose sampled clearance exceeds the margin by half
-   the build's buffer, and bounded in wall time and evaluations; then certify again. Its wall time is returned (``CertifiedTrajectory.repair_seconds``).
+   the build's buffer, and bounded in wall time and evaluations; then certify again. Its wall
+   time is returned (``CertifiedTrajectory.repair_seconds``).
 4. Return the trajectory with its certificate, or raise NoCertifiedTrajectoryError saying why.
 """
 
