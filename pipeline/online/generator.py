@@ -254,7 +254,7 @@ def generate(
     free = np.array([1.0, L, W, L * L, L * W, W * W]).dot(matrix_t)
     family = coefficients.family
     if family.uses_endpoint_context:
-        full = _expand_with_endpoints(coefficients, free, x1, y1, duration)
+        full = _expand_with_endpoints(coefficients, free, x1, y1, duration, (L, W))
     else:
         full = family.expand(free, None)
     parameters = tuple(full.tolist())
@@ -265,7 +265,9 @@ def generate(
     )
 
 
-def _expand_with_endpoints(coefficients: Coefficients, free: np.ndarray, x1: float, y1: float, duration: float):
+def _expand_with_endpoints(
+    coefficients: Coefficients, free: np.ndarray, x1: float, y1: float, duration: float, size: tuple[float, float]
+):
     """The 8 parameters of a family that needs the IK of P1 = (x1, y1) and P5 = (-x1, y1) and T."""
     family = coefficients.family
     start = inverse_kinematics((x1, y1), coefficients.link_lengths_m, coefficients.elbow)
@@ -274,7 +276,7 @@ def _expand_with_endpoints(coefficients: Coefficients, free: np.ndarray, x1: flo
     full = family.expand(free, context)
     if family.pins_endpoints and not bool(family.endpoints_exact(free, context)):
         warnings.warn(
-            f"L = {float(x1 - coefficients.scene.start_dx_m) * 2.0!r} m: the {family.name} family could not pin "
+            f"L = {size[0]!r} m, W = {size[1]!r} m: the {family.name} family could not pin "
             "the tip to P1 and P5 for these parameters (A1 clamped); endpoints are approximate",
             InexactEndpointsWarning,
             stacklevel=3,
