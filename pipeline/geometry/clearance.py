@@ -79,12 +79,11 @@ class _ArmGeometry:
             cross = _cross_matrix(_joint_axis(model.joints[j]))
             powers.append((np.eye(3), cross, cross @ cross))
         self.shapes, self.links, self.maps, self.joints1, self.maps_joint1 = [], [], [], [], []
-        # Shared by every CoalClearance of this arm (one query at a time, as Python runs them).
+        # The distance request, read-only, shared by every CoalClearance of this arm.
         self.request = coal.DistanceRequest()
         # Coal's default GJK tolerance (1e-6) overestimates distances by up to ~1e-6 m;
         # 1e-10 makes it exact to ~1e-15 at no measurable cost.
         self.request.gjk_tolerance = GJK_TOLERANCE
-        self.result = coal.DistanceResult()
         self.identity = np.eye(3)
         for link, ids in enumerate(arm.link_geometry_ids):
             for geometry_id in ids:
@@ -184,7 +183,7 @@ class CoalClearance:
         self._geometry = geometry = _arm_geometry(self.arm)
         box = self.obstacle.coal_shape()
         obstacle_tf = coal.Transform3s(geometry.identity, self.obstacle.center_m)
-        request, result = geometry.request, geometry.result
+        request, result = geometry.request, coal.DistanceResult()  # a result per instance: no sharing of state
         self._calls = [
             (g, link, coal.ComputeDistance(shape, box), coal.Transform3s(), obstacle_tf, request, result, box)
             for g, (shape, link) in enumerate(zip(self._geometry.shapes, self._geometry.links, strict=True))
