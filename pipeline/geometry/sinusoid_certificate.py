@@ -342,7 +342,7 @@ class _AdaptiveCertificate:
                 raise InvalidParameterError(
                     "clearance", "non-finite values", "finite distances from the clearance function"
                 )
-            i = int(np.argmin(values))
+            i = int(values.argmin())
             observed.append(float(values[i]))
             observed_time.append(float(times[i]))
         sampled_link = tuple(observed)
@@ -389,7 +389,7 @@ class _AdaptiveCertificate:
             for k, mask in ((0, settled & ~link), (1, settled & link)):
                 if mask.any():
                     candidates = np.where(mask, lower, np.inf)
-                    i = int(np.argmin(candidates))
+                    i = int(candidates.argmin())
                     if candidates[i] < best[k][0]:
                         offset = (da[i] - db[i] + speed[i] * h[i]) / (2.0 * speed[i]) if speed[i] > 0 else 0.0
                         best[k] = (float(candidates[i]), float(ta[i] + min(max(offset, 0.0), h[i])))
@@ -399,9 +399,9 @@ class _AdaptiveCertificate:
             ta, tb, da, db, link, h = ta[refine], tb[refine], da[refine], db[refine], link[refine], h[refine]
             speed = speed[refine]
             # New points: j / parts of the way through each interval, j = 1 .. parts - 1.
-            owner = np.repeat(np.arange(ta.size), inner)
+            owner = np.arange(ta.size).repeat(inner)
             last = np.cumsum(inner) - 1
-            j = np.arange(count) - np.repeat(last + 1 - inner, inner) + 1
+            j = np.arange(count) - (last + 1 - inner).repeat(inner) + 1
             points = ta[owner] + h[owner] * (j / (inner + 1)[owner])
             point_link = link[owner]
             values = np.empty(count)
@@ -412,7 +412,7 @@ class _AdaptiveCertificate:
                         raise InvalidParameterError(
                             "clearance", "non-finite values", "finite distances from the clearance function"
                         )
-                    i = int(np.argmin(got))
+                    i = int(got.argmin())
                     if got[i] < observed[k]:
                         observed[k], observed_time[k] = float(got[i]), float(points[mask][i])
                     values[mask] = got - error
