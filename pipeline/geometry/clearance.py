@@ -181,8 +181,17 @@ class CoalClearance:
 
     def __post_init__(self) -> None:
         self._geometry = geometry = _arm_geometry(self.arm)
-        box = self.obstacle.coal_shape()
-        obstacle_tf = coal.Transform3s(geometry.identity, self.obstacle.center_m)
+        # The obstacle's Coal shape and placement, as Obstacle.coal_shape() and .center_m (the same
+        # arithmetic in Python floats, without the intermediate arrays).
+        obstacle = self.obstacle
+        r = obstacle.corner_radius_m
+        box = coal.Box(
+            2.0 * (obstacle.length_m / 2 - r), 2.0 * (obstacle.width_m / 2 - r), 2.0 * (obstacle.height_m / 2 - r)
+        )
+        box.setSweptSphereRadius(r)
+        obstacle_tf = coal.Transform3s(
+            geometry.identity, np.array([0.0, obstacle.top_y_m - obstacle.width_m / 2.0, 0.0])
+        )
         request, result = geometry.request, coal.DistanceResult()  # a result per instance: no sharing of state
         self._calls = [
             (g, link, coal.ComputeDistance(shape, box), coal.Transform3s(), obstacle_tf, request, result, box)

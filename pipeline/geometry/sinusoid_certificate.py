@@ -247,13 +247,14 @@ class _AdaptiveCertificate:
     """The adaptive route (module docstring, step 3): lean arithmetic on one trajectory's sinusoids."""
 
     def __init__(self, trajectory: JointTrajectory, reach: LinkReach) -> None:
-        p = np.array(trajectory.parameters).reshape(2, 4)
+        a1, w1, phi1, gamma1, a2, w2, phi2, gamma2 = (float(v) for v in trajectory.parameters)
         self.duration = trajectory.duration_s
-        self.amplitude, self.w, self.phi, self.gamma = p[:, 0].copy(), p[:, 1].copy(), p[:, 2].copy(), p[:, 3].copy()
-        self.rate_peak = np.abs(self.amplitude * self.w)  # max |dtheta_i/dt| [rad/s]
-        self.acceleration_peak = np.abs(self.amplitude * self.w * self.w)  # max |d2theta_i/dt2| [rad/s^2]
-        self.rate_amplitude = self.amplitude * self.w
-        self.half_w, self.half_abs_w = self.w / 2.0, np.abs(self.w) / 2.0
+        self.amplitude, self.w = np.array([a1, a2]), np.array([w1, w2])
+        self.phi, self.gamma = np.array([phi1, phi2]), np.array([gamma1, gamma2])
+        self.rate_amplitude = np.array([a1 * w1, a2 * w2])
+        self.rate_peak = np.abs(self.rate_amplitude)  # max |dtheta_i/dt| [rad/s]
+        self.acceleration_peak = np.array([abs(a1 * w1 * w1), abs(a2 * w2 * w2)])  # max |d2theta_i/dt2| [rad/s^2]
+        self.half_w, self.half_abs_w = np.array([w1 / 2.0, w2 / 2.0]), np.array([abs(w1) / 2.0, abs(w2) / 2.0])
         rho1, e, rho2 = reach.link1_radius_m, reach.elbow_distance_m, reach.link2_radius_m
         # The link_point_speed_bounds factors, inflated by SPEED_SLACK against rounding.
         self.link1_factor = rho1 * SPEED_SLACK
