@@ -28,6 +28,72 @@ class InvalidParameterError(PipelineError, ValueError):
         super().__init__(f"{name} = {value!r} is invalid: expected {expected}")
 
 
+class ObstacleSizeError(InvalidParameterError):
+    """An obstacle size (L, W) the generator cannot use: not a number, not finite and positive,
+    smaller than the rounded corners, or covering the arm's base. The message names L and W.
+
+    Attributes:
+        name: "L", "W" or "L, W": the offending size(s).
+        value: The offending value(s) as given.
+        expected: What was expected instead.
+        size: (L, W) as given.
+    """
+
+    def __init__(self, name: str, value: object, expected: str, size: tuple[object, object]) -> None:
+        self.name = name
+        self.value = value
+        self.expected = expected
+        self.size = size
+        shown = ", ".join(
+            f"{label} = {number!r} m" if isinstance(number, float) else f"{label} = {number!r}"
+            for label, number in zip(("L", "W"), (_plain(v) for v in size), strict=True)
+        )
+        ValueError.__init__(self, f"{shown}: invalid obstacle size: expected {expected}")
+
+
+def _plain(value: object) -> object:
+    """A number as a plain float (NumPy scalars print as np.float64(...) otherwise)."""
+    if isinstance(value, bool):
+        return value
+    try:
+        return float(value) if isinstance(value, int | float) or hasattr(value, "__float__") else value
+    except (TypeError, ValueError):
+        return value
+
+
+class ArmMismatchError(PipelineError):
+    """The coefficients were fitted for another arm (link lengths or radii) than the one given.
+
+    Attributes:
+        expected_lengths_m, expected_radii_m: The coefficients' link lengths and radii [m].
+        found_lengths_m, found_radii_m: The arm's [m].
+        arm_source: Where the arm came from (its URDF).
+    """
+
+    def __init__(
+        self,
+        expected_lengths_m: tuple[float, float],
+        expected_radii_m: tuple[float, float],
+        found_lengths_m: tuple[float, float],
+        found_radii_m: tuple[float, float],
+        arm_source: object,
+    ) -> None:
+        self.expected_lengths_m = expected_lengths_m
+        self.expected_radii_m = expected_radii_m
+        self.found_lengths_m = found_lengths_m
+        self.found_radii_m = found_radii_m
+        self.arm_source = arm_source
+
+        def show(values: tuple[float, float]) -> str:
+            return ", ".join(f"{float(v):.6g}" for v in values)
+
+        super().__init__(
+            f"the coefficients were fitted for links of {show(expected_lengths_m)} m (radii "
+            f"{show(expected_radii_m)} m) but the arm {arm_source} has links of {show(found_lengths_m)} m "
+            f"(radii {show(found_radii_m)} m): use coefficients built for this arm"
+        )
+
+
 class RobotModelError(PipelineError):
     """The URDF is missing, unreadable, or not a two-revolute-joint planar arm."""
 
@@ -41,12 +107,20 @@ class UnreachableObstacleError(PipelineError):
         reach_m: The annulus of reachable radii [m] as ``(min, max)``.
     """
 
-    def __init__(self, point_name: str, radius_m: float, reach_m: tuple[float, float]) -> None:
+    def __init__(
+        self,
+        point_name: str,
+        radius_m: float,
+        reach_m: tuple[float, float],
+        size_m: tuple[float, float] | None = None,
+    ) -> None:
         self.point_name = point_name
         self.radius_m = radius_m
         self.reach_m = reach_m
+        self.size_m = size_m
+        prefix = "" if size_m is None else f"L = {size_m[0]!r} m, W = {size_m[1]!r} m: "
         super().__init__(
-            f"constraint point {point_name} is at {radius_m:.4f} m from the base, outside "
+            f"{prefix}constraint point {point_name} is at {radius_m:.4f} m from the base, outside "
             f"the arm's reach [{reach_m[0]:.4f}, {reach_m[1]:.4f}] m: the arm cannot pass "
             "this obstacle"
         )

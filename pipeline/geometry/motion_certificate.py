@@ -69,8 +69,10 @@ class Certificate:
         min_observed_time_s: Its time [s].
         bound_time_s: Time where the certified bound is attained [s].
         bound_link: Link (1 or 2) where the certified bound is attained.
-        initial_samples: Number of initial uniform samples.
-        evaluations: Clearance evaluations made (configurations; initial samples + refinements).
+        initial_samples: Number of initial uniform samples (the adaptive sinusoid route samples each
+            link on its own grid: the number of distinct times of both grids).
+        evaluations: Clearance evaluations made (configurations; initial samples + refinements; the
+            adaptive route's refinements evaluate one link each).
         refinement_rounds: Number of bisection rounds.
         converged: False if the evaluation budget ran out first (the bound is still rigorous,
             only looser than the tolerance).

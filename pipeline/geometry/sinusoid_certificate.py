@@ -21,23 +21,59 @@ Derivation
    by ``min(W_1 + W_2, |w_1(tm) + w_2(tm)| + (tb - ta)/2 * (Acc_1 + Acc_2))`` with ``W_i``
    and ``Acc_i`` the closed-form interval maxima of ``|w_i|`` and ``|dw_i/dt|`` and ``tm``
    the midpoint (the sum of rates is Lipschitz with constant ``Acc_1 + Acc_2``). Every
-   speed bound is inflated by a relative ``1e-9`` against rounding.
+   speed bound is inflated by a relative ``1e-9`` against rounding. The adaptive route (step 3)
+   bounds ``W_i`` and ``Acc_i`` from the phase ``u_m`` at the midpoint instead: every phase of the
+   interval is ``u_m + x`` with ``|x| <= delta = |w_i| h / 2``, so
+   ``|cos u| <= |cos u_m| |cos x| + |sin u_m| |sin x| <= |cos u_m| + |sin u_m| sin(min(delta, pi/2))``
+   (capped at 1; likewise for ``|sin u|``), within ``O(delta^2)`` of the closed form, from one
+   sine and one cosine per joint and interval.
+
+3. **Adaptive sampling** (``initial="adaptive"``, the default). The initial grid is coarse: uniform
+   in time, per link, so that no point of that link moves more than :data:`COARSE_RESOLUTION_M`
+   (15 cm) between its samples (speed bound from the peak joint rates ``|A_i w_i|``), at least
+   :data:`MIN_INITIAL_SAMPLES` samples: a few dozen for link 2 of the paper's motions and about
+   ten for the slower link 1, against about 3,300 configurations at today's 1 mm. Then, **per
+   link**, only the intervals that need it are split, with one clearance evaluation of that link
+   per new point. In tolerance mode the intervals whose bound is more than ``tolerance_m`` below
+   the smallest sampled value (both links) are bisected. In decide mode (``decide_above_m``) the
+   intervals whose bound is at or below that value (and more than ``tolerance_m`` below the
+   smallest sample) are split, until none is or a sample (minus the distance error) is at or below
+   it; an interval is split into ``k`` equal parts, ``k = ceil(1.5 V h / (2 g))`` clipped to 2..8,
+   where ``g`` is how far its lower end value lies above the value its bound must reach: the number
+   of parts that would settle it if the clearance stayed at its end values (a bisection when it is
+   nearly settled), so that most trajectories need one round. The interval bound (step 2 of
+   :mod:`pipeline.geometry.motion_certificate`) and the distance error are the same as on a dense
+   grid, so the result is as rigorous; a coarse grid only means more splitting where the bound is
+   close, and none elsewhere. ``initial="dense"`` keeps the former route (a uniform grid at
+   ``resolution_m``, 1 mm by default, and the shared core
+   :func:`pipeline.geometry.motion_certificate.certify_motion`) for comparison.
 
 The certified clearance is the minimum of all interval bounds and all sampled values
 (minus the distance error). It is a rigorous lower bound whenever it is positive; where a
 sample is in contact (``d <= 0``; Coal then reports a penetration depth) the certified
 value is at most that sample and the case is in collision. A trajectory is *certified
-collision-free* only if the certified clearance is ``> 0``.
+collision-free* only if the certified clearance is ``> 0``. In decide mode the bound is only
+guaranteed to say which side of ``decide_above_m`` the clearance is on: above it, it may be
+well below the true minimum.
 """
 
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
-from pipeline.geometry.clearance import COAL, COAL_DISTANCE_ERROR_M, ClearanceFunction, ClearanceRoute
-from pipeline.geometry.link_reach import LinkReach, link_point_speed_bounds
+from pipeline.exceptions import InvalidParameterError
+from pipeline.geometry.clearance import (
+    COAL,
+    COAL_DISTANCE_ERROR_M,
+    ClearanceFunction,
+    ClearanceRoute,
+    LinkClearanceFunction,
+    per_link,
+)
+from pipeline.geometry.link_reach import SPEED_SLACK, LinkReach, link_point_speed_bounds
 from pipeline.geometry.motion_certificate import (
     DEFAULT_MAX_EVALUATIONS,
     DEFAULT_RESOLUTION_M,
@@ -48,7 +84,19 @@ from pipeline.geometry.motion_certificate import (
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.trajectory import JointTrajectory
-from pipeline.validation import check_positive, check_positive_int
+from pipeline.validation import check_non_negative, check_positive, check_positive_int
+
+#: Motion resolution of the adaptive initial grid [m]: no link point moves more than this between samples.
+COARSE_RESOLUTION_M = 0.15
+#: Fewest initial samples of the adaptive grid, per link.
+MIN_INITIAL_SAMPLES = 8
+#: Safety factor of the split count: an interval of bound-deficit is split into
+#: ceil(SPLIT_SAFETY * V h / (2 * (min(d_a, d_b) - target))) parts, 2 .. MAX_SPLIT.
+SPLIT_SAFETY = 1.5
+#: Most parts one interval is split into per round.
+MAX_SPLIT = 8
+#: The initial grids: "adaptive" (coarse, then per-link bisection) or "dense" (the former 1 mm grid).
+INITIAL_GRIDS = ("adaptive", "dense")
 
 
 def _max_abs_cos(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -115,11 +163,13 @@ def certify(
     reach: LinkReach,
     *,
     samples: int | None = None,
-    resolution_m: float = DEFAULT_RESOLUTION_M,
+    initial: str = "adaptive",
+    resolution_m: float | None = None,
     distance_error_m: float = COAL_DISTANCE_ERROR_M,
     tolerance_m: float = DEFAULT_TOLERANCE_M,
     decide_above_m: float | None = None,
     max_evaluations: int = DEFAULT_MAX_EVALUATIONS,
+    link_clearance: LinkClearanceFunction | None = None,
 ) -> Certificate:
     """Certify a lower bound on the clearance of ``trajectory`` over the continuous interval [0, T].
 
@@ -128,30 +178,289 @@ def certify(
         clearance: Per-link clearance function, (m, 2) [rad] -> (m, 2) [m], e.g.
             ``CoalClearance(arm, obstacle).link_clearance``.
         reach: Reach of the links' collision geometry (:meth:`LinkReach.from_arm`).
-        samples: Number of initial uniform samples over [0, T] (>= 2); default from
-            ``resolution_m`` (:func:`samples_for_resolution`).
-        resolution_m: Motion resolution of the default sampling [m].
+        samples: Number of initial uniform samples over [0, T] (>= 2); default from ``resolution_m``
+            (:func:`samples_for_resolution`, at least :data:`MIN_INITIAL_SAMPLES` for "adaptive").
+        initial: "adaptive" (default: coarse grid, then per-link bisection, module docstring step 3)
+            or "dense" (the former route: fine grid and :func:`certify_motion`).
+        resolution_m: Motion resolution of the initial grid [m]; default :data:`COARSE_RESOLUTION_M`
+            for "adaptive", :data:`DEFAULT_RESOLUTION_M` (1 mm) for "dense".
         distance_error_m, tolerance_m, decide_above_m, max_evaluations: as in :func:`certify_motion`.
+        link_clearance: One link's clearance, (m, 2) [rad] and link 0 / 1 -> (m,) [m] (e.g.
+            ``CoalClearance.link_distances``), for the adaptive route's per-link bisection; default
+            from ``clearance`` (which then computes both links).
 
     Returns:
         The :class:`Certificate`.
+
+    Raises:
+        InvalidParameterError: bad settings, or a clearance function returning non-finite values.
     """
-    n = samples_for_resolution(trajectory, reach, resolution_m) if samples is None else samples
-    check_positive_int("samples", n, minimum=2)
+    if initial not in INITIAL_GRIDS:
+        raise InvalidParameterError("initial", initial, f"one of {INITIAL_GRIDS}")
+    if resolution_m is None:
+        resolution_m = COARSE_RESOLUTION_M if initial == "adaptive" else DEFAULT_RESOLUTION_M
+    check_positive("resolution_m", resolution_m)
+    if initial == "dense":
+        n = samples_for_resolution(trajectory, reach, resolution_m) if samples is None else samples
+        check_positive_int("samples", n, minimum=2)
 
-    def speed_bound(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
-        return link_speed_bounds(trajectory, reach, ta, tb)
+        def speed_bound(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+            return link_speed_bounds(trajectory, reach, ta, tb)
 
-    return certify_motion(
-        trajectory.q,
-        np.linspace(0.0, trajectory.duration_s, n),
+        return certify_motion(
+            trajectory.q,
+            np.linspace(0.0, trajectory.duration_s, n),
+            clearance,
+            speed_bound,
+            distance_error_m=distance_error_m,
+            tolerance_m=tolerance_m,
+            decide_above_m=decide_above_m,
+            max_evaluations=max_evaluations,
+        )
+    check_non_negative("distance_error_m", distance_error_m)
+    check_positive("tolerance_m", tolerance_m)
+    check_positive_int("max_evaluations", max_evaluations, minimum=0)
+    core = _AdaptiveCertificate(trajectory, reach)
+    if samples is None:
+        # Per link, as samples_for_resolution, from the peak joint rates |A_i w_i| (scalar bounds).
+        rate1, rate2 = (float(v) for v in core.rate_peak)
+        speeds = (
+            rate1 * reach.link1_radius_m,
+            rate1 * (reach.elbow_distance_m + reach.link2_radius_m) + rate2 * reach.link2_radius_m,
+        )
+        n = tuple(max(MIN_INITIAL_SAMPLES, math.ceil(v * trajectory.duration_s / resolution_m) + 1) for v in speeds)
+    else:
+        check_positive_int("samples", samples, minimum=2)
+        n = (samples, samples)
+    return core.run(
+        n,
         clearance,
-        speed_bound,
-        distance_error_m=distance_error_m,
-        tolerance_m=tolerance_m,
-        decide_above_m=decide_above_m,
-        max_evaluations=max_evaluations,
+        link_clearance if link_clearance is not None else per_link(clearance),
+        distance_error_m,
+        tolerance_m,
+        decide_above_m,
+        max_evaluations,
     )
+
+
+class _AdaptiveCertificate:
+    """The adaptive route (module docstring, step 3): lean arithmetic on one trajectory's sinusoids."""
+
+    def __init__(self, trajectory: JointTrajectory, reach: LinkReach) -> None:
+        a1, w1, phi1, gamma1, a2, w2, phi2, gamma2 = (float(v) for v in trajectory.parameters)
+        self.duration = trajectory.duration_s
+        self.amplitude, self.w = np.array([a1, a2]), np.array([w1, w2])
+        self.phi, self.gamma = np.array([phi1, phi2]), np.array([gamma1, gamma2])
+        self.rate_amplitude = np.array([a1 * w1, a2 * w2])
+        self.rate_peak = np.abs(self.rate_amplitude)  # max |dtheta_i/dt| [rad/s]
+        self.acceleration_peak = np.array([abs(a1 * w1 * w1), abs(a2 * w2 * w2)])  # max |d2theta_i/dt2| [rad/s^2]
+        self.half_w, self.half_abs_w = np.array([w1 / 2.0, w2 / 2.0]), np.array([abs(w1) / 2.0, abs(w2) / 2.0])
+        rho1, e, rho2 = reach.link1_radius_m, reach.elbow_distance_m, reach.link2_radius_m
+        # The link_point_speed_bounds factors, inflated by SPEED_SLACK against rounding.
+        self.link1_factor = rho1 * SPEED_SLACK
+        self.link2_factors = ((e + rho2) * SPEED_SLACK, rho2 * SPEED_SLACK, e * SPEED_SLACK)
+
+    def q(self, t: np.ndarray) -> np.ndarray:
+        """Joint angles (m, 2) [rad] at times t (m,) [s] (Eq. 1)."""
+        return np.sin(np.multiply.outer(t, self.w) + self.phi) * self.amplitude + self.gamma
+
+    def speeds(self, ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds [m/s] on every point's speed of link 1 and of link 2 over each [ta, tb] (step 2).
+
+        With ``u_m`` the phase at the midpoint and ``delta = |w| h / 2`` (at most pi/2), every phase
+        of the interval is ``u_m + x``, ``|x| <= delta``, so ``|cos u| <= |cos u_m| + |sin u_m| sin delta``
+        and ``|sin u| <= |sin u_m| + |cos u_m| sin delta`` (both capped at 1): the interval maxima of
+        the joint rates and accelerations, within O(delta^2) of the closed forms of
+        :func:`link_speed_bounds`, from one sine and one cosine per joint.
+        """
+        h = tb - ta
+        um = np.multiply.outer(ta + tb, self.half_w)
+        um += self.phi
+        spread = np.multiply.outer(h, self.half_abs_w)
+        np.minimum(spread, np.pi / 2, out=spread)
+        np.sin(spread, out=spread)
+        sine, cosine = np.sin(um), np.cos(um)
+        abs_sine, abs_cosine = np.abs(sine), np.abs(cosine)
+        rate = abs_sine * spread
+        rate += abs_cosine
+        np.minimum(rate, 1.0, out=rate)
+        rate *= self.rate_peak
+        acceleration = abs_cosine * spread
+        acceleration += abs_sine
+        np.minimum(acceleration, 1.0, out=acceleration)
+        acceleration *= self.acceleration_peak
+        mid_rates = cosine * self.rate_amplitude
+        w1, w2 = rate[:, 0], rate[:, 1]
+        sum_rate = np.abs(mid_rates[:, 0] + mid_rates[:, 1])
+        sum_rate += h * (acceleration[:, 0] + acceleration[:, 1]) / 2.0
+        np.minimum(sum_rate, w1 + w2, out=sum_rate)
+        v1 = w1 * self.link1_factor
+        v2 = np.minimum(
+            w1 * self.link2_factors[0] + w2 * self.link2_factors[1],
+            w1 * self.link2_factors[2] + sum_rate * self.link2_factors[1],
+        )
+        return v1, v2
+
+    @staticmethod
+    def _refine(lower: np.ndarray, floor: float, tolerance: float, decide: float | None) -> np.ndarray:
+        """Which intervals to refine (step 3): loose ones, or in decide mode the undecided loose ones."""
+        refine = lower < floor - tolerance
+        if decide is not None:
+            if floor <= decide:
+                refine[:] = False
+            else:
+                refine &= lower <= decide
+        return refine
+
+    def run(
+        self,
+        n: tuple[int, int],
+        clearance: ClearanceFunction,
+        link_clearance: LinkClearanceFunction,
+        error: float,
+        tolerance: float,
+        decide: float | None,
+        max_evaluations: int,
+    ) -> Certificate:
+        # The initial grid of each link (one grid, both links at once, when they are the same).
+        if n[0] == n[1]:
+            times = np.linspace(0.0, self.duration, n[0])
+            both = np.asarray(clearance(self.q(times)), dtype=float).reshape(n[0], 2)
+            grids = [(times, both[:, 0]), (times, both[:, 1])]
+            initial = n[0]
+        else:
+            grids = []
+            for k in (0, 1):
+                times = np.arange(n[k], dtype=float)
+                times *= self.duration / (n[k] - 1)  # as np.linspace, the last exactly T
+                times[-1] = self.duration
+                grids.append((times, np.asarray(link_clearance(self.q(times), k), dtype=float).reshape(n[k])))
+            # Distinct times of the two grids: both ends, and gcd(n1 - 1, n2 - 1) - 1 common inner points.
+            initial = n[0] + n[1] - math.gcd(n[0] - 1, n[1] - 1) - 1
+        observed, observed_time, sampled_time = [], [], []  # per link, over every sample [m, s]
+        for times, values in grids:
+            if not math.isfinite(float(values.sum())):  # NaN and +-inf propagate into the sum
+                raise InvalidParameterError(
+                    "clearance", "non-finite values", "finite distances from the clearance function"
+                )
+            i = int(values.argmin())
+            observed.append(float(values[i]))
+            observed_time.append(float(times[i]))
+        sampled_link = tuple(observed)
+        sampled_time = tuple(observed_time)
+        # Open intervals of both links: ends, clearance minus the error at the ends, link (False: 1, True: 2).
+        ta = np.concatenate([grids[0][0][:-1], grids[1][0][:-1]])
+        tb = np.concatenate([grids[0][0][1:], grids[1][0][1:]])
+        da = np.concatenate([grids[0][1][:-1], grids[1][1][:-1]]) - error
+        db = np.concatenate([grids[0][1][1:], grids[1][1][1:]]) - error
+        link = np.repeat(np.array([False, True]), [n[0] - 1, n[1] - 1])
+        best = [(math.inf, 0.0), (math.inf, 0.0)]  # per link: (lowest settled bound, where) [m, s]
+        evaluations, rounds, converged = initial, 0, True
+        # Speed bounds: first the global ones (peak joint rates), then, where an interval is refined,
+        # its own (step 2); a sub-interval inherits its parent's, valid on it, until it is refined.
+        rate1, rate2 = (float(v) for v in self.rate_peak)
+        global_speed = (rate1 * self.link1_factor, rate1 * self.link2_factors[0] + rate2 * self.link2_factors[1])
+        speed = np.where(link, global_speed[1], global_speed[0])
+        own = np.zeros(ta.size, dtype=bool)  # True where ``speed`` is the interval's own bound
+        while ta.size:
+            h = tb - ta
+            lower = (da + db - speed * h) / 2.0
+            floor = min(observed) - error
+            refine = self._refine(lower, floor, tolerance, decide)
+            stale = refine & ~own
+            if stale.any():
+                v1, v2 = self.speeds(ta[stale], tb[stale])
+                speed[stale] = np.where(link[stale], v2, v1)
+                own[stale] = True
+                lower = (da + db - speed * h) / 2.0
+                refine = self._refine(lower, floor, tolerance, decide)
+            if not refine.any():
+                count = 0
+            elif decide is None:  # tolerance mode: bisect
+                inner = np.ones(int(np.count_nonzero(refine)), dtype=int)
+                count = inner.size
+            else:  # decide mode: split each interval in as many parts as should settle it (step 3)
+                gap = np.minimum(da, db)[refine] - min(floor - tolerance, decide)
+                parts = np.clip(np.ceil(SPLIT_SAFETY * speed[refine] * h[refine] / (2.0 * gap)), 2, MAX_SPLIT)
+                inner = parts.astype(int) - 1
+                count = int(inner.sum())
+            if count > max_evaluations - (evaluations - initial):
+                converged, refine[:], count = False, False, 0
+            settled = ~refine
+            for k, mask in ((0, settled & ~link), (1, settled & link)):
+                if mask.any():
+                    candidates = np.where(mask, lower, np.inf)
+                    i = int(candidates.argmin())
+                    if candidates[i] < best[k][0]:
+                        offset = (da[i] - db[i] + speed[i] * h[i]) / (2.0 * speed[i]) if speed[i] > 0 else 0.0
+                        best[k] = (float(candidates[i]), float(ta[i] + min(max(offset, 0.0), h[i])))
+            if not count:
+                break
+            rounds += 1
+            ta, tb, da, db, link, h = ta[refine], tb[refine], da[refine], db[refine], link[refine], h[refine]
+            speed = speed[refine]
+            # New points: j / parts of the way through each interval, j = 1 .. parts - 1.
+            owner = np.arange(ta.size).repeat(inner)
+            last = np.cumsum(inner) - 1
+            j = np.arange(count) - (last + 1 - inner).repeat(inner) + 1
+            points = ta[owner] + h[owner] * (j / (inner + 1)[owner])
+            point_link = link[owner]
+            values = np.empty(count)
+            for k, mask in ((0, ~point_link), (1, point_link)):
+                if mask.any():
+                    got = np.asarray(link_clearance(self.q(points[mask]), k), dtype=float)
+                    if not math.isfinite(float(got.sum())):
+                        raise InvalidParameterError(
+                            "clearance", "non-finite values", "finite distances from the clearance function"
+                        )
+                    i = int(got.argmin())
+                    if got[i] < observed[k]:
+                        observed[k], observed_time[k] = float(got[i]), float(points[mask][i])
+                    values[mask] = got - error
+            evaluations += count
+            # Sub-intervals: [previous point, point] for every new point, then [last point, tb].
+            first = j == 1
+            previous_t, previous_d = np.empty(count), np.empty(count)
+            previous_t[1:], previous_d[1:] = points[:-1], values[:-1]
+            previous_t[first], previous_d[first] = ta[owner[first]], da[owner[first]]
+            ta, tb = np.concatenate([previous_t, points[last]]), np.concatenate([points, tb])
+            da, db = np.concatenate([previous_d, values[last]]), np.concatenate([values, db])
+            link = np.concatenate([point_link, link])
+            speed = np.concatenate([speed[owner], speed])
+            own = np.zeros(ta.size, dtype=bool)
+        bounds = [min(best[k][0], observed[k] - error) for k in (0, 1)]
+        where = [best[k][1] if best[k][0] <= observed[k] - error else observed_time[k] for k in (0, 1)]
+        k = 0 if bounds[0] <= bounds[1] else 1
+        seen = 0 if observed[0] <= observed[1] else 1
+        sampled = 0 if sampled_link[0] <= sampled_link[1] else 1
+        return Certificate(
+            certified_clearance_m=float(bounds[k]),
+            certified_link_clearance_m=(float(bounds[0]), float(bounds[1])),
+            sampled_clearance_m=float(sampled_link[sampled]),
+            sampled_link_clearance_m=(float(sampled_link[0]), float(sampled_link[1])),
+            sampled_time_s=sampled_time[sampled],
+            min_observed_clearance_m=observed[seen],
+            min_observed_time_s=observed_time[seen],
+            bound_time_s=float(where[k]),
+            bound_link=k + 1,
+            initial_samples=initial,
+            evaluations=evaluations,
+            refinement_rounds=rounds,
+            converged=converged,
+            distance_error_m=float(error),
+            tolerance_m=float(tolerance),
+        )
+
+
+_REACH: weakref.WeakKeyDictionary[PlanarArm, LinkReach] = weakref.WeakKeyDictionary()
+
+
+def arm_reach(arm: PlanarArm) -> LinkReach:
+    """:meth:`LinkReach.from_arm`, computed once per arm object."""
+    reach = _REACH.get(arm)
+    if reach is None:
+        reach = _REACH[arm] = LinkReach.from_arm(arm)
+    return reach
 
 
 def certify_trajectory(
@@ -161,7 +470,8 @@ def certify_trajectory(
     *,
     route: ClearanceRoute = COAL,
     samples: int | None = None,
-    resolution_m: float = DEFAULT_RESOLUTION_M,
+    initial: str = "adaptive",
+    resolution_m: float | None = None,
     tolerance_m: float = DEFAULT_TOLERANCE_M,
     decide_above_m: float | None = None,
     max_evaluations: int = DEFAULT_MAX_EVALUATIONS,
@@ -172,9 +482,9 @@ def certify_trajectory(
         trajectory: The joint trajectory.
         arm: The arm (its collision geometry gives the distances and the speed bound's reach).
         obstacle: The rounded box.
-        route: ``"coal"`` (Pinocchio geometry model + Coal, the canonical route) or ``"analytic"``
-            (planar capsule-to-rounded-rectangle distance; only for capsule links in the xy plane).
-        samples, resolution_m, tolerance_m, decide_above_m, max_evaluations: as in :func:`certify`.
+        route: ``COAL`` (the arm's Pinocchio collision geometry + Coal, the canonical route) or
+            ``ANALYTIC`` (planar capsule-to-rounded-rectangle distance; only for capsule links in the xy plane).
+        samples, initial, resolution_m, tolerance_m, decide_above_m, max_evaluations: as in :func:`certify`.
 
     Returns:
         The :class:`Certificate`; ``.certified_clearance_m`` is the certified clearance [m].
@@ -183,16 +493,17 @@ def certify_trajectory(
         InvalidParameterError: unknown route or bad settings.
         RobotModelError: ``route="analytic"`` on an arm that does not suit it.
     """
-    function, error = route.function(arm, obstacle), route.distance_error_m
-    reach = LinkReach.from_arm(arm)
+    function, one_link = route.functions(arm, obstacle)
     return certify(
         trajectory,
         function,
-        reach,
+        arm_reach(arm),
         samples=samples,
+        initial=initial,
         resolution_m=resolution_m,
-        distance_error_m=error,
+        distance_error_m=route.distance_error_m,
         tolerance_m=tolerance_m,
         decide_above_m=decide_above_m,
         max_evaluations=max_evaluations,
+        link_clearance=one_link,
     )

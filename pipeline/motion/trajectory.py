@@ -18,6 +18,8 @@ from pipeline.validation import check_finite, check_positive
 
 PARAMETER_NAMES: tuple[str, ...] = ("A1", "w1", "phi1", "gamma1", "A2", "w2", "phi2", "gamma2")
 PARAMETER_UNITS: dict[str, str] = {name: ("rad/s" if name.startswith("w") else "rad") for name in PARAMETER_NAMES}
+#: What :meth:`JointTrajectory.q` (and dq, ddq) do with times outside [0, T]: refuse them, or clamp them.
+OUTSIDE_POLICIES: tuple[str, ...] = ("error", "clamp")
 
 
 def _split(params: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -103,6 +105,14 @@ class JointTrajectory:
         check_positive("duration_s", self.duration_s)
 
     @classmethod
+    def trusted(cls, parameters: tuple[float, ...], duration_s: float) -> JointTrajectory:
+        """Build without re-validating: for callers that have checked already (8 finite Python
+        floats and a finite T > 0), e.g. the online generator, which validates once at its entry."""
+        trajectory = object.__new__(cls)
+        trajectory.__dict__.update(parameters=parameters, duration_s=duration_s)
+        return trajectory
+
+    @classmethod
     def from_mapping(cls, parameters: Mapping[str, float], duration_s: float) -> JointTrajectory:
         """Build from a {name: value} mapping with the keys of :data:`PARAMETER_NAMES`."""
         missing = [n for n in PARAMETER_NAMES if n not in parameters]
@@ -119,26 +129,59 @@ class JointTrajectory:
         """The parameters as a (8,) array."""
         return np.array(self.parameters)
 
-    def q(self, t_s: float | np.ndarray) -> np.ndarray:
-        """Joint angles [rad]: shape (2,) for a scalar t, (m, 2) for m times."""
-        t = np.asarray(t_s, dtype=float)
-        out = joint_angles(self.array, np.atleast_1d(t))
+    def times(self, t_s: float | np.ndarray, outside: str = "error") -> np.ndarray:
+        """Times [s] as a float array, checked to lie in [0, T] (``outside="error"``, the default)
+        or clamped into it (``outside="clamp"``).
+
+        Raises:
+            InvalidParameterError: a time outside [0, T] (with "error"), NaN or not a number
+                (with either policy), or an unknown policy.
+        """
+        try:
+            t = np.asarray(t_s, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidParameterError("t_s", t_s, "times [s] as numbers") from None
+        if outside == "error":
+            if t.size and not (t.min() >= 0.0 and t.max() <= self.duration_s):  # False for NaN too
+                bad = t[~((t >= 0.0) & (t <= self.duration_s))].ravel()
+                raise InvalidParameterError(
+                    "t_s",
+                    float(bad[0]),
+                    f"times in [0, T = {self.duration_s!r} s] (outside='clamp' clamps them into it)",
+                )
+            return t
+        if outside == "clamp":
+            if np.isnan(t).any():
+                raise InvalidParameterError("t_s", float("nan"), "times [s], not NaN")
+            return np.clip(t, 0.0, self.duration_s)
+        raise InvalidParameterError("outside", outside, f"one of {OUTSIDE_POLICIES}")
+
+    def q(self, t_s: float | np.ndarray, *, outside: str = "error") -> np.ndarray:
+        """Joint angles [rad]: shape (2,) for a scalar t, (m, 2) for m times.
+
+        Args:
+            t_s: Time(s) [s] in [0, T].
+            outside: "error" (default) refuses times outside [0, T] with InvalidParameterError;
+                "clamp" evaluates them at the nearest end. NaN is refused either way.
+        """
+        t = self.times(t_s, outside)
+        out = joint_angles(self.parameters, np.atleast_1d(t))
         return out[0] if t.ndim == 0 else out
 
-    def dq(self, t_s: float | np.ndarray) -> np.ndarray:
-        """Joint velocities [rad/s], shaped like :meth:`q`."""
-        t = np.asarray(t_s, dtype=float)
-        out = joint_velocities(self.array, np.atleast_1d(t))
+    def dq(self, t_s: float | np.ndarray, *, outside: str = "error") -> np.ndarray:
+        """Joint velocities [rad/s], shaped like :meth:`q` (same ``outside`` policy)."""
+        t = self.times(t_s, outside)
+        out = joint_velocities(self.parameters, np.atleast_1d(t))
         return out[0] if t.ndim == 0 else out
 
-    def ddq(self, t_s: float | np.ndarray) -> np.ndarray:
-        """Joint accelerations [rad/s^2], shaped like :meth:`q`."""
-        t = np.asarray(t_s, dtype=float)
-        out = joint_accelerations(self.array, np.atleast_1d(t))
+    def ddq(self, t_s: float | np.ndarray, *, outside: str = "error") -> np.ndarray:
+        """Joint accelerations [rad/s^2], shaped like :meth:`q` (same ``outside`` policy)."""
+        t = self.times(t_s, outside)
+        out = joint_accelerations(self.parameters, np.atleast_1d(t))
         return out[0] if t.ndim == 0 else out
 
-    def __call__(self, t_s: float | np.ndarray) -> np.ndarray:
-        return self.q(t_s)
+    def __call__(self, t_s: float | np.ndarray, *, outside: str = "error") -> np.ndarray:
+        return self.q(t_s, outside=outside)
 
     def peak_velocity_rad_s(self) -> np.ndarray:
         """max over [0, T] of |dtheta_i/dt| [rad/s] per joint, in closed form."""

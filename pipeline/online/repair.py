@@ -1,20 +1,25 @@
 """Certify-or-repair: the online generator that never returns an uncertified trajectory as safe.
 
+0. Refuse an arm the coefficients were not fitted for (:func:`pipeline.online.arm_check.check_arm_matches`).
 1. Generate the trajectory from the regression (:func:`pipeline.online.generator.generate`).
-2. Certify it (:func:`pipeline.geometry.sinusoid_certificate.certify_trajectory`): a rigorous lower bound on
-   the clearance over the whole of [0, T].
+2. Certify it (:func:`pipeline.geometry.sinusoid_certificate.certify_trajectory`, adaptive, Coal): a
+   rigorous lower bound on the clearance over the whole of [0, T]; by default it only decides
+   whether the clearance exceeds the margin (``decide_above_m``), the fastest question; with
+   ``RepairConfig(certificate_tolerance_m=...)`` it tightens the bound to that tolerance.
 3. If the certified clearance is below the margin, repair: a short
    ``scipy.optimize.least_squares`` on the build's objective (Eq. 5 + clearance penalty),
-   warm-started from the regression's parameters, stopped at the first point whose sampled
-   clearance exceeds the margin by half the build's buffer, and bounded in wall time and evaluations; then
-   certify again.
+   warm-started from the regression's parameters, its Jacobian one vectorised forward
+   difference, stopped at the first point whose sampled clearance exceeds the margin by half
+   the build's buffer, and bounded in wall time and evaluations; then certify again. Its wall
+   time is returned (``CertifiedTrajectory.repair_seconds``).
 4. Return the trajectory with its certificate, or raise NoCertifiedTrajectoryError saying why.
 """
 
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -26,7 +31,8 @@ from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.arm import PlanarArm
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
-from pipeline.offline.fitness import FitnessConfig, fitness_problem
+from pipeline.offline.fitness import FitnessConfig, FitnessProblem, fitness_problem
+from pipeline.online.arm_check import check_arm_matches
 from pipeline.online.generator import GeneratedTrajectory, generate
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
@@ -42,6 +48,9 @@ class RepairConfig:
         max_seconds: Wall-time budget of the repair's optimisation [s].
         max_evaluations: Budget of objective evaluations of the repair.
         fitness: Objective of the repair (the build's, by default).
+        certificate_tolerance_m: None (default): the certificate only decides whether the clearance
+            exceeds the margin, and its bound may lie well below the true minimum; a value [m]: the
+            bound is tightened to within that of the smallest sampled clearance (slower).
     """
 
     margin_m: float | None = None
@@ -50,12 +59,15 @@ class RepairConfig:
     max_seconds: float = 0.5
     max_evaluations: int = 400
     fitness: FitnessConfig = field(default_factory=FitnessConfig)
+    certificate_tolerance_m: float | None = None
 
     def __post_init__(self) -> None:
         if self.margin_m is not None:
             check_non_negative("margin_m", self.margin_m)
         check_positive("max_seconds", self.max_seconds)
         check_positive_int("max_evaluations", self.max_evaluations)
+        if self.certificate_tolerance_m is not None:
+            check_positive("certificate_tolerance_m", self.certificate_tolerance_m)
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,20 +102,41 @@ class CertifiedTrajectory:
         return self.certificate.certified_clearance_m
 
 
+_DEFAULT_CONFIG = RepairConfig()
+#: Relative forward-difference step of the repair's Jacobian (about sqrt of the float epsilon).
+_FD_STEP = 1.5e-8
+
+
 class _Stop(Exception):
     """Ends the repair's optimisation early (time budget spent, or the margin is cleared)."""
+
+
+def batch_residuals(problem: FitnessProblem, free: np.ndarray) -> np.ndarray:
+    """:meth:`FitnessProblem.residuals` of P points at once: free (P, k) -> (P, m), one vectorised pass."""
+    full = problem.full_parameters(free)
+    tracking = problem.tracking_errors(full) * np.sqrt(problem.weights)[:, None]
+    penalty = np.sqrt(problem.config.penalty_weight) * problem.violations(full)
+    return np.concatenate([tracking.reshape(len(free), -1), penalty.reshape(len(free), -1)], -1)
 
 
 def _repair(
     generated: GeneratedTrajectory, arm: PlanarArm, coefficients: Coefficients, config: RepairConfig
 ) -> JointTrajectory:
+    """A short local least-squares repair, warm-started at the regression's answer (module docstring).
+
+    The Jacobian is a forward difference over all free parameters in one vectorised evaluation
+    (:func:`batch_residuals`), and the stop test reads the clearance shortfalls off the residual
+    vector itself, so each iteration costs two objective passes.
+    """
     problem = fitness_problem(
         arm, generated.length_m, generated.width_m, coefficients.scene, config.fitness, coefficients.family
     )
     start = coefficients.predict_free(generated.length_m, generated.width_m)
     deadline = time.perf_counter() + config.max_seconds
     slack = 0.5 * config.fitness.margin_buffer_m
-    best = {"x": start, "cost": float(problem.evaluate(start))}
+    tracking_size = problem.times_s.size * 2
+    penalty_scale = math.sqrt(problem.config.penalty_weight)
+    best = {"x": start, "cost": math.inf}
 
     def residuals(x: np.ndarray) -> np.ndarray:
         if time.perf_counter() > deadline:
@@ -112,20 +145,27 @@ def _repair(
         cost = float(r @ r)
         if cost < best["cost"]:
             best["x"], best["cost"] = np.array(x), cost
-        full = problem.full_parameters(x)
-        violation = problem.violations(full)
-        if violation[..., :2].max() <= slack and not np.any(violation[..., 2]):
+        violation = r[tracking_size:].reshape(-1, 3) / penalty_scale
+        if violation[:, :2].max() <= slack and not np.any(violation[:, 2]):
             # First point whose sampled clearance is within half the buffer of the penalty
             # margin (so above the margin itself): the certificate decides if it is enough.
             best["x"] = np.array(x)
             raise _Stop
         return r
 
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        if time.perf_counter() > deadline:
+            raise _Stop
+        steps = _FD_STEP * np.maximum(1.0, np.abs(x))
+        values = batch_residuals(problem, np.vstack([x, x + np.diag(steps)]))
+        return ((values[1:] - values[0]) / steps[:, None]).T
+
     lower, upper = coefficients.family.polish_bounds()
     try:
         least_squares(
             residuals,
             np.clip(start, lower, upper),
+            jac=jacobian,
             method="trf",
             x_scale="jac",
             bounds=(lower, upper),
@@ -148,18 +188,31 @@ def generate_certified(
 ) -> CertifiedTrajectory:
     """Generate, certify and if needed repair the trajectory for the obstacle L x W [m].
 
+    Args:
+        coefficients: The regression coefficients.
+        length_m, width_m: Obstacle size [m].
+        arm: The arm; it must be the one the coefficients were fitted for.
+        out_of_range: As :func:`pipeline.online.generator.generate`.
+        config: Margin, route, repair budget, certificate mode.
+
     Raises:
+        ArmMismatchError: the arm's link lengths or radii differ from the coefficients'.
         NoCertifiedTrajectoryError: neither the regression's answer nor its repair has a
             certified clearance of at least the margin.
         InvalidParameterError, UnreachableObstacleError, OutOfFittedRangeError: as
             :func:`pipeline.online.generator.generate`.
     """
-    config = config if config is not None else RepairConfig()
+    check_arm_matches(coefficients, arm)
+    config = _DEFAULT_CONFIG if config is None else config
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     generated = generate(coefficients, length_m, width_m, out_of_range=out_of_range)
 
     def certify(trajectory: JointTrajectory) -> Certificate:
-        return certify_trajectory(trajectory, arm, generated.obstacle, route=config.route, decide_above_m=margin)
+        if config.certificate_tolerance_m is None:
+            return certify_trajectory(trajectory, arm, generated.obstacle, route=config.route, decide_above_m=margin)
+        return certify_trajectory(
+            trajectory, arm, generated.obstacle, route=config.route, tolerance_m=config.certificate_tolerance_m
+        )
 
     first = certify(generated.trajectory)
     if first.certified_clearance_m >= margin:
@@ -173,7 +226,7 @@ def generate_certified(
     seconds = time.perf_counter() - started
     second = certify(repaired)
     if second.certified_clearance_m >= margin:
-        fixed = GeneratedTrajectory(**{**generated.__dict__, "trajectory": repaired})
+        fixed = replace(generated, trajectory=repaired)
         return CertifiedTrajectory(fixed, second, margin, True, first, seconds)
     best = max(first.certified_clearance_m, second.certified_clearance_m)
     raise NoCertifiedTrajectoryError(

@@ -1,0 +1,192 @@
+"""``python -m pipeline.generate`` end to end: the written samples reproduce ``generate``'s q, dq, ddq at
+their times, the rate is honoured with T as the last sample, the ROS JSON carries the URDF's joint
+names, a refused certification exits 1 with its reason, and bad input is one line, exit 2, no file."""
+
+from __future__ import annotations
+
+import csv
+import importlib
+import json
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from pipeline.model.arm import DEFAULT_URDF
+from pipeline.motion.families import EXACT_ENDPOINTS
+from pipeline.offline.coefficients import Coefficients, load_coefficients, save_coefficients
+from pipeline.online.generator import generate
+
+generate_module = importlib.import_module("pipeline.generate")
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    status = generate_module.main(list(argv))
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def urdf_revolute_joints(path: Path) -> list[str]:
+    """Names of the URDF's revolute joints, read with the XML parser (independent of Pinocchio)."""
+    return [
+        j.get("name") for j in ET.parse(path).getroot().iter("joint") if j.get("type") in ("revolute", "continuous")
+    ]
+
+
+def expected_times(duration: float, rate: float) -> np.ndarray:
+    times = [k / rate for k in range(int(duration * rate) + 2) if k / rate < duration]
+    return np.array([*times, duration])
+
+
+@pytest.mark.parametrize("rate", [100.0, 7.5])
+def test_csv_reproduces_generate_at_the_rate(tmp_path: Path, capsys, rate: float) -> None:
+    out = tmp_path / "trajectory.csv"
+    status, stdout, _ = run(
+        capsys, "--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--rate", str(rate), "--out", str(out)
+    )
+    assert status == 0
+    assert "coefficients: paper (paper, sha256" in stdout and "T = " in stdout and "gamma2" in stdout
+    with out.open() as handle:
+        rows = list(csv.reader(handle))
+    assert rows[0] == list(generate_module.CSV_COLUMNS)
+    data = np.array(rows[1:], dtype=float)
+    answer = generate(load_coefficients("paper"), 0.27, 0.09)
+    t = data[:, 0]
+    assert t[-1] == answer.duration_s and t[0] == 0.0
+    assert_allclose(t, expected_times(answer.duration_s, rate), rtol=0, atol=1e-15)
+    assert_allclose(np.diff(t[:-1]), 1.0 / rate, rtol=1e-12)
+    assert 0.0 < t[-1] - t[-2] <= 1.0 / rate
+    assert_allclose(data[:, 1:3], answer.q(t), rtol=0, atol=0)
+    assert_allclose(data[:, 3:5], answer.dq(t), rtol=0, atol=0)
+    assert_allclose(data[:, 5:7], answer.ddq(t), rtol=0, atol=0)
+
+
+def test_npz_reproduces_generate(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "trajectory.npz"
+    status, _, _ = run(
+        capsys, "--L", "0.22", "--W", "0.11", "--coefficients", "paper", "--rate", "50", "--out", str(out)
+    )
+    assert status == 0
+    data = np.load(out)
+    answer = generate(load_coefficients("paper"), 0.22, 0.11)
+    assert_allclose(data["t_s"], expected_times(answer.duration_s, 50.0), rtol=0, atol=1e-15)
+    assert_allclose(data["q_rad"], answer.q(data["t_s"]), rtol=0, atol=0)
+    assert_allclose(data["dq_rad_s"], answer.dq(data["t_s"]), rtol=0, atol=0)
+    assert_allclose(data["ddq_rad_s2"], answer.ddq(data["t_s"]), rtol=0, atol=0)
+    assert tuple(data["parameters"]) == answer.trajectory.parameters
+    assert float(data["duration_s"]) == answer.duration_s
+
+
+def test_ros_json_has_the_urdf_joint_names_and_reproduces_generate(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "sub" / "trajectory.json"
+    status, _, _ = run(
+        capsys, "--L", "0.25", "--W", "0.1", "--coefficients", "paper", "--rate", "20", "--out", str(out)
+    )
+    assert status == 0
+    message = json.loads(out.read_text())
+    assert message["joint_names"] == urdf_revolute_joints(DEFAULT_URDF)
+    answer = generate(load_coefficients("paper"), 0.25, 0.1)
+    points = message["points"]
+    t = np.array([p["time_from_start"]["sec"] + p["time_from_start"]["nanosec"] * 1e-9 for p in points])
+    assert all(0 <= p["time_from_start"]["nanosec"] < 1_000_000_000 for p in points)
+    assert_allclose(t, expected_times(answer.duration_s, 20.0), rtol=0, atol=1e-9)
+    exact_t = expected_times(answer.duration_s, 20.0)
+    assert_allclose([p["positions"] for p in points], answer.q(exact_t), rtol=0, atol=0)
+    assert_allclose([p["velocities"] for p in points], answer.dq(exact_t), rtol=0, atol=0)
+    assert_allclose([p["accelerations"] for p in points], answer.ddq(exact_t), rtol=0, atol=0)
+
+
+def test_certify_prints_the_certificate_and_the_repair_time(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "t.csv"
+    status, stdout, _ = run(
+        capsys, "--L", "0.30", "--W", "0.12", "--coefficients", "paper", "--certify", "--out", str(out)
+    )
+    assert status == 0  # Eq. 9 at (0.30, 0.12) is 2.6 mm from the obstacle: repaired
+    assert "certificate: clearance >= " in stdout and "repaired in" in stdout and "repair_seconds = " in stdout
+    bound = float(stdout.split("clearance >= ")[1].split(" mm")[0])
+    assert bound >= 10.0
+    assert out.is_file()
+
+
+def test_refused_certification_exits_1_with_the_reason(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "t.json"
+    status, _, err = run(
+        capsys, "--L", "0.30", "--W", "0.12", "--coefficients", "paper", "--certify", "--no-repair", "--out", str(out)
+    )
+    assert status == 1
+    assert "certification refused" in err and "repair disabled" in err and err.count("\n") == 1
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_refused_end_pose_exits_1(tmp_path: Path, capsys) -> None:
+    """Exact-endpoints coefficients at W = 0.12 m: the fixed pose at P5 is closer than the margin."""
+    paper = load_coefficients("paper")
+    constant = {"w1": 1.2, "phi1": 0.216, "A2": 3.0, "w2": 0.562}
+    exact = Coefficients(
+        family=EXACT_ENDPOINTS,
+        parameters={name: (value, 0.0, 0.0, 0.0, 0.0, 0.0) for name, value in constant.items()},
+        fitted_range_m=paper.fitted_range_m,
+        scene=paper.scene,
+        link_lengths_m=paper.link_lengths_m,
+        link_radii_m=paper.link_radii_m,
+    )
+    path = tmp_path / "exact.json"
+    save_coefficients(exact, path)
+    status, _, err = run(capsys, "--L", "0.25", "--W", "0.12", "--coefficients", str(path), "--certify")
+    assert status == 1 and "end pose at P5" in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["--L", "0.27", "--W", "abc"], "--W"),
+        (["--L", "0.001", "--W", "0.001"], "L = 0.001 m"),
+        (["--L", "nan", "--W", "0.09"], "L = nan m"),
+        (["--L", "0.27", "--W", "0.09", "--rate", "0"], "--rate"),
+        (["--L", "0.27", "--W", "0.09", "--rate", "inf"], "--rate"),
+        (["--L", "0.27", "--W", "0.09", "--out", "OUT.txt"], "--out"),
+        (["--L", "0.27", "--W", "0.09", "--out", "/proc/x.csv"], "--out"),
+        (["--L", "0.27", "--W", "0.09", "--out", "DIR"], "--out"),
+        (["--L", "0.27", "--W", "0.09", "--coefficients", "/nonexistent.json"], "/nonexistent.json"),
+        (["--L", "0.27", "--W", "0.09", "--no-repair"], "--no-repair"),
+        (["--L", "0.27", "--W", "0.09", "--certify", "--margin", "-1"], "--margin"),
+        (["--L", "0.27", "--W", "0.09", "--out-of-range", "error", "--L", "0.4"], "L = 0.4000 m"),
+        (["--W", "0.09"], "--L"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_and_no_file(tmp_path: Path, capsys, argv: list[str], named: str) -> None:
+    argv = [a.replace("OUT", str(tmp_path / "out")).replace("DIR", str(tmp_path)) for a in argv]
+    status, _, err = (
+        run(capsys, "--coefficients", "paper", *argv) if "--coefficients" not in argv else run(capsys, *argv)
+    )
+    assert status == 2
+    assert err.count("\n") == 1 and "Traceback" not in err and named in err, err
+    assert err.startswith("python -m pipeline.generate: error:")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_another_arm_is_refused(double_pendulum_urdf, capsys) -> None:
+    status, _, err = run(
+        capsys, "--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--urdf", str(double_pendulum_urdf)
+    )
+    assert status == 2 and "0.1, 0.2 m" in err and "0.3, 0.35 m" in err
+
+
+def test_sample_times_and_ros_durations() -> None:
+    assert generate_module.sample_times(1.0, 4.0).tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
+    assert generate_module.sample_times(0.9, 4.0).tolist() == [0.0, 0.25, 0.5, 0.75, 0.9]
+    assert generate_module.ros_duration(3.9999999999) == {"sec": 4, "nanosec": 0}
+    assert generate_module.ros_duration(1.25) == {"sec": 1, "nanosec": 250_000_000}
+    assert math.isclose(sum(generate_module.ros_duration(2.5e-10).values()), 0)
+
+
+def test_the_package_function_survives_importing_the_cli_module() -> None:
+    import pipeline
+    from pipeline import generate as exported
+
+    paper = load_coefficients("paper")
+    assert exported(paper, 0.27, 0.09).trajectory.parameters == generate(paper, 0.27, 0.09).trajectory.parameters
+    assert pipeline.generate(paper, 0.25, 0.1).duration_s == generate(paper, 0.25, 0.1).duration_s
