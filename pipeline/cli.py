@@ -17,9 +17,27 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn, TextIO
 
-from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
+from pipeline.exceptions import DataFileError, PipelineError
+from pipeline.io.output_paths import check_output_file, check_output_folder
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients, load_coefficients
+
+__all__ = [
+    "DEFAULT_COEFFICIENTS",
+    "EXIT_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "EXIT_USAGE",
+    "HelpFormatter",
+    "Parser",
+    "check_output_file",
+    "check_output_folder",
+    "describe_coefficients",
+    "jobs_count",
+    "load_coefficients_for_cli",
+    "run_cli",
+    "usage_error",
+]
 
 #: Exit status: success, or every check passed.
 EXIT_OK = 0
@@ -99,50 +117,6 @@ def jobs_count(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"--jobs {value} must be >= 0 (0 = every CPU)")
     return value if value > 0 else (os.cpu_count() or 1)
-
-
-def check_output_file(path: str | Path | None, option: str) -> Path | None:
-    """Check, before any work, that ``path`` can be written as a file (its folder can exist).
-
-    Raises:
-        InvalidParameterError: the path is a directory, or a parent is a file, or the first
-            existing parent is not writable.
-    """
-    if path is None:
-        return None
-    path = Path(path)
-    if path.is_dir():
-        raise InvalidParameterError(option, str(path), "a file name, not a directory")
-    _check_parent(path, option)
-    return path
-
-
-def check_output_folder(path: str | Path | None, option: str) -> Path | None:
-    """Check, before any work, that ``path`` is a folder or can be made one (creates nothing).
-
-    Raises:
-        InvalidParameterError: the path is an existing file, or it cannot be created.
-    """
-    if path is None:
-        return None
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise InvalidParameterError(option, str(path), "a folder, not an existing file")
-    if not path.exists():
-        _check_parent(path, option)
-    elif not os.access(path, os.W_OK):
-        raise InvalidParameterError(option, str(path), "a writable folder")
-    return path
-
-
-def _check_parent(path: Path, option: str) -> None:
-    parent = path.absolute().parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise InvalidParameterError(option, str(path), f"a path whose parent {parent} is a folder, not a file")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise InvalidParameterError(option, str(path), f"a path under a writable folder ({parent} is not)")
 
 
 def load_coefficients_for_cli(source: str | Path) -> Coefficients:

@@ -23,9 +23,9 @@ from pathlib import Path
 
 from pipeline.cli import EXIT_FAILED, EXIT_OK, Parser, run_cli
 from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError
+from pipeline.io.output_paths import check_output_file
 from pipeline.motion.families import PAPER, PAPER_SOURCE, TrajectoryFamily
 from pipeline.offline import report
-from pipeline.offline.build import check_output_file
 from pipeline.offline.coefficients import (
     CONVERGED_KEY,
     UNCONVERGED_REASONS_KEY,

@@ -22,7 +22,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 import time
 import warnings
 from collections.abc import Callable
@@ -39,6 +38,7 @@ from pipeline.exceptions import (
     PipelineError,
 )
 from pipeline.io.jsonio import dumps, write_json_atomic, write_text_atomic
+from pipeline.io.output_paths import check_output_folder
 from pipeline.io.provenance import package_versions, sha256_file
 from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
 from pipeline.model.scene import Scene, read_scene_file
@@ -298,53 +298,6 @@ class BuildResult:
         return not self.problems
 
 
-def _check_creatable_under(location: Path, option: str, value: str) -> None:
-    """``location`` (a folder, existing or not) is, or can be made, a folder where files can be created.
-
-    Permissions are probed by creating (and at once removing) a file in ``location`` or its
-    first existing parent: a permission check says little when running as root (``/proc``)."""
-    existing = location.absolute()
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
-    if not existing.is_dir():
-        raise InvalidParameterError(option, value, f"a path whose parent {existing} is a folder, not a file")
-    try:
-        handle, probe = tempfile.mkstemp(prefix=".write-probe-", dir=existing)
-        os.close(handle)
-        os.unlink(probe)
-    except OSError as exc:
-        raise InvalidParameterError(
-            option, value, f"a path where files can be created ({existing}: {exc.strerror})"
-        ) from None
-
-
-def check_output_folder(folder: str | Path, option: str = OPTIONS["out_folder"]) -> Path:
-    """Check, before any work and creating nothing, that ``folder`` is or can become a writable folder.
-
-    Raises:
-        InvalidParameterError: the path is a file, under a file, or not writable.
-    """
-    folder = Path(folder)
-    if folder.exists() and not folder.is_dir():
-        raise InvalidParameterError(option, str(folder), "a folder, not an existing file")
-    _check_creatable_under(folder, option, str(folder))
-    return folder
-
-
-def check_output_file(path: str | Path, option: str) -> Path:
-    """Check, before any work and creating nothing, that ``path`` can be written as a file
-    (replacing an existing file; missing folders are created when it is written).
-
-    Raises:
-        InvalidParameterError: the path is a folder, under a file, or not writable.
-    """
-    path = Path(path)
-    if path.is_dir():
-        raise InvalidParameterError(option, str(path), "a file name, not a folder")
-    _check_creatable_under(path.parent, option, str(path))
-    return path
-
-
 def _check_before_work(config: BuildConfig, arm: PlanarArm) -> list:
     """Every obstacle's path and IK, and those of a grid over the range (where no end pose may
     collide), before any PSO; returns the grid's problems for the check after the regression."""
@@ -470,7 +423,7 @@ def run_build(config: BuildConfig, progress: Callable[[int, int], None] | None =
             is False (nothing written; ``exc.result`` holds the unwritten result).
     """
     started = time.perf_counter()
-    check_output_folder(config.out_folder)
+    check_output_folder(config.out_folder, OPTIONS["out_folder"])
     arm = load_planar_arm(config.urdf_path)
     grid = _check_before_work(config, arm)
     solver, design = config.solver(), config.design()

@@ -1,0 +1,61 @@
+"""Output paths checked before any work: a command that will write a file or a folder proves
+first, creating nothing that stays, that it can.
+
+Permissions are probed by creating (and at once removing) a file in the target folder or its
+first existing parent: a permission check says little when running as root (``/proc``).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from pipeline.exceptions import InvalidParameterError
+
+
+def _check_creatable_under(location: Path, option: str, value: str) -> None:
+    """``location`` (a folder, existing or not) is, or can be made, a folder where files can be created.
+
+    Permissions are probed by creating (and at once removing) a file in ``location`` or its
+    first existing parent: a permission check says little when running as root (``/proc``)."""
+    existing = location.absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InvalidParameterError(option, value, f"a path whose parent {existing} is a folder, not a file")
+    try:
+        handle, probe = tempfile.mkstemp(prefix=".write-probe-", dir=existing)
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InvalidParameterError(
+            option, value, f"a path where files can be created ({existing}: {exc.strerror})"
+        ) from None
+
+
+def check_output_folder(folder: str | Path, option: str) -> Path:
+    """Check, before any work and creating nothing, that ``folder`` is or can become a writable folder.
+
+    Raises:
+        InvalidParameterError: the path is a file, under a file, or not writable.
+    """
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise InvalidParameterError(option, str(folder), "a folder, not an existing file")
+    _check_creatable_under(folder, option, str(folder))
+    return folder
+
+
+def check_output_file(path: str | Path, option: str) -> Path:
+    """Check, before any work and creating nothing, that ``path`` can be written as a file
+    (replacing an existing file; missing folders are created when it is written).
+
+    Raises:
+        InvalidParameterError: the path is a folder, under a file, or not writable.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise InvalidParameterError(option, str(path), "a file name, not a folder")
+    _check_creatable_under(path.parent, option, str(path))
+    return path
