@@ -19,23 +19,23 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from . import report
-from .coefficients import fit_coefficients, load_coefficients, paper_data_path
-from .doe import Design, doe_document, doe_from_json, load_doe, run_doe
-from .endpoint_regression import EndpointConstraint
-from .exceptions import OutputExistsError, PipelineError
-from .experiment import SolverConfig, score_parameters
-from .family import FAMILY_NAMES
-from .fitness import FitnessConfig
-from .jsonio import dumps, write_json_atomic, write_text_atomic
-from .obstacle import Obstacle
-from .path import desired_path
-from .provenance import package_versions, sha256_file
-from .pso import PsoConfig
-from .regress import add_regression_arguments, endpoint_constraint
-from .robot import DEFAULT_URDF, load_planar_arm
-from .scene import Scene
-from .trajectory import PARAMETER_NAMES
+from pipeline.exceptions import OutputExistsError, PipelineError
+from pipeline.io.jsonio import dumps, write_json_atomic, write_text_atomic
+from pipeline.io.provenance import package_versions, sha256_file
+from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.families import FAMILY_NAMES, PAPER, PAPER_SOURCE, family_from_name
+from pipeline.motion.path import desired_path
+from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline import report
+from pipeline.offline.coefficients import fit_coefficients, load_coefficients, paper_data_path
+from pipeline.offline.doe import Design, doe_document, doe_from_json, load_doe, run_doe
+from pipeline.offline.endpoint_regression import EndpointConstraint
+from pipeline.offline.experiment import SolverConfig, score_parameters
+from pipeline.offline.fitness import FitnessConfig
+from pipeline.offline.pso import PsoConfig
+from pipeline.regress import add_regression_arguments, endpoint_constraint
 
 
 def parser() -> argparse.ArgumentParser:
@@ -60,7 +60,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--levels", type=int, default=3, help="levels per factor [count], K x K design, K >= 3")
     p.add_argument("--L-range", nargs=2, type=float, default=[0.20, 0.30], metavar=("MIN", "MAX"), help="L range [m]")
     p.add_argument("--W-range", nargs=2, type=float, default=[0.08, 0.12], metavar=("MIN", "MAX"), help="W range [m]")
-    p.add_argument("--family", choices=FAMILY_NAMES, default="paper", help="trajectory family")
+    p.add_argument("--family", choices=FAMILY_NAMES, default=PAPER.name, help="trajectory family")
     p.add_argument("--jobs", type=int, default=1, help="worker processes [count]; does not change the result")
     p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm")
     p.add_argument("--swarm-size", type=int, default=defaults_pso.swarm_size, help="PSO particles per swarm [count]")
@@ -142,9 +142,10 @@ def build(args: argparse.Namespace, out=None) -> int:
     arm = load_planar_arm(args.urdf)
     scene = Scene(margin_m=args.margin, corner_radius_m=args.corner_radius, speed_m_s=args.speed)
     design = Design(args.levels, tuple(args.L_range), tuple(args.W_range))
-    constraint = endpoint_constraint(args, args.family)
+    family = family_from_name(args.family)
+    constraint = endpoint_constraint(args, family)
     config = SolverConfig(
-        family=args.family,
+        family=family,
         fitness=FitnessConfig(
             n_points=args.n_points,
             endpoint_weight=args.endpoint_weight,
@@ -165,11 +166,11 @@ def build(args: argparse.Namespace, out=None) -> int:
     provenance = {
         "seed": args.seed,
         "levels": args.levels,
-        "family": args.family,
+        "family": family.name,
         "urdf": arm.urdf_path.name,
         "urdf_sha256": sha256_file(arm.urdf_path),
         "pso": asdict(config.pso),
-        "fitness": asdict(config.fitness),
+        "fitness": config.fitness.to_json(),
         "polish": config.polish,
         "versions": package_versions(),
     }
@@ -215,7 +216,7 @@ def build(args: argparse.Namespace, out=None) -> int:
     if not args.quiet:
         print("Table 2 (ours, with the paper's row below where the design matches it):", file=out)
         print(report.table2(document["experiments"], paper_rows), file=out)
-        paper_eq9 = load_coefficients("paper").parameters if args.family == "paper" else None
+        paper_eq9 = load_coefficients(PAPER_SOURCE).parameters if family == PAPER else None
         print("\nEq. 9 (ours, paper below):", file=out)
         print(report.equation9(coefficients.parameters, paper_eq9, coefficients.extra["fit"]), file=out)
         print(report.regression_method(coefficients.extra["fit"]), file=out)

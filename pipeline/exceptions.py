@@ -79,6 +79,10 @@ class EndpointConstraintWarning(UserWarning):
     """The endpoint-constrained regression stopped before meeting its tolerance everywhere."""
 
 
+class InexactEndpointsWarning(UserWarning):
+    """A family that pins the tip to P1 and P5 could not, for these parameters (see the family's module)."""
+
+
 class DataFileError(PipelineError):
     """A DOE or coefficients file is missing, unreadable or malformed.
 

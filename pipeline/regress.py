@@ -4,7 +4,7 @@ Works on any DOE file: ours (``results/doe.json``) or the paper's Table 2
 (``paper`` names the copy shipped with the package). By default the fit is the paper's,
 least squares per parameter (``python -m pipeline.regress paper`` reproduces Eq. 9);
 ``--endpoint-tolerance M`` fits subject to the paper family's endpoint errors <= M over the
-fitted range (:mod:`pipeline.endpoint_regression`), as ``python -m pipeline.build`` does by
+fitted range (:mod:`pipeline.offline.endpoint_regression`), as ``python -m pipeline.build`` does by
 default with M = 0.002.
 """
 
@@ -15,11 +15,12 @@ import hashlib
 import sys
 from pathlib import Path
 
-from . import report
-from .coefficients import fit_coefficients, load_coefficients, paper_data_path, save_coefficients
-from .doe import load_doe
-from .endpoint_regression import EndpointConstraint
-from .exceptions import PipelineError
+from pipeline.exceptions import PipelineError
+from pipeline.motion.families import PAPER, PAPER_SOURCE, TrajectoryFamily
+from pipeline.offline import report
+from pipeline.offline.coefficients import fit_coefficients, load_coefficients, paper_data_path, save_coefficients
+from pipeline.offline.doe import load_doe
+from pipeline.offline.endpoint_regression import EndpointConstraint
 
 
 def add_regression_arguments(p: argparse.ArgumentParser, default_tolerance_m: float | None) -> None:
@@ -49,14 +50,14 @@ def add_regression_arguments(p: argparse.ArgumentParser, default_tolerance_m: fl
     )
 
 
-def endpoint_constraint(args: argparse.Namespace, family: str) -> EndpointConstraint | None:
+def endpoint_constraint(args: argparse.Namespace, family: TrajectoryFamily) -> EndpointConstraint | None:
     """The endpoint constraint the parsed options ask for, or None (plain fit, or a family
     that is exact by construction).
 
     Raises:
         InvalidParameterError: a non-positive or NaN tolerance.
     """
-    if getattr(args, "plain", False) or args.endpoint_tolerance is None or family != "paper":
+    if getattr(args, "plain", False) or args.endpoint_tolerance is None or family.pins_endpoints:
         return None
     return EndpointConstraint(tolerance_m=args.endpoint_tolerance)
 
@@ -79,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (2 on bad input, with one line on stderr)."""
     args = parser().parse_args(argv)
     try:
-        path = paper_data_path("paper_table2_doe.json") if args.doe == "paper" else Path(args.doe)
+        path = paper_data_path("paper_table2_doe.json") if args.doe == PAPER_SOURCE else Path(args.doe)
         doe = load_doe(path)
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
         coefficients, _ = fit_coefficients(
@@ -90,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if not args.quiet:
-        paper = load_coefficients("paper").parameters if doe.family == "paper" else None
+        paper = load_coefficients(PAPER_SOURCE).parameters if doe.family == PAPER else None
         print(report.equation9(coefficients.parameters, paper, coefficients.extra["fit"]))
         print(report.regression_method(coefficients.extra["fit"]))
     print(f"wrote {args.output}")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from .exceptions import InvalidParameterError
+from pipeline.exceptions import InvalidParameterError
 
 
 def check_positive(name: str, value: float) -> float:

@@ -10,8 +10,8 @@ from types import MappingProxyType
 import numpy as np
 import pytest
 
-from pipeline.robot import PlanarArm, load_planar_arm
-from pipeline.scene import Scene
+from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.scene import Scene
 
 _DOUBLE_PENDULUM = Path(
     "cmeel.prefix/share/example-robot-data/robots/double_pendulum_description/urdf/double_pendulum_simple.urdf"

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.exceptions import EndpointConstraintWarning
-from pipeline.jsonio import write_json_atomic
+from pipeline.io.jsonio import write_json_atomic
 from verify import bench, bench_results, planner
 from verify.bench import EXIT_OK, EXIT_USAGE, build_parser, main
 from verify.cli import HelpFormatter
@@ -213,11 +213,11 @@ def test_malformed_build_timing_is_bad_input(capsys: pytest.CaptureFixture[str],
 
 
 def test_solver_config_takes_the_builds_settings_from_provenance() -> None:
-    from pipeline.coefficients import load_coefficients
+    from pipeline.offline.coefficients import load_coefficients
 
     coefficients = load_coefficients("paper")
     config, source = bench.solver_config(coefficients, bench.BenchSettings())
-    assert "defaults" in source and config.family == "paper" and config.polish
+    assert "defaults" in source and config.family.name == "paper" and config.polish
     recorded = type(coefficients)(
         **{
             **coefficients.__dict__,

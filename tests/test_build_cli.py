@@ -19,11 +19,11 @@ import pytest
 from numpy.testing import assert_allclose
 
 from pipeline import build, regress
-from pipeline.coefficients import load_coefficients, paper_data_path
-from pipeline.doe import load_doe
-from pipeline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
-from pipeline.regression import fit_quadratic, predict
-from pipeline.trajectory import PARAMETER_NAMES
+from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.coefficients import load_coefficients, paper_data_path
+from pipeline.offline.doe import load_doe
+from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
+from pipeline.offline.regression import fit_quadratic, predict
 
 # Plumbing settings: optima this rough are no data for the endpoint-constrained regression
 # (tested on Table 2 below and in test_endpoint_regression.py), hence --plain.
@@ -81,14 +81,14 @@ def test_build_writes_doe_and_coefficients(reference: dict) -> None:
     assert {"doe.json", "coefficients.json", "build_timing.json"} <= set(reference["files"])
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary files left
     doe = load_doe(out / "doe.json")
-    assert doe.family == "paper" and doe.parameters.shape == (9, 8)
+    assert doe.family.name == "paper" and doe.parameters.shape == (9, 8)
     document = json.loads((out / "doe.json").read_text())
     assert [e["test"] for e in document["experiments"]] == list(range(1, 10))
     assert document["provenance"]["seed"] == 0
     # The design is the paper's grid: each row carries the paper's Table 2 scored on our fitness.
     assert all("paper_table2" in e and isinstance(e["beats_paper"], bool) for e in document["experiments"])
     coefficients = load_coefficients(out / "coefficients.json")
-    assert coefficients.family == "paper"
+    assert coefficients.family.name == "paper"
     assert list(coefficients.parameters) == list(PARAMETER_NAMES)
     assert coefficients.fitted_range_m == {"L": (0.2, 0.3), "W": (0.08, 0.12)}
     # The coefficients are the regression of the DOE file written beside them.
@@ -364,7 +364,7 @@ def test_regress_table_2_reproduces_eq9(tmp_path: Path, capsys: pytest.CaptureFi
     assert regress.main([str(table2) if source == "path" else "paper", "-o", str(out), "--quiet"]) == 0
     assert "wrote" in capsys.readouterr().out
     coefficients = load_coefficients(out)
-    assert coefficients.family == "paper"
+    assert coefficients.family.name == "paper"
     assert coefficients.provenance["doe_sha256"] == sha256(table2)
     # Within the rounding of Table 2 (see tests/test_regression.py for the bound): < 1e-3 rad
     # between the two fits' predictions over the fitted range.

@@ -1,4 +1,4 @@
-"""The continuous-time clearance certificate (pipeline.certificate) is sound.
+"""The continuous-time clearance certificate (pipeline.geometry.sinusoid_certificate) is sound.
 
 * Trajectories built to graze the obstacle exactly between two samples: the sampled clearance
   is positive, yet the certificate refuses to certify (true minimum < 0), and it certifies a
@@ -20,22 +20,21 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
-from pipeline.certificate import (
-    COAL_DISTANCE_ERROR_M,
-    LinkReach,
+from pipeline.exceptions import InvalidParameterError
+from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance, route_from_name
+from pipeline.geometry.link_reach import LinkReach
+from pipeline.geometry.sinusoid_certificate import (
     _max_abs_cos,
     certify,
     certify_trajectory,
     link_speed_bounds,
     samples_for_resolution,
 )
-from pipeline.clearance import CoalClearance, analytic_link_clearance
-from pipeline.exceptions import InvalidParameterError
-from pipeline.obstacle import Obstacle
-from pipeline.path import desired_path
-from pipeline.robot import PlanarArm, load_planar_arm
-from pipeline.scene import Scene
-from pipeline.trajectory import JointTrajectory
+from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.path import desired_path
+from pipeline.motion.trajectory import JointTrajectory
 
 L1, L2, R_LINK = 0.30, 0.35, 0.005
 CORNER = 0.01
@@ -99,7 +98,7 @@ def corner_graze(gap_m: float, samples: int = 11, duration_s: float = 2.0) -> tu
 @pytest.mark.parametrize("route", ["coal", "analytic"])
 def test_graze_into_the_obstacle_between_samples_is_not_certified(arm: PlanarArm, build, route: str) -> None:
     trajectory, obstacle, t_star = build(-2e-4)
-    certificate = certify_trajectory(trajectory, arm, obstacle, route=route, samples=11)
+    certificate = certify_trajectory(trajectory, arm, obstacle, route=route_from_name(route), samples=11)
     # The samples all miss the obstacle ...
     assert certificate.sampled_clearance_m > 2e-4
     # ... the certificate does not certify ...
@@ -117,7 +116,7 @@ def test_graze_into_the_obstacle_between_samples_is_not_certified(arm: PlanarArm
 def test_graze_that_clears_by_a_hair_is_certified_tightly(arm: PlanarArm, build, route: str) -> None:
     gap = 2e-4
     trajectory, obstacle, t_star = build(gap)
-    certificate = certify_trajectory(trajectory, arm, obstacle, route=route, samples=11)
+    certificate = certify_trajectory(trajectory, arm, obstacle, route=route_from_name(route), samples=11)
     assert certificate.certified
     assert certificate.certified_clearance_m <= gap  # a lower bound on the true minimum
     assert certificate.certified_clearance_m >= gap - 2 * COAL_DISTANCE_ERROR_M - certificate.tolerance_m
@@ -165,7 +164,7 @@ def test_never_certified_while_a_100x_denser_sampling_collides(arm: PlanarArm) -
         trajectory, obstacle = near_obstacle_case(seed, samples)
         dense = dense_analytic_min(trajectory, arm, obstacle, 100 * samples)
         for route in ("coal", "analytic"):
-            certificate = certify_trajectory(trajectory, arm, obstacle, route=route, samples=samples)
+            certificate = certify_trajectory(trajectory, arm, obstacle, route=route_from_name(route), samples=samples)
             assert certificate.certified_clearance_m <= dense + 1e-12
             if dense <= 0.0:
                 assert not certificate.certified
@@ -290,7 +289,7 @@ def test_bad_settings_are_rejected(arm: PlanarArm) -> None:
     with pytest.raises(InvalidParameterError):
         certify_trajectory(trajectory, arm, obstacle, samples=1)
     with pytest.raises(InvalidParameterError):
-        certify_trajectory(trajectory, arm, obstacle, route="exact")
+        certify_trajectory(trajectory, arm, obstacle, route=route_from_name("exact"))
     with pytest.raises(InvalidParameterError):
         certify_trajectory(trajectory, arm, obstacle, tolerance_m=0.0)
     with pytest.raises(InvalidParameterError):

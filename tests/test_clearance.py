@@ -1,4 +1,4 @@
-"""Link-to-obstacle clearance (pipeline.clearance): the Pinocchio + Coal route against an
+"""Link-to-obstacle clearance (pipeline.geometry.clearance): the Pinocchio + Coal route against an
 independent planar computation written here, the fast analytic route against Coal, hand-made
 configurations, and the query counter."""
 
@@ -14,10 +14,10 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from scipy.optimize import minimize_scalar
 
-from pipeline.clearance import CoalClearance, analytic_link_clearance, check_fast_route
 from pipeline.exceptions import RobotModelError
-from pipeline.obstacle import Obstacle
-from pipeline.robot import PlanarArm, load_planar_arm
+from pipeline.geometry.clearance import CoalClearance, analytic_link_clearance, check_fast_route
+from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.obstacle import Obstacle
 
 # The paper's arm and link thickness, written here independently of the model.
 L1, L2, LINK_RADIUS = 0.30, 0.35, 0.005

@@ -1,4 +1,4 @@
-"""Coefficients files (pipeline.coefficients): the paper's Eq. 9 loads, save/load round trips
+"""Coefficients files (pipeline.offline.coefficients): the paper's Eq. 9 loads, save/load round trips
 byte for byte, malformed files raise DataFileError naming the file, and saving is atomic."""
 
 from __future__ import annotations
@@ -12,7 +12,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pipeline.coefficients import (
+from pipeline.exceptions import DataFileError, OutputExistsError
+from pipeline.model.scene import Scene
+from pipeline.motion.families import EXACT_ENDPOINTS
+from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.coefficients import (
     FORMAT,
     Coefficients,
     fit_coefficients,
@@ -20,12 +24,8 @@ from pipeline.coefficients import (
     paper_data_path,
     save_coefficients,
 )
-from pipeline.doe import load_doe
-from pipeline.exceptions import DataFileError, OutputExistsError
-from pipeline.family import FREE_PARAMETERS
-from pipeline.regression import BASIS
-from pipeline.scene import Scene
-from pipeline.trajectory import PARAMETER_NAMES
+from pipeline.offline.doe import load_doe
+from pipeline.offline.regression import BASIS
 
 
 def paper_document() -> dict:
@@ -39,7 +39,7 @@ def write(path: Path, document) -> Path:
 
 def exact_endpoints_coefficients() -> Coefficients:
     return Coefficients(
-        family="exact-endpoints",
+        family=EXACT_ENDPOINTS,
         parameters={
             "w1": (0.9, 0.1, 0.2, 0.0, 0.0, 0.0),
             "phi1": (0.4, 0.0, 0.5, 0.0, 0.0, 0.0),
@@ -61,7 +61,7 @@ def exact_endpoints_coefficients() -> Coefficients:
 
 def test_load_paper(table2: np.ndarray, paper_eq9) -> None:
     paper = load_coefficients("paper")
-    assert paper.family == "paper"
+    assert paper.family.name == "paper"
     assert paper.source == "paper"
     assert list(paper.parameters) == list(PARAMETER_NAMES)
     for name in PARAMETER_NAMES:
@@ -82,7 +82,7 @@ def test_load_paper(table2: np.ndarray, paper_eq9) -> None:
 
 def test_fit_coefficients_of_the_paper_doe_is_a_valid_paper_file(tmp_path: Path) -> None:
     coefficients, fit = fit_coefficients(load_doe(paper_data_path("paper_table2_doe.json")), {"provenance": {"x": 1}})
-    assert coefficients.family == "paper"
+    assert coefficients.family.name == "paper"
     assert coefficients.fitted_range_m == {"L": (0.2, 0.3), "W": (0.08, 0.12)}
     assert coefficients.extra["fit"]["experiments"] == 9
     assert coefficients.provenance == {"x": 1}
@@ -107,7 +107,7 @@ def test_save_load_round_trip_is_byte_identical(tmp_path: Path, make) -> None:
     assert loaded.source == str(first)
     assert loaded.source_sha256 == hashlib.sha256(first.read_bytes()).hexdigest()
     assert loaded.family == original.family
-    assert loaded.parameters == {n: original.parameters[n] for n in FREE_PARAMETERS[original.family]}
+    assert loaded.parameters == {n: original.parameters[n] for n in original.family.free_parameter_names}
     assert loaded.fitted_range_m == original.fitted_range_m
     assert loaded.scene == original.scene
     assert loaded.link_lengths_m == original.link_lengths_m
@@ -149,7 +149,7 @@ def test_replacing_a_file_keeps_its_permissions(tmp_path: Path) -> None:
     path.chmod(0o640)
     assert save_coefficients(exact_endpoints_coefficients(), path) is True
     assert oct(path.stat().st_mode & 0o777) == oct(0o640)
-    assert load_coefficients(path).family == "exact-endpoints"
+    assert load_coefficients(path).family.name == "exact-endpoints"
 
 
 # --------------------------------------------------------------------------------------------
@@ -314,7 +314,7 @@ def test_save_is_atomic(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, excepti
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["coefficients.json"]
     # The untouched file still loads.
-    assert load_coefficients(path).family == "exact-endpoints"
+    assert load_coefficients(path).family.name == "exact-endpoints"
 
 
 def test_failed_first_save_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

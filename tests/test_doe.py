@@ -1,4 +1,4 @@
-"""Design of experiments (pipeline.doe): Table 1 order, larger designs, bad designs, run_doe
+"""Design of experiments (pipeline.offline.doe): Table 1 order, larger designs, bad designs, run_doe
 reproducible and independent of the number of worker processes, and malformed DOE files."""
 
 from __future__ import annotations
@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pipeline.coefficients import paper_data_path
-from pipeline.doe import Design, doe_document, load_doe, run_doe
 from pipeline.exceptions import DataFileError, InvalidParameterError
-from pipeline.experiment import ExperimentResult, SolverConfig
-from pipeline.fitness import FitnessConfig
-from pipeline.pso import PsoConfig
-from pipeline.robot import PlanarArm
-from pipeline.scene import Scene
-from pipeline.trajectory import PARAMETER_NAMES
+from pipeline.model.arm import PlanarArm
+from pipeline.model.scene import Scene
+from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.coefficients import paper_data_path
+from pipeline.offline.doe import Design, doe_document, load_doe, run_doe
+from pipeline.offline.experiment import ExperimentResult, SolverConfig
+from pipeline.offline.fitness import FitnessConfig
+from pipeline.offline.pso import PsoConfig
 
 # Table 1 of the paper: Test i at (L, W).
 TABLE1 = [

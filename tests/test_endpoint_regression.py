@@ -1,4 +1,4 @@
-"""Endpoint-constrained regression (pipeline.endpoint_regression), on the paper's own Table 2:
+"""Endpoint-constrained regression (pipeline.offline.endpoint_regression), on the paper's own Table 2:
 its plain fit (Eq. 9) misses P1/P5 by more than the tolerance between the DOE points, the
 constrained fit does not, checked by Pinocchio's kinematics (not Eq. 2) through the online
 generator; the constraint's Jacobian against finite differences; an inactive constraint gives
@@ -15,9 +15,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from pipeline.coefficients import fit_coefficients, paper_data_path
-from pipeline.doe import load_doe
-from pipeline.endpoint_regression import (
+from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError
+from pipeline.motion.families import EXACT_ENDPOINTS
+from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.coefficients import fit_coefficients, paper_data_path
+from pipeline.offline.doe import load_doe
+from pipeline.offline.endpoint_regression import (
     EndpointConstraint,
     endpoint_errors_m,
     endpoint_slack,
@@ -25,10 +28,8 @@ from pipeline.endpoint_regression import (
     endpoint_targets,
     fit_with_endpoints,
 )
-from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError
-from pipeline.generator import generate
-from pipeline.regression import design_matrix, predict
-from pipeline.trajectory import PARAMETER_NAMES
+from pipeline.offline.regression import design_matrix, predict
+from pipeline.online.generator import generate
 
 RANGE = {"L": (0.2, 0.3), "W": (0.08, 0.12)}
 TOLERANCE_M = 0.002
@@ -183,6 +184,6 @@ def test_only_the_paper_family_takes_the_constraint(table2, targets) -> None:
 
 
 def test_exact_endpoints_doe_refuses_a_constraint(table2) -> None:
-    exact = dataclasses.replace(table2, family="exact-endpoints")
+    exact = dataclasses.replace(table2, family=EXACT_ENDPOINTS)
     with pytest.raises(InvalidParameterError, match="exact by construction"):
         fit_coefficients(exact, endpoint_constraint=EndpointConstraint())

@@ -1,4 +1,4 @@
-"""One DOE experiment (pipeline.experiment) with reduced settings: on the paper's Test 5 the
+"""One DOE experiment (pipeline.offline.experiment) with reduced settings: on the paper's Test 5 the
 solver beats the paper's own Table 2 row on the same fitness, keeps the margin on a dense Coal
 check, returns canonical parameters and says which solver produced them."""
 
@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pipeline.clearance import CoalClearance
 from pipeline.exceptions import InvalidParameterError, UnreachableObstacleError
-from pipeline.experiment import ExperimentResult, SolverConfig, score_parameters, solve_experiment
-from pipeline.fitness import FitnessConfig, fitness_problem
-from pipeline.obstacle import Obstacle
-from pipeline.pso import PsoConfig
-from pipeline.robot import PlanarArm
-from pipeline.scene import Scene
-from pipeline.trajectory import PARAMETER_NAMES, canonicalize, joint_angles
+from pipeline.geometry.clearance import CoalClearance
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.trajectory import PARAMETER_NAMES, canonicalize, joint_angles
+from pipeline.offline.experiment import ExperimentResult, SolverConfig, score_parameters, solve_experiment
+from pipeline.offline.fitness import FitnessConfig, fitness_problem
+from pipeline.offline.pso import PsoConfig
 
 L5, W5 = 0.25, 0.10  # Test 5 of Table 1
 CONFIG = SolverConfig(pso=PsoConfig(swarm_size=20, iterations=30, restarts=2), verify_samples=401)

@@ -1,4 +1,4 @@
-"""Trajectory families (pipeline.family): the exact-endpoints construction pins the tip to P1
+"""Trajectory families (pipeline.motion.families): the exact-endpoints construction pins the tip to P1
 and P5, joint 2's pinned phase, analytic inverse kinematics on both elbow branches, and the
 canonical free parameters (same motion, one representation)."""
 
@@ -13,27 +13,25 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from pipeline.exceptions import InvalidParameterError, UnreachableObstacleError
-from pipeline.family import (
-    FAMILY_NAMES,
-    FREE_PARAMETERS,
+from pipeline.model.arm import PlanarArm
+from pipeline.model.kinematics import inverse_kinematics
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.families import (
+    EXACT_ENDPOINTS,
+    FAMILIES,
+    PAPER,
     EndpointContext,
-    canonical_free,
-    check_family,
+    TrajectoryFamily,
     endpoint_context,
-    expand,
-    inverse_kinematics,
-    search_bounds,
+    family_from_name,
 )
-from pipeline.obstacle import Obstacle
-from pipeline.path import QuarticPath, desired_path
-from pipeline.robot import PlanarArm
-from pipeline.scene import Scene
-from pipeline.trajectory import joint_angles
+from pipeline.motion.families.exact_endpoints import MIN_DENOMINATOR
+from pipeline.motion.path import QuarticPath, desired_path
+from pipeline.motion.trajectory import joint_angles
 
 L1, L2 = 0.30, 0.35
 HALF_PI = math.pi / 2
-# Smallest |sin(w1 T + phi1) - sin(phi1)| for which expand does not clamp A1 (family._MIN_DENOMINATOR).
-MIN_DENOMINATOR = 1e-3
 # Obstacles over and a little beyond the DOE range.
 SIZES = [(0.30, 0.12), (0.25, 0.10), (0.20, 0.08), (0.17, 0.07), (0.23, 0.115)]
 
@@ -50,8 +48,8 @@ def path_for(length: float, width: float) -> QuarticPath:
     return desired_path(Obstacle.in_scene(length, width, scene), scene)
 
 
-def random_free(family: str, rng: np.random.Generator, count: int) -> np.ndarray:
-    lower, upper = search_bounds(family)
+def random_free(family: TrajectoryFamily, rng: np.random.Generator, count: int) -> np.ndarray:
+    lower, upper = family.search_bounds()
     return lower + rng.random((count, lower.size)) * (upper - lower)
 
 
@@ -71,10 +69,10 @@ def test_exact_endpoints_pin_the_tip_to_p1_and_p5(arm: PlanarArm, size: tuple[fl
     path = path_for(*size)
     context = endpoint_context(path, arm.link_lengths_m, elbow)
     rng = np.random.default_rng(hash((size, elbow)) % 2**32)
-    free = random_free("exact-endpoints", rng, 400)
+    free = random_free(EXACT_ENDPOINTS, rng, 400)
     free = free[unclamped(free, context.duration_s)]
     assert len(free) > 300
-    full = expand("exact-endpoints", free, context)
+    full = EXACT_ENDPOINTS.expand(free, context)
     assert full.shape == (len(free), 8)
     q = joint_angles(full, np.array([0.0, path.duration_s]))  # (P, 2, 2)
     tips = arm.end_effector_planar(q)
@@ -102,7 +100,7 @@ def test_clamped_denominator_keeps_a1_bounded(arm: PlanarArm) -> None:
     T = context.duration_s
     phi1 = 0.3
     w1 = (math.pi - 2 * phi1) / T
-    full = expand("exact-endpoints", np.array([w1, phi1, 1.0, 0.8]), context)
+    full = EXACT_ENDPOINTS.expand(np.array([w1, phi1, 1.0, 0.8]), context)
     delta = abs(context.theta_end_rad[0] - context.theta_start_rad[0])
     assert np.all(np.isfinite(full))
     assert abs(full[0]) == pytest.approx(delta / MIN_DENOMINATOR, rel=1e-9)
@@ -111,43 +109,56 @@ def test_clamped_denominator_keeps_a1_bounded(arm: PlanarArm) -> None:
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.floats(0.2, 2.5), st.floats(2.0, 5.0), st.floats(-3.0, 3.0))
-@example(0.768, 3.7, 1.633)
-def test_joint_2_phase_is_pinned(w2: float, duration_s: float, a2: float) -> None:
-    """phi2 = (pi - w2 T) / 2, hence sin(w2 T + phi2) = sin(phi2) and theta2(T) = theta2(0)."""
+@given(st.floats(0.2, 2.5), st.floats(2.0, 5.0), st.floats(-3.0, 3.0), st.floats(0.2, 2.5), st.floats(-1.5, 1.5))
+@example(0.768, 3.7, 1.633, 1.0, 0.2)
+@example(1.0, 2.7421875, 0.0, 1.0, 0.2)  # sin(w1 T + phi1) = sin(phi1): A1 is clamped
+def test_joint_2_phase_is_pinned_and_joint_1_is_exact_wherever_the_family_says_so(
+    w2: float, duration_s: float, a2: float, w1: float, phi1: float
+) -> None:
+    """phi2 = (pi - w2 T) / 2, hence sin(w2 T + phi2) = sin(phi2) and theta2(T) = theta2(0),
+    for every draw. Joint 1 reaches both ends exactly wherever ``endpoints_exact`` says so; where
+    it says not, the denominator sin(w1 T + phi1) - sin(phi1) was clamped."""
     context = EndpointContext((1.1, 0.4), (2.0, 0.4), duration_s)
-    full = expand("exact-endpoints", np.array([1.0, 0.2, a2, w2]), context)
+    free = np.array([w1, phi1, a2, w2])
+    full = EXACT_ENDPOINTS.expand(free, context)
     phi2 = full[6]
     assert phi2 == pytest.approx((math.pi - w2 * duration_s) / 2, abs=1e-15)
     assert math.sin(w2 * duration_s + phi2) == pytest.approx(math.sin(phi2), abs=1e-12)
     q = joint_angles(full, np.array([0.0, duration_s]))
     assert_allclose(q[:, 1], [0.4, 0.4], rtol=0, atol=1e-12)
-    assert_allclose(q[:, 0], [1.1, 2.0], rtol=0, atol=1e-12)
+    assert q[0, 0] == pytest.approx(1.1, abs=1e-12)  # the start is exact either way (gamma1 follows A1)
+    denominator = math.sin(w1 * duration_s + phi1) - math.sin(phi1)
+    if EXACT_ENDPOINTS.endpoints_exact(free, context):
+        assert abs(denominator) >= MIN_DENOMINATOR
+        assert q[1, 0] == pytest.approx(2.0, abs=1e-9)
+    else:
+        assert abs(denominator) < MIN_DENOMINATOR
+        assert abs(full[0]) == pytest.approx(0.9 / MIN_DENOMINATOR, rel=1e-9)
 
 
 def test_paper_family_expand_is_the_identity() -> None:
     free = np.random.default_rng(3).normal(size=(5, 8))
-    assert_allclose(expand("paper", free, None), free, rtol=0, atol=0)
+    assert_allclose(PAPER.expand(free, None), free, rtol=0, atol=0)
 
 
 def test_exact_endpoints_needs_a_context() -> None:
     with pytest.raises(InvalidParameterError):
-        expand("exact-endpoints", np.array([1.0, 0.2, 1.0, 0.8]), None)
+        EXACT_ENDPOINTS.expand(np.array([1.0, 0.2, 1.0, 0.8]), None)
 
 
-def test_unknown_family_is_rejected() -> None:
-    assert check_family("paper") == "paper"
-    for bad in ("Paper", "exact_endpoints", "", "sinusoid"):
-        with pytest.raises(InvalidParameterError):
-            check_family(bad)
-        with pytest.raises(InvalidParameterError):
-            search_bounds(bad)
+def test_families_are_found_by_name_and_unknown_names_are_rejected() -> None:
+    assert family_from_name("paper") is PAPER
+    assert family_from_name("exact-endpoints") is EXACT_ENDPOINTS
+    for bad in ("Paper", "exact_endpoints", "", "sinusoid", None, 3):
+        with pytest.raises(InvalidParameterError) as info:
+            family_from_name(bad)
+        assert info.value.value == bad
 
 
-@pytest.mark.parametrize("family", FAMILY_NAMES)
-def test_search_bounds_cover_the_free_parameters(family: str) -> None:
-    lower, upper = search_bounds(family)
-    names = FREE_PARAMETERS[family]
+@pytest.mark.parametrize("family", FAMILIES.values(), ids=FAMILIES.keys())
+def test_search_bounds_cover_the_free_parameters(family: TrajectoryFamily) -> None:
+    lower, upper = family.search_bounds()
+    names = family.free_parameter_names
     assert lower.shape == upper.shape == (len(names),)
     assert np.all(upper > lower)
     for name, lo, hi in zip(names, lower, upper, strict=True):
@@ -199,8 +210,8 @@ def test_inverse_kinematics_at_the_boundary_of_reach() -> None:
 # Canonical free parameters.
 
 
-@pytest.mark.parametrize("family", FAMILY_NAMES)
-def test_canonical_free_then_expand_is_the_same_motion(arm: PlanarArm, family: str) -> None:
+@pytest.mark.parametrize("family", FAMILIES.values(), ids=FAMILIES.keys())
+def test_canonical_free_then_expand_is_the_same_motion(arm: PlanarArm, family: TrajectoryFamily) -> None:
     """canonical_free + expand reproduces the joint angles of the original free parameters,
     also from non-canonical inputs (w1 < 0, phases beyond [-pi/2, pi/2))."""
     path = path_for(0.25, 0.10)
@@ -208,7 +219,7 @@ def test_canonical_free_then_expand_is_the_same_motion(arm: PlanarArm, family: s
     rng = np.random.default_rng(11)
     free = random_free(family, rng, 500)
     # Non-canonical equivalents: negate frequencies and shift phases by up to 3 half-turns.
-    if family == "paper":
+    if family is PAPER:
         free[:, [1, 2, 5, 6]] *= rng.choice([-1.0, 1.0], size=(len(free), 4))
         free[:, [2, 6]] += math.pi * rng.integers(-3, 4, size=(len(free), 2))
     else:
@@ -217,21 +228,21 @@ def test_canonical_free_then_expand_is_the_same_motion(arm: PlanarArm, family: s
         free[:, 0] *= sign
         free[:, 1] *= sign
         free = free[unclamped(free, context.duration_s)]
-    canonical = canonical_free(family, free)
+    canonical = family.canonical_free(free)
     t = np.linspace(0.0, path.duration_s, 101)
-    before = joint_angles(expand(family, free, context), t)
-    after = joint_angles(expand(family, canonical, context), t)
+    before = joint_angles(family.expand(free, context), t)
+    after = joint_angles(family.expand(canonical, context), t)
     assert_allclose(after, before, rtol=0, atol=1e-9)
     # Canonical: idempotent, w1 >= 0 and phi1 in [-pi/2, pi/2).
-    assert_allclose(canonical_free(family, canonical), canonical, rtol=0, atol=1e-12)
-    w1, phi1 = (canonical[:, 1], canonical[:, 2]) if family == "paper" else (canonical[:, 0], canonical[:, 1])
+    assert_allclose(family.canonical_free(canonical), canonical, rtol=0, atol=1e-12)
+    w1, phi1 = (canonical[:, 1], canonical[:, 2]) if family is PAPER else (canonical[:, 0], canonical[:, 1])
     assert np.all(w1 >= 0)
     assert np.all((phi1 >= -HALF_PI) & (phi1 < HALF_PI))
 
 
 def test_canonical_free_of_table_2_is_table_2(table2: np.ndarray) -> None:
     parameters = np.array(table2[:, :8])
-    assert_allclose(canonical_free("paper", parameters), parameters, rtol=0, atol=1e-15)
+    assert_allclose(PAPER.canonical_free(parameters), parameters, rtol=0, atol=1e-15)
 
 
 def test_exact_endpoints_equal_motions_get_equal_canonical_parameters(arm: PlanarArm) -> None:
@@ -243,12 +254,50 @@ def test_exact_endpoints_equal_motions_get_equal_canonical_parameters(arm: Plana
     t = np.linspace(0.0, context.duration_s, 101)
     # Same motion ...
     assert_allclose(
-        joint_angles(expand("exact-endpoints", mirrored, context), t),
-        joint_angles(expand("exact-endpoints", free, context), t),
+        joint_angles(EXACT_ENDPOINTS.expand(mirrored, context), t),
+        joint_angles(EXACT_ENDPOINTS.expand(free, context), t),
         rtol=0,
         atol=1e-12,
     )
     # ... so the same canonical free parameters (what the regression fits).
-    assert_allclose(
-        canonical_free("exact-endpoints", mirrored), canonical_free("exact-endpoints", free), rtol=0, atol=1e-12
-    )
+    assert_allclose(EXACT_ENDPOINTS.canonical_free(mirrored), EXACT_ENDPOINTS.canonical_free(free), rtol=0, atol=1e-12)
+
+
+# --------------------------------------------------------------------------------------------
+# Derivatives (what a range certificate needs).
+
+
+def _central_difference(function, x: np.ndarray, step: float) -> np.ndarray:
+    columns = []
+    for i in range(x.size):
+        e = np.zeros_like(x)
+        e[i] = step
+        columns.append((function(x + e) - function(x - e)) / (2 * step))
+    return np.stack(columns, -1)
+
+
+@pytest.mark.parametrize("family", FAMILIES.values(), ids=FAMILIES.keys())
+def test_expand_jacobians_match_finite_differences(arm: PlanarArm, family: TrajectoryFamily) -> None:
+    context = endpoint_context(path_for(0.25, 0.10), arm.link_lengths_m, 1)
+    rng = np.random.default_rng(5)
+    free_batch = random_free(family, rng, 40)
+    if family is EXACT_ENDPOINTS:
+        free_batch = free_batch[unclamped(free_batch, context.duration_s)]
+    j_free, j_context = family.expand_jacobians(free_batch, context)
+    assert j_free.shape == (len(free_batch), 8, family.free_count)
+    assert j_context.shape == (len(free_batch), 8, 5)
+    base = context.as_array()
+
+    def with_context(values: np.ndarray) -> EndpointContext:
+        return EndpointContext((values[0], values[1]), (values[2], values[3]), values[4])
+
+    for row, free in enumerate(free_batch):
+        numeric_free = _central_difference(lambda x: family.expand(x, context), free, 1e-6)
+        numeric_context = _central_difference(lambda c, f=free: family.expand(f, with_context(c)), base, 1e-6)
+        assert_allclose(j_free[row], numeric_free, rtol=1e-6, atol=1e-5)
+        assert_allclose(j_context[row], numeric_context, rtol=1e-6, atol=1e-5)
+
+
+def test_paper_family_never_claims_exact_endpoints() -> None:
+    free = np.random.default_rng(3).normal(size=(5, 8))
+    assert not np.any(PAPER.endpoints_exact(free, None))

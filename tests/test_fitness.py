@@ -1,4 +1,4 @@
-"""The objective (pipeline.fitness): Eq. 5 against a hand computation, fitness = sum of squared
+"""The objective (pipeline.offline.fitness): Eq. 5 against a hand computation, fitness = sum of squared
 residuals, the analytic and Coal clearance routes agree, when the penalty is active, and bad
 settings."""
 
@@ -11,13 +11,13 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.integrate import quad
 
-from pipeline.clearance import CoalClearance
 from pipeline.exceptions import InvalidParameterError
-from pipeline.family import FAMILY_NAMES, search_bounds
-from pipeline.fitness import FitnessConfig, FitnessProblem, fitness_problem
-from pipeline.robot import PlanarArm
-from pipeline.scene import Scene
-from pipeline.trajectory import joint_angles
+from pipeline.geometry.clearance import COAL, CoalClearance
+from pipeline.model.arm import PlanarArm
+from pipeline.model.scene import Scene
+from pipeline.motion.families import FAMILIES
+from pipeline.motion.trajectory import joint_angles
+from pipeline.offline.fitness import FitnessConfig, FitnessProblem, fitness_problem
 
 D, SPEED, L1, L2 = 0.56, 0.2, 0.30, 0.35
 TEST5 = np.array([-0.781, 0.996, 0.467, 1.116, 1.449, 0.864, 0.131, 0.543])  # Table 2, L = 0.25, W = 0.10
@@ -123,13 +123,13 @@ def test_path_points_and_weights(arm: PlanarArm, scene: Scene) -> None:
 # Residuals and routes.
 
 
-@pytest.mark.parametrize("family", FAMILY_NAMES)
+@pytest.mark.parametrize("family", FAMILIES.values(), ids=FAMILIES.keys())
 def test_fitness_is_the_sum_of_squared_residuals(arm: PlanarArm, scene: Scene, family: str) -> None:
     problem = fitness_problem(arm, 0.25, 0.10, scene, FitnessConfig(**SMALL), family)
-    lower, upper = search_bounds(family)
+    lower, upper = family.search_bounds()
     rng = np.random.default_rng(2)
     batch = lower + rng.random((40, lower.size)) * (upper - lower)
-    batch[:20] = NEAR[family] + rng.normal(scale=0.03, size=(20, lower.size))  # near the optimum
+    batch[:20] = NEAR[family.name] + rng.normal(scale=0.03, size=(20, lower.size))  # near the optimum
     values = problem.evaluate(batch)
     penalised = values > tracking_part(problem, problem.full_parameters(batch)) * (1 + 1e-9)
     assert penalised.any() and (~penalised).any()
@@ -139,16 +139,16 @@ def test_fitness_is_the_sum_of_squared_residuals(arm: PlanarArm, scene: Scene, f
         assert_allclose(problem.evaluate(free), value, rtol=1e-12)  # unbatched == batched
 
 
-@pytest.mark.parametrize("family", FAMILY_NAMES)
+@pytest.mark.parametrize("family", FAMILIES.values(), ids=FAMILIES.keys())
 def test_analytic_and_coal_routes_give_the_same_fitness(arm: PlanarArm, scene: Scene, family: str) -> None:
     """Equal wherever no sample has a link overlapping the obstacle: tracking-only parameters,
     and penalised ones (0 < clearance < penalty margin, or elbow below its minimum)."""
     fast = fitness_problem(arm, 0.25, 0.10, scene, FitnessConfig(**SMALL), family)
-    exact = fitness_problem(arm, 0.25, 0.10, scene, FitnessConfig(**SMALL, clearance_route="coal"), family)
+    exact = fitness_problem(arm, 0.25, 0.10, scene, FitnessConfig(**SMALL, clearance_route=COAL), family)
     rng = np.random.default_rng(9)
-    lower, upper = search_bounds(family)
+    lower, upper = family.search_bounds()
     batch = lower + rng.random((300, lower.size)) * (upper - lower)
-    batch[:150] = NEAR[family] + rng.normal(scale=0.08, size=(150, lower.size))
+    batch[:150] = NEAR[family.name] + rng.normal(scale=0.08, size=(150, lower.size))
     full = fast.full_parameters(batch)
     clearance = fast.clearance(full).min(axis=(-2, -1))
     overlap = clearance <= 0

@@ -1,4 +1,4 @@
-"""The online generator (pipeline.generator): Eq. 9 evaluated at (L, W), the path's duration,
+"""The online generator (pipeline.online.generator): Eq. 9 evaluated at (L, W), the path's duration,
 the out-of-range policies, bad and impossible obstacles, and batch == single queries for both
 families."""
 
@@ -12,21 +12,21 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.integrate import quad
 
-from pipeline.coefficients import Coefficients, fit_coefficients, load_coefficients, paper_data_path
-from pipeline.doe import DoeData, load_doe
 from pipeline.exceptions import (
     InvalidParameterError,
     OutOfFittedRangeError,
     OutOfFittedRangeWarning,
     UnreachableObstacleError,
 )
-from pipeline.family import endpoint_context, expand
-from pipeline.generator import generate, generate_parameters
-from pipeline.obstacle import Obstacle
-from pipeline.path import desired_path
-from pipeline.robot import PlanarArm
-from pipeline.scene import Scene
-from pipeline.trajectory import PARAMETER_NAMES, joint_angles
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.families import EXACT_ENDPOINTS, endpoint_context
+from pipeline.motion.path import desired_path
+from pipeline.motion.trajectory import PARAMETER_NAMES, joint_angles
+from pipeline.offline.coefficients import Coefficients, fit_coefficients, load_coefficients, paper_data_path
+from pipeline.offline.doe import DoeData, load_doe
+from pipeline.online.generator import generate, generate_parameters
 
 D, SPEED = 0.56, 0.2
 QUERIES = [(0.25, 0.10), (0.22, 0.09), (0.28, 0.115), (0.2, 0.08), (0.3, 0.12), (0.215, 0.105)]
@@ -58,7 +58,7 @@ def exact() -> Coefficients:
     L, W = base.lengths_m, base.widths_m
     free = np.column_stack([0.95 + 0.4 * (0.3 - L), 0.45 - 2.0 * (W - 0.1), 1.4 + 2 * L * W, 0.8 + 0.5 * W])
     doe = DoeData(
-        family="exact-endpoints",
+        family=EXACT_ENDPOINTS,
         lengths_m=L,
         widths_m=W,
         parameters=np.zeros((9, 8)),
@@ -82,7 +82,7 @@ def exact() -> Coefficients:
 @pytest.mark.parametrize(("L", "W"), QUERIES)
 def test_generate_gives_eq9_and_the_path_duration(paper: Coefficients, paper_eq9, L: float, W: float) -> None:
     trajectory = generate(paper, L, W)
-    assert trajectory.family == "paper"
+    assert trajectory.family.name == "paper"
     assert not trajectory.extrapolated
     assert_allclose(trajectory.trajectory.parameters, eq9_by_hand(paper_eq9, L, W), rtol=0, atol=1e-12)
     scene = Scene()
@@ -196,7 +196,7 @@ def test_exact_endpoints_generator_pins_the_tip(arm: PlanarArm, exact: Coefficie
         generated = generate(exact, L, W)
         free = exact.predict_free(L, W)
         context = endpoint_context(generated.path, arm.link_lengths_m, exact.elbow)
-        assert_allclose(generated.trajectory.parameters, expand("exact-endpoints", free, context), rtol=0, atol=1e-12)
+        assert_allclose(generated.trajectory.parameters, EXACT_ENDPOINTS.expand(free, context), rtol=0, atol=1e-12)
         tips = arm.end_effector_planar(generated.q(np.array([0.0, generated.duration_s])))
         assert_allclose(tips[0], generated.path.points_m[0], rtol=0, atol=1e-9)
         assert_allclose(tips[1], generated.path.points_m[-1], rtol=0, atol=1e-9)

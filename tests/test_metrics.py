@@ -11,13 +11,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline.coefficients import load_coefficients
 from pipeline.exceptions import InvalidParameterError
-from pipeline.obstacle import Obstacle
-from pipeline.path import desired_path
-from pipeline.robot import PlanarArm
-from pipeline.scene import Scene
-from pipeline.trajectory import JointTrajectory
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.path import desired_path
+from pipeline.motion.trajectory import JointTrajectory
+from pipeline.offline.coefficients import load_coefficients
 from verify.metrics import (
     AcceptanceThresholds,
     CaseResult,

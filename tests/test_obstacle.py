@@ -1,4 +1,4 @@
-"""The rounded obstacle (pipeline.obstacle): exact L x W footprint, rounded corners, bad input."""
+"""The rounded obstacle (pipeline.model.obstacle): exact L x W footprint, rounded corners, bad input."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from pipeline.exceptions import InvalidParameterError
-from pipeline.obstacle import Obstacle
-from pipeline.scene import Scene
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
 
 D = 0.56  # the paper's d
 

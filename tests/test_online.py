@@ -1,4 +1,4 @@
-"""Certify-or-repair (pipeline.online) never returns an uncertified trajectory as safe."""
+"""Certify-or-repair (pipeline.online.repair) never returns an uncertified trajectory as safe."""
 
 from __future__ import annotations
 
@@ -10,11 +10,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from pipeline.clearance import analytic_link_clearance
-from pipeline.coefficients import load_coefficients
 from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError
-from pipeline.generator import generate
-from pipeline.online import RepairConfig, generate_certified
+from pipeline.geometry.clearance import analytic_link_clearance
+from pipeline.motion.families import EXACT_ENDPOINTS
+from pipeline.offline.coefficients import load_coefficients
+from pipeline.online.generator import generate
+from pipeline.online.repair import RepairConfig, generate_certified
 from verify import online_sweep
 
 
@@ -103,14 +104,14 @@ def test_exact_endpoints_refusal_names_the_fixed_end_pose(arm, paper):
     """With exact endpoints the pose at P5 is fixed; at (0.25, 0.12) it is closer than the 1 cm
     margin (checked here independently by IK and the analytic distance), so the answer must be
     a refusal that says so, not a trajectory."""
-    from pipeline.coefficients import Coefficients
-    from pipeline.family import inverse_kinematics
-    from pipeline.obstacle import Obstacle
-    from pipeline.path import desired_path
+    from pipeline.model.kinematics import inverse_kinematics
+    from pipeline.model.obstacle import Obstacle
+    from pipeline.motion.path import desired_path
+    from pipeline.offline.coefficients import Coefficients
 
     constant = {"w1": 1.2, "phi1": 0.216, "A2": 3.0, "w2": 0.562}
     exact = Coefficients(
-        family="exact-endpoints",
+        family=EXACT_ENDPOINTS,
         parameters={name: (value, 0.0, 0.0, 0.0, 0.0, 0.0) for name, value in constant.items()},
         fitted_range_m=paper.fitted_range_m,
         scene=paper.scene,

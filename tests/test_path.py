@@ -1,4 +1,4 @@
-"""The desired path (pipeline.path): quartic through the five constraint points, arc length
+"""The desired path (pipeline.motion.path): quartic through the five constraint points, arc length
 against scipy's quad, timing at constant speed, and unreachable obstacles."""
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from numpy.testing import assert_allclose
 from scipy.integrate import quad
 
 from pipeline.exceptions import InvalidParameterError, UnreachableObstacleError
-from pipeline.obstacle import Obstacle
-from pipeline.path import QuarticPath, constraint_points, desired_path
-from pipeline.robot import PlanarArm
-from pipeline.scene import Scene
-from pipeline.trajectory import joint_angles
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.path import QuarticPath, constraint_points, desired_path
+from pipeline.motion.trajectory import joint_angles
 
 D, SPEED = 0.56, 0.2
 

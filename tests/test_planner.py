@@ -19,25 +19,28 @@ import math
 import numpy as np
 import pytest
 
-from pipeline.certificate import COAL_DISTANCE_ERROR_M, LinkReach
-from pipeline.clearance import CoalClearance, analytic_link_clearance, link_segments
-from pipeline.coefficients import load_coefficients
 from pipeline.exceptions import InvalidParameterError
-from pipeline.generator import generate
-from pipeline.obstacle import Obstacle
-from pipeline.robot import PlanarArm
-from pipeline.scene import Scene
-from verify.planner import (
+from pipeline.geometry.clearance import (
+    COAL_DISTANCE_ERROR_M,
+    CoalClearance,
+    analytic_link_clearance,
+    link_segments,
+    route_from_name,
+)
+from pipeline.geometry.link_reach import LinkReach
+from pipeline.geometry.polyline_certificate import (
     JointPath,
-    PlannerConfig,
     certify_joint_path,
     certify_path,
-    ompl_available,
-    plan_rrt_connect,
     segment_speed_bounds,
-    start_goal_configurations,
     timed_path,
 )
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.offline.coefficients import load_coefficients
+from pipeline.online.generator import generate
+from verify.planner import PlannerConfig, ompl_available, plan_rrt_connect, start_goal_configurations
 
 L1, L2, R_LINK = 0.30, 0.35, 0.005
 CORNER = 0.01
@@ -105,7 +108,7 @@ def test_graze_construction_is_exact(arm: PlanarArm, build) -> None:
 @pytest.mark.parametrize("route", ["coal", "analytic"])
 def test_collision_between_waypoints_is_not_certified(arm: PlanarArm, build, route: str) -> None:
     path, obstacle = build(-2e-4)
-    certificate = certify_path(path, arm, obstacle, route=route, samples_per_segment=2)
+    certificate = certify_path(path, arm, obstacle, route=route_from_name(route), samples_per_segment=2)
     # Every initial sample (the waypoints) clears the obstacle by centimetres ...
     assert certificate.sampled_clearance_m > 0.01
     # ... yet the certificate refuses, and the dense independent check agrees: there is a collision.
@@ -121,7 +124,7 @@ def test_collision_between_waypoints_is_not_certified(arm: PlanarArm, build, rou
 def test_graze_that_clears_by_a_hair_is_certified_tightly(arm: PlanarArm, build, route: str) -> None:
     gap = 2e-4
     path, obstacle = build(gap)
-    certificate = certify_path(path, arm, obstacle, route=route, samples_per_segment=2)
+    certificate = certify_path(path, arm, obstacle, route=route_from_name(route), samples_per_segment=2)
     assert certificate.certified
     assert certificate.certified_clearance_m <= gap  # a lower bound on the true minimum
     assert certificate.certified_clearance_m >= gap - 2 * COAL_DISTANCE_ERROR_M - certificate.tolerance_m
@@ -233,7 +236,7 @@ def test_timed_path_and_certificate_reject_bad_input(arm: PlanarArm) -> None:
         timed_path(np.eye(2), (3.0, 0.0))
     path, obstacle = corner_graze(1e-3)
     with pytest.raises(InvalidParameterError):
-        certify_path(path, arm, obstacle, route="nope")
+        certify_path(path, arm, obstacle, route=route_from_name("nope"))
     with pytest.raises(InvalidParameterError):
         certify_joint_path(path, CoalClearance(arm, obstacle).link_clearance, LinkReach.from_arm(arm), tolerance_m=0)
     with pytest.raises(InvalidParameterError):

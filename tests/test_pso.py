@@ -1,4 +1,4 @@
-"""Particle swarm optimisation (pipeline.pso): finds known minima, is reproducible from its seed,
+"""Particle swarm optimisation (pipeline.offline.pso): finds known minima, is reproducible from its seed,
 stays in the box, counts its evaluations, and rejects bad bounds and settings."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from pipeline.exceptions import InvalidParameterError
-from pipeline.pso import PsoConfig, PsoResult, minimize
+from pipeline.offline.pso import PsoConfig, PsoResult, minimize
 
 
 def shifted_sphere(center: np.ndarray):

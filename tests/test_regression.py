@@ -1,4 +1,4 @@
-"""Second-order regression (pipeline.regression): the key cross-check that least squares on the
+"""Second-order regression (pipeline.offline.regression): the key cross-check that least squares on the
 paper's Table 2 reproduces the paper's Eq. 9 within the rounding of Table 2, exact recovery of
 a known quadratic, leave-one-out errors against brute force, and rank-deficient designs."""
 
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pipeline.coefficients import load_coefficients, paper_data_path
-from pipeline.doe import load_doe
 from pipeline.exceptions import InvalidParameterError
-from pipeline.regression import BASIS, design_matrix, fit_quadratic, predict
-from pipeline.trajectory import PARAMETER_NAMES
+from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.coefficients import load_coefficients, paper_data_path
+from pipeline.offline.doe import load_doe
+from pipeline.offline.regression import BASIS, design_matrix, fit_quadratic, predict
 
 HALF_UNIT = 0.0005  # Table 2 prints three decimals: each value is within +-0.0005 of PSO's
 
@@ -42,7 +42,7 @@ def printed_half_unit(value: float) -> float:
 
 
 def test_paper_doe_is_table_2(paper_doe, table2: np.ndarray) -> None:
-    assert paper_doe.family == "paper"
+    assert paper_doe.family.name == "paper"
     assert_allclose(paper_doe.lengths_m, table2[:, 8], rtol=0, atol=0)
     assert_allclose(paper_doe.widths_m, table2[:, 9], rtol=0, atol=0)
     free = paper_doe.free_parameters()

@@ -1,4 +1,4 @@
-"""The arm loader (pipeline.robot): kinematics against Eq. 2 and yourdfpy, geometry read from the
+"""The arm loader (pipeline.model.arm): kinematics against Eq. 2 and yourdfpy, geometry read from the
 model, capsule substitution, the example-robot-data double pendulum, and RobotModelError cases."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import yourdfpy
 from numpy.testing import assert_allclose
 
 from pipeline.exceptions import PipelineError, RobotModelError
-from pipeline.robot import DEFAULT_URDF, PlanarArm, load_planar_arm
+from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
 
 # The paper's arm, written here independently of the model.
 L1, L2 = 0.30, 0.35

@@ -218,7 +218,7 @@ def test_write_json_atomic_replaces_and_leaves_no_temporary(tmp_path: Path) -> N
 
 
 # --------------------------------------------------------------------------------------------
-# Runs on the paper's Eq. 9 (needs pipeline.coefficients and pipeline.generator).
+# Runs on the paper's Eq. 9 (needs pipeline.offline.coefficients and pipeline.online.generator).
 
 
 def test_json_schema_and_summary(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

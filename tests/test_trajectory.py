@@ -1,4 +1,4 @@
-"""The sinusoid family (pipeline.trajectory): canonical form of Eq. 8, derivatives against finite
+"""The sinusoid family (pipeline.motion.trajectory): canonical form of Eq. 8, derivatives against finite
 differences, closed-form peaks against dense sampling, and bad input."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from pipeline.exceptions import InvalidParameterError
-from pipeline.trajectory import (
+from pipeline.motion.trajectory import (
     PARAMETER_NAMES,
     JointTrajectory,
     canonicalize,

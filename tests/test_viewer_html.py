@@ -25,11 +25,11 @@ import umsgpack
 from numpy.testing import assert_allclose
 from PIL import Image
 
-from pipeline.clearance import analytic_link_clearance, link_segments
-from pipeline.obstacle import Obstacle
-from pipeline.robot import PlanarArm
+from pipeline.geometry.clearance import analytic_link_clearance, link_segments
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
 from verify.viewer.browser import BrowserConfig, find_chromium
-from verify.viewer.scene import (
+from verify.viewer.drawing import (
     TopDownCamera,
     TrajectoryCase,
     ViewStyle,
@@ -327,14 +327,14 @@ def test_clearance_colours_run_from_red_to_green():
 
 
 def test_sweep_page_maps_every_case_and_animates_the_worst_ones(arm):
-    from pipeline.coefficients import load_coefficients
     from pipeline.exceptions import UnreachableObstacleError
+    from pipeline.offline.coefficients import load_coefficients
     from verify.viewer.sweep_view import sweep_page
 
     def regenerate_or_fail(length_m, width_m):
         if length_m == 0.30:
             raise UnreachableObstacleError("P1", 0.7, (0.05, 0.65))
-        from pipeline.generator import generate
+        from pipeline.online.generator import generate
 
         return generate(load_coefficients("paper"), length_m, width_m)
 
@@ -361,8 +361,8 @@ def test_sweep_page_maps_every_case_and_animates_the_worst_ones(arm):
 
 
 def test_coefficients_regenerate_the_worst_cases_with_the_generator():
-    from pipeline.coefficients import load_coefficients
-    from pipeline.generator import generate
+    from pipeline.offline.coefficients import load_coefficients
+    from pipeline.online.generator import generate
     from verify.viewer.sweep_view import _regenerator
 
     coefficients = load_coefficients("paper")

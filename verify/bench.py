@@ -3,12 +3,12 @@
 On the same ``--n`` random obstacles (L, W) (uniform in the coefficients' fitted range, seeded),
 in one run on this machine, it times side by side:
 
-* **(a)** the regression generator alone (:func:`pipeline.generator.generate`), one query at a
-  time, and **(a')** batched (:func:`pipeline.generator.generate_parameters` over all obstacles,
+* **(a)** the regression generator alone (:func:`pipeline.online.generator.generate`), one query at a
+  time, and **(a')** batched (:func:`pipeline.online.generator.generate_parameters` over all obstacles,
   time divided by their number);
-* **(b)** the generator with certification (:func:`pipeline.online.generate_certified`:
+* **(b)** the generator with certification (:func:`pipeline.online.repair.generate_certified`:
   certify, repair if needed, or refuse);
-* **(c)** re-running the PSO online for that (L, W) (:func:`pipeline.experiment.solve_experiment`,
+* **(c)** re-running the PSO online for that (L, W) (:func:`pipeline.offline.experiment.solve_experiment`,
   what the regression replaces; seconds per obstacle, so only on the first ``--pso-cases``);
 * **(d)** a general-purpose planner: OMPL's RRT-Connect from the start to the goal configuration
   (analytic IK of P1 and P5) with a Coal validity checker on the same geometry
@@ -43,15 +43,15 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.certificate import certify_trajectory
 from pipeline.exceptions import PipelineError
-from pipeline.experiment import SolverConfig
-from pipeline.fitness import FitnessConfig
-from pipeline.jsonio import write_json_atomic
-from pipeline.provenance import PACKAGES, package_versions
-from pipeline.pso import PsoConfig
-from pipeline.robot import load_planar_arm
-from pipeline.trajectory import JointTrajectory
+from pipeline.geometry.sinusoid_certificate import certify_trajectory
+from pipeline.io.jsonio import write_json_atomic
+from pipeline.io.provenance import PACKAGES, package_versions
+from pipeline.model.arm import load_planar_arm
+from pipeline.motion.trajectory import JointTrajectory
+from pipeline.offline.experiment import SolverConfig
+from pipeline.offline.fitness import FitnessConfig
+from pipeline.offline.pso import PsoConfig
 from verify.cli import DEFAULT_COEFFICIENTS, HelpFormatter, Parser, load_coefficients_for_cli
 
 from . import planner
@@ -117,7 +117,7 @@ def solver_config(coefficients: Any, settings: BenchSettings) -> tuple[SolverCon
     if provenance.get("pso") is not None:
         try:
             pso = PsoConfig(**provenance["pso"])
-            fitness = FitnessConfig(**provenance.get("fitness", {}))
+            fitness = FitnessConfig.from_json(provenance.get("fitness", {}))
             polish = bool(provenance.get("polish", True))
             source = "the build's settings (coefficients' provenance)"
         except (TypeError, PipelineError):
@@ -301,7 +301,7 @@ def run_bench(
     return BenchReport(
         coefficients={
             "source": source,
-            "family": coefficients.family,
+            "family": coefficients.family.name,
             "sha256": coefficients.source_sha256,
             "fitted_range_m": {k: list(v) for k, v in coefficients.fitted_range_m.items()},
         },

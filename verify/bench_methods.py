@@ -14,15 +14,16 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.certificate import certify_trajectory
 from pipeline.exceptions import DataFileError, NoCertifiedTrajectoryError, PipelineError
-from pipeline.experiment import SolverConfig, solve_experiment
-from pipeline.generator import generate, generate_parameters
-from pipeline.jsonio import read_json
-from pipeline.obstacle import Obstacle
-from pipeline.online import generate_certified
-from pipeline.robot import PlanarArm
-from pipeline.trajectory import PARAMETER_NAMES, JointTrajectory
+from pipeline.geometry.polyline_certificate import certify_path
+from pipeline.geometry.sinusoid_certificate import certify_trajectory
+from pipeline.io.jsonio import read_json
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory
+from pipeline.offline.experiment import SolverConfig, solve_experiment
+from pipeline.online.generator import generate, generate_parameters
+from pipeline.online.repair import generate_certified
 
 from . import planner
 from .bench_results import WARMUP_CALLS, BenchSettings, MethodResult
@@ -177,7 +178,7 @@ def bench_ompl(
             plan_s, (obstacle, result) = _timed(lambda length=length, width=width: query(float(length), float(width)))
             certify_s = 0.0
             if result.solved and result.path is not None:
-                certify_s, certificate = _timed(lambda r=result, o=obstacle: planner.certify_path(r.path, arm, o))
+                certify_s, certificate = _timed(lambda r=result, o=obstacle: certify_path(r.path, arm, o))
                 clearances.append(certificate.certified_clearance_m)
                 waypoints.append(int(result.waypoints_rad.shape[0]))
                 answered_times.append(plan_s)
@@ -300,7 +301,7 @@ def run_reduced_build(levels: int, config: SolverConfig, seed: int, urdf: Path |
             "--levels",
             str(levels),
             "--family",
-            config.family,
+            config.family.name,
             "--swarm-size",
             str(config.pso.swarm_size),
             "--iterations",

@@ -6,8 +6,8 @@ import argparse
 from pathlib import Path
 from typing import NoReturn
 
-from pipeline.coefficients import Coefficients, load_coefficients
 from pipeline.exceptions import DataFileError
+from pipeline.offline.coefficients import Coefficients, load_coefficients
 
 #: Exit status for bad command-line input (argparse's own convention).
 EXIT_USAGE = 2
@@ -16,7 +16,7 @@ DEFAULT_COEFFICIENTS = "results/coefficients.json"
 
 
 def load_coefficients_for_cli(source: str) -> Coefficients:
-    """:func:`pipeline.coefficients.load_coefficients`, with a hint when the default file is missing.
+    """:func:`pipeline.offline.coefficients.load_coefficients`, with a hint when the default file is missing.
 
     Raises:
         DataFileError: missing, unreadable or malformed file.

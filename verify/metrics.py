@@ -7,7 +7,7 @@ For one case the verifier measures
   box (Coal); ``n`` defaults to the number of samples at which no point of either link moves
   more than ``resolution_m`` (1 mm) between two samples;
 * **certified clearance** [m]: a rigorous lower bound on the clearance over the whole continuous
-  time interval (:mod:`pipeline.certificate`); the case is collision-free only if it is > 0;
+  time interval (:mod:`pipeline.geometry.sinusoid_certificate`); the case is collision-free only if it is > 0;
 * **endpoint errors** [m]: end effector (Pinocchio frame) against P1 at t = 0 and P5 at t = T;
 * **tracking errors** [m]: max and RMS distance between the end effector and the desired path
   at matched times (t = S / v) over the same time samples;
@@ -26,25 +26,19 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pipeline.certificate import (
-    COAL_DISTANCE_ERROR_M,
-    DEFAULT_MAX_EVALUATIONS,
-    DEFAULT_RESOLUTION_M,
-    DEFAULT_TOLERANCE_M,
-    LinkReach,
-    certify,
-    samples_for_resolution,
-)
-from pipeline.clearance import CoalClearance
 from pipeline.exceptions import InvalidParameterError, PipelineError
-from pipeline.obstacle import Obstacle
-from pipeline.path import QuarticPath
-from pipeline.robot import PlanarArm
-from pipeline.trajectory import JointTrajectory
+from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance
+from pipeline.geometry.link_reach import LinkReach
+from pipeline.geometry.motion_certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M
+from pipeline.geometry.sinusoid_certificate import certify, samples_for_resolution
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.motion.path import QuarticPath
+from pipeline.motion.trajectory import JointTrajectory
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pipeline.coefficients import Coefficients
+    from pipeline.offline.coefficients import Coefficients
 
 
 @dataclass(frozen=True)
@@ -450,7 +444,7 @@ def measure_case(
     ``error`` set; it does not raise. The generator uses the link lengths stored in the
     coefficients; :func:`check_arm_matches` tells whether they are ``arm``'s.
     """
-    from pipeline.generator import generate
+    from pipeline.online.generator import generate
 
     try:
         generated = generate(coefficients, L_m, W_m, out_of_range="ignore")

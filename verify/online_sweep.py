@@ -1,7 +1,7 @@
 """``python -m verify.online_sweep``: certify-or-repair over many obstacles.
 
 For each sampled (L, W) the online generator runs with certification on
-(:func:`pipeline.online.generate_certified`). Every answer must either carry a certified
+(:func:`pipeline.online.repair.generate_certified`). Every answer must either carry a certified
 clearance of at least the margin or be a refusal that says why; this sweep checks that
 invariant on every case and reports how many answers came straight from the regression,
 how many were repaired, and how many were refused. ``--beyond 0.2`` widens the fitted range
@@ -21,11 +21,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from pipeline.coefficients import Coefficients, load_coefficients
 from pipeline.exceptions import NoCertifiedTrajectoryError, PipelineError, UnreachableObstacleError
-from pipeline.jsonio import write_json_atomic
-from pipeline.online import RepairConfig, generate_certified
-from pipeline.robot import DEFAULT_URDF, PlanarArm, load_planar_arm
+from pipeline.geometry.clearance import ROUTES, route_from_name
+from pipeline.io.jsonio import write_json_atomic
+from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
+from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.online.repair import RepairConfig, generate_certified
 
 from .cli import DEFAULT_COEFFICIENTS, load_coefficients_for_cli
 from .sweep import SweepRange, sample_cases
@@ -142,7 +143,7 @@ def parser() -> argparse.ArgumentParser:
         "--beyond", type=float, default=0.0, help="widen the fitted range by this fraction of its width per side"
     )
     p.add_argument("--jobs", type=int, default=1, help="worker processes")
-    p.add_argument("--route", choices=("coal", "analytic"), default=defaults.route, help="certificate's distance route")
+    p.add_argument("--route", choices=tuple(ROUTES), default=defaults.route.name, help="certificate's distance route")
     p.add_argument("--max-seconds", type=float, default=defaults.max_seconds, help="repair time budget per query [s]")
     p.add_argument("--no-repair", action="store_true", help="refuse instead of repairing")
     p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm")
@@ -165,7 +166,9 @@ def main(argv: list[str] | None = None) -> int:
             (max(1e-3, fitted.L_m[0] - grow_l), fitted.L_m[1] + grow_l),
             (max(1e-3, fitted.W_m[0] - grow_w), fitted.W_m[1] + grow_w),
         )
-        config = RepairConfig(route=args.route, max_seconds=args.max_seconds, repair=not args.no_repair)
+        config = RepairConfig(
+            route=route_from_name(args.route), max_seconds=args.max_seconds, repair=not args.no_repair
+        )
         cases = sample_cases(sweep_range, args.n, args.seed)
         results = run(args.coefficients, cases, config, args.urdf, args.jobs, not args.no_progress)
     except PipelineError as exc:
@@ -174,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = summarize(results, coefficients.scene.margin_m)
     summary["range"] = {"L": list(sweep_range.L_m), "W": list(sweep_range.W_m)}
     print(
-        f"certify-or-repair on {args.coefficients} ({coefficients.family}), {len(results)} cases, "
+        f"certify-or-repair on {args.coefficients} ({coefficients.family.name}), {len(results)} cases, "
         f"L in [{sweep_range.L_m[0]:.4f}, {sweep_range.L_m[1]:.4f}] m, "
         f"W in [{sweep_range.W_m[0]:.4f}, {sweep_range.W_m[1]:.4f}] m"
     )

@@ -19,12 +19,12 @@ import numpy as np
 from matplotlib.colors import Normalize, TwoSlopeNorm
 from matplotlib.patches import FancyBboxPatch, Rectangle
 
-from pipeline.clearance import link_segments
 from pipeline.exceptions import PipelineError
-from pipeline.obstacle import Obstacle
-from pipeline.path import QuarticPath
-from pipeline.robot import PlanarArm, load_planar_arm
-from pipeline.trajectory import JointTrajectory
+from pipeline.geometry.clearance import link_segments
+from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.obstacle import Obstacle
+from pipeline.motion.path import QuarticPath
+from pipeline.motion.trajectory import JointTrajectory
 
 from .metrics import CaseResult
 
@@ -214,8 +214,8 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
     The case studies' trajectories are regenerated from the run's coefficients (as an online
     user would); cases that cannot be generated are left out of the figure.
     """
-    from pipeline.coefficients import load_coefficients
-    from pipeline.generator import generate
+    from pipeline.offline.coefficients import load_coefficients
+    from pipeline.online.generator import generate
 
     from .sweep import DOE_L_M, DOE_W_M
 

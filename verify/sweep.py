@@ -2,9 +2,9 @@
 
 For ``n`` obstacle sizes (L, W) drawn uniformly (seeded) from the coefficients' fitted range
 (or ``--range``), the trajectory is generated from the coefficients exactly as an online user
-would (:func:`pipeline.generator.generate`) and measured by :func:`verify.metrics.measure_case`:
+would (:func:`pipeline.online.generator.generate`) and measured by :func:`verify.metrics.measure_case`:
 sampled and certified clearance (Pinocchio + Coal, continuous-time certificate of
-:mod:`pipeline.certificate`), endpoint errors, tracking errors, joint peaks against the URDF.
+:mod:`pipeline.geometry.sinusoid_certificate`), endpoint errors, tracking errors, joint peaks against the URDF.
 
 Exit status: 0 if every case passes, 1 if any case fails (they are listed with their (L, W)),
 2 on bad input (one line on stderr, no traceback), 130 if interrupted.
@@ -33,12 +33,13 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from pipeline.certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M, LinkReach
 from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
-from pipeline.jsonio import json_safe, write_json_atomic
-from pipeline.obstacle import Obstacle
-from pipeline.provenance import package_versions, sha256_file
-from pipeline.robot import PlanarArm, load_planar_arm
+from pipeline.geometry.link_reach import LinkReach
+from pipeline.geometry.motion_certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M
+from pipeline.io.jsonio import json_safe, write_json_atomic
+from pipeline.io.provenance import package_versions, sha256_file
+from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.obstacle import Obstacle
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 from verify.cli import DEFAULT_COEFFICIENTS, HelpFormatter, Parser, load_coefficients_for_cli
 
@@ -453,7 +454,7 @@ def run_sweep(
             "source": source,
             "path": None if source == "paper" else str(Path(source).resolve()),
             "sha256": coefficients.source_sha256,
-            "family": coefficients.family,
+            "family": coefficients.family.name,
             "fitted_range_m": fitted.to_dict(),
             "provenance": coefficients.provenance,
         },
@@ -726,7 +727,7 @@ def _viewer(args: argparse.Namespace) -> Any:
 
 def _show(viewer: Any, runs: Sequence[SweepRun], coefficients: Sequence[Any], args: argparse.Namespace) -> None:
     """Write the HTML view (one file per run) and/or serve the Meshcat view (first run) of the sweep."""
-    from pipeline.generator import generate
+    from pipeline.online.generator import generate
 
     arm = load_planar_arm(args.urdf)
     for k, (run, coefficient_set) in enumerate(zip(runs, coefficients, strict=True)):

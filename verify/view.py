@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning, PipelineError
-from pipeline.robot import DEFAULT_URDF, load_planar_arm
+from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
 from verify.cli import Parser, load_coefficients_for_cli
 
 PROG = "python -m verify.view"
@@ -146,7 +146,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _run(args: argparse.Namespace) -> int:
     # Meshcat is imported here, by the viewer modules, only when a view is requested.
     from verify.viewer.browser import BrowserConfig
-    from verify.viewer.scene import ViewStyle
+    from verify.viewer.drawing import ViewStyle
     from verify.viewer.trajectory_view import (
         case_from_generated,
         paper_test1_case,
@@ -160,7 +160,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.paper_test1:
         case = paper_test1_case(arm)
     else:
-        from pipeline.generator import generate
+        from pipeline.online.generator import generate
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", OutOfFittedRangeWarning)

@@ -4,7 +4,7 @@ The only package of the project that imports Meshcat (the modules below import i
 ``__init__`` does not, so importing :mod:`verify.viewer.server` stays light).
 
 * :mod:`verify.viewer.server`: a loopback-only Meshcat server process, stopped by PID.
-* :mod:`verify.viewer.scene`: drawing arm, obstacle, paths, constraint points, minimum
+* :mod:`verify.viewer.drawing`: drawing arm, obstacle, paths, constraint points, minimum
   clearance and animation; top-down camera; flat-colour style for pixel tests.
 * :mod:`verify.viewer.trajectory_view`: one trajectory live, as HTML, or as a screenshot.
 * :mod:`verify.viewer.sweep_view`: a sweep's (L, W) map and its worst cases.

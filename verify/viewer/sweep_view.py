@@ -23,11 +23,11 @@ from typing import Any, TextIO
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError, PipelineError
-from pipeline.robot import PlanarArm, load_planar_arm
+from pipeline.model.arm import PlanarArm, load_planar_arm
 
 from ._meshcat import meshcat, mg, mtf
 from .browser import BrowserConfig
-from .scene import (
+from .drawing import (
     DrawnCase,
     TopDownCamera,
     ViewStyle,
@@ -157,7 +157,7 @@ def worst_cases(cases: Sequence[Mapping[str, Any]]) -> list[WorstCase]:
 def _regenerator(source: TrajectorySource) -> Callable[[float, float], GeneratedLike]:
     if callable(source):
         return source
-    from pipeline.generator import generate  # the coefficients route; imported only when used
+    from pipeline.online.generator import generate  # the coefficients route; imported only when used
 
     # The sweep reports extrapolation itself; regenerating its worst cases need not warn again.
     return lambda length_m, width_m: generate(source, length_m, width_m, out_of_range="ignore")
@@ -303,7 +303,7 @@ def sweep_html(
     Args:
         cases: The sweep's per-case dicts (keys :data:`CASE_KEYS`).
         trajectory_for: ``f(L_m, W_m)`` returning an object with ``.obstacle``, ``.path``
-            and ``.trajectory`` (e.g. ``pipeline.generator.generate`` bound to
+            and ``.trajectory`` (e.g. ``pipeline.online.generator.generate`` bound to
             coefficients), or a ``Coefficients`` object (then ``generate`` is used).
         html_path: Output file; its directory is created.
         arm: The arm; default the project's URDF.

@@ -14,15 +14,15 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Protocol, TextIO
 
-from pipeline.obstacle import Obstacle
-from pipeline.path import QuarticPath, desired_path
-from pipeline.robot import PlanarArm, load_planar_arm
-from pipeline.scene import Scene
-from pipeline.trajectory import JointTrajectory
+from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.path import QuarticPath, desired_path
+from pipeline.motion.trajectory import JointTrajectory
 
 from ._meshcat import meshcat
 from .browser import BrowserConfig, screenshot_html
-from .scene import (
+from .drawing import (
     DrawnCase,
     TopDownCamera,
     TrajectoryCase,
@@ -50,7 +50,7 @@ PAPER_TEST1_SIZE_M: tuple[float, float] = (0.30, 0.12)
 
 
 class GeneratedLike(Protocol):
-    """What :func:`case_from_generated` needs of ``pipeline.generator.GeneratedTrajectory``."""
+    """What :func:`case_from_generated` needs of ``pipeline.online.generator.GeneratedTrajectory``."""
 
     obstacle: Obstacle
     path: QuarticPath

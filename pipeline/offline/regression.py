@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .exceptions import InvalidParameterError
+from pipeline.exceptions import InvalidParameterError
 
 BASIS: tuple[str, ...] = ("1", "L", "W", "L^2", "L*W", "W^2")
 

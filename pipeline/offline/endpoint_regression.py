@@ -1,6 +1,6 @@
 """Second-order regression that keeps the end effector within a tolerance of P1 and P5.
 
-The plain regression (:mod:`pipeline.regression`, the paper's Eq. 9) fits each of the eight
+The plain regression (:mod:`pipeline.offline.regression`, the paper's Eq. 9) fits each of the eight
 parameters to the DOE optima on its own. For the paper family the tip's start and end points
 depend on all eight at once (a 10 mrad error in gamma1 moves the tip by up to 6.5 mm), so the
 small residuals of eight independent fits add up to endpoint errors between the DOE points
@@ -24,14 +24,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .exceptions import EndpointConstraintWarning, InvalidParameterError
-from .family import forward_kinematics, reach_annulus_m
-from .obstacle import Obstacle
-from .path import desired_path
-from .regression import QuadraticFit, coefficient_of_determination, design_matrix, fit_quadratic
-from .scene import Scene
-from .trajectory import PARAMETER_NAMES
-from .validation import check_positive, check_positive_int
+from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError
+from pipeline.model.kinematics import forward_kinematics, reach_annulus_m
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.path import desired_path
+from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.regression import QuadraticFit, coefficient_of_determination, design_matrix, fit_quadratic
+from pipeline.validation import check_positive, check_positive_int
 
 
 @dataclass(frozen=True)
@@ -167,7 +167,7 @@ def fit_with_endpoints(
 
     Raises:
         InvalidParameterError: ``values`` is not the paper family's 8 parameters; or as
-            :func:`pipeline.regression.fit_quadratic`.
+            :func:`pipeline.offline.regression.fit_quadratic`.
     """
     if tuple(values) != PARAMETER_NAMES:
         raise InvalidParameterError("parameters", tuple(values), f"the paper family's {PARAMETER_NAMES}")

@@ -12,10 +12,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .exceptions import InvalidParameterError, UnreachableObstacleError
-from .obstacle import Obstacle
-from .scene import Scene
-from .validation import check_positive_int
+from pipeline.exceptions import InvalidParameterError, UnreachableObstacleError
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.validation import check_positive_int
 
 _PANELS = 64
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(10)

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from .exceptions import DataFileError, OutputExistsError
+from pipeline.exceptions import DataFileError, OutputExistsError
 
 
 def read_json(path: str | Path) -> dict:

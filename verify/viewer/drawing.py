@@ -29,12 +29,12 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from pipeline.clearance import CoalClearance
 from pipeline.exceptions import InvalidParameterError
-from pipeline.obstacle import Obstacle
-from pipeline.path import QuarticPath
-from pipeline.robot import PlanarArm
-from pipeline.trajectory import JointTrajectory
+from pipeline.geometry.clearance import CoalClearance
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.motion.path import QuarticPath
+from pipeline.motion.trajectory import JointTrajectory
 from pipeline.validation import check_positive, check_positive_int
 
 from ._meshcat import Animation, MeshcatVisualizer, meshcat, mg, mtf

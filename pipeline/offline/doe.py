@@ -16,14 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .exceptions import DataFileError, InvalidParameterError
-from .experiment import ExperimentResult, SolverConfig, solve_experiment
-from .family import FAMILY_NAMES, FREE_PARAMETERS, canonical_free
-from .jsonio import read_json
-from .robot import PlanarArm, load_planar_arm
-from .scene import Scene
-from .trajectory import PARAMETER_NAMES, canonicalize
-from .validation import check_positive, check_positive_int
+from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
+from pipeline.io.jsonio import read_json
+from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.scene import Scene
+from pipeline.motion.families import PAPER, TrajectoryFamily, family_from_name
+from pipeline.motion.trajectory import PARAMETER_NAMES, canonicalize
+from pipeline.offline.experiment import ExperimentResult, SolverConfig, solve_experiment
+from pipeline.validation import check_positive, check_positive_int
 
 FORMAT = "twolink-doe/1"
 PAPER_L_RANGE_M = (0.20, 0.30)
@@ -130,7 +130,7 @@ class DoeData:
         source: File path.
     """
 
-    family: str
+    family: TrajectoryFamily
     lengths_m: np.ndarray
     widths_m: np.ndarray
     parameters: np.ndarray
@@ -144,8 +144,8 @@ class DoeData:
 
     def free_parameters(self) -> dict[str, np.ndarray]:
         """Homogenised (Eq. 8) free parameters of the family, name -> (n,)."""
-        free = canonical_free(self.family, self.free)
-        return {name: free[:, i] for i, name in enumerate(FREE_PARAMETERS[self.family])}
+        free = self.family.canonical_free(self.free)
+        return {name: free[:, i] for i, name in enumerate(self.family.free_parameter_names)}
 
 
 def _number(value: object) -> bool:
@@ -169,9 +169,11 @@ def doe_from_json(document: dict, path: str) -> DoeData:
     """
     if document.get("format") != FORMAT:
         raise DataFileError(path, f"format is {document.get('format')!r}, expected {FORMAT!r}")
-    family = document.get("family", "paper")
-    if family not in FAMILY_NAMES:
-        raise DataFileError(path, f"family is {family!r}, expected one of {FAMILY_NAMES}")
+    try:
+        family = family_from_name(document.get("family", PAPER.name))
+    except PipelineError as exc:
+        raise DataFileError(path, str(exc)) from None
+    all_free = family.free_parameter_names == PARAMETER_NAMES
     experiments = document.get("experiments")
     if not isinstance(experiments, list) or not experiments:
         raise DataFileError(path, "'experiments' must be a non-empty list")
@@ -187,8 +189,8 @@ def doe_from_json(document: dict, path: str) -> DoeData:
         lengths.append(float(L))
         widths.append(float(W))
         rows.append([float(params[n]) for n in PARAMETER_NAMES])
-        free_names = FREE_PARAMETERS[family]
-        if family == "paper":
+        free_names = family.free_parameter_names
+        if all_free:
             free_rows.append(rows[-1])
         else:
             free = experiment.get("free_parameters")
@@ -210,7 +212,7 @@ def doe_from_json(document: dict, path: str) -> DoeData:
         family=family,
         lengths_m=np.array(lengths),
         widths_m=np.array(widths),
-        parameters=canonicalize(np.array(rows)) if family == "paper" else np.array(rows),
+        parameters=canonicalize(np.array(rows)) if all_free else np.array(rows),
         free=np.array(free_rows),
         scene=scene,
         link_lengths_m=(float(lengths_link[0]), float(lengths_link[1])),
@@ -233,7 +235,7 @@ def doe_document(
     """The doe.json document (deterministic: no wall times)."""
     return {
         "format": FORMAT,
-        "family": config.family,
+        "family": config.family.name,
         "design": design.to_json(),
         "scene": {
             **scene.to_dict(),

@@ -1,7 +1,7 @@
 """Certify-or-repair: the online generator that never returns an uncertified trajectory as safe.
 
-1. Generate the trajectory from the regression (:func:`pipeline.generator.generate`).
-2. Certify it (:func:`pipeline.certificate.certify_trajectory`): a rigorous lower bound on
+1. Generate the trajectory from the regression (:func:`pipeline.online.generator.generate`).
+2. Certify it (:func:`pipeline.geometry.sinusoid_certificate.certify_trajectory`): a rigorous lower bound on
    the clearance over the whole of [0, T].
 3. If the certified clearance is below the margin, repair: a short
    ``scipy.optimize.least_squares`` on the build's objective (Eq. 5 + clearance penalty),
@@ -19,16 +19,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from .certificate import Certificate, certify_trajectory
-from .clearance import CoalClearance
-from .coefficients import Coefficients
-from .exceptions import NoCertifiedTrajectoryError
-from .family import canonical_free, polish_bounds
-from .fitness import FitnessConfig, fitness_problem
-from .generator import GeneratedTrajectory, generate
-from .robot import PlanarArm
-from .trajectory import JointTrajectory
-from .validation import check_non_negative, check_positive, check_positive_int
+from pipeline.exceptions import NoCertifiedTrajectoryError
+from pipeline.geometry.clearance import COAL, ClearanceRoute, CoalClearance
+from pipeline.geometry.motion_certificate import Certificate
+from pipeline.geometry.sinusoid_certificate import certify_trajectory
+from pipeline.model.arm import PlanarArm
+from pipeline.motion.trajectory import JointTrajectory
+from pipeline.offline.coefficients import Coefficients
+from pipeline.offline.fitness import FitnessConfig, fitness_problem
+from pipeline.online.generator import GeneratedTrajectory, generate
+from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
 
 @dataclass(frozen=True)
@@ -37,7 +37,7 @@ class RepairConfig:
 
     Attributes:
         margin_m: Certified clearance required [m]; None means the coefficients' scene margin.
-        route: Clearance route of the certificate: "coal" (canonical) or "analytic".
+        route: Clearance route of the certificate: COAL (canonical) or ANALYTIC.
         repair: Try a local repair when certification fails (else refuse at once).
         max_seconds: Wall-time budget of the repair's optimisation [s].
         max_evaluations: Budget of objective evaluations of the repair.
@@ -45,7 +45,7 @@ class RepairConfig:
     """
 
     margin_m: float | None = None
-    route: str = "coal"
+    route: ClearanceRoute = COAL
     repair: bool = True
     max_seconds: float = 0.5
     max_evaluations: int = 400
@@ -121,7 +121,7 @@ def _repair(
             raise _Stop
         return r
 
-    lower, upper = polish_bounds(coefficients.family)
+    lower, upper = coefficients.family.polish_bounds()
     try:
         least_squares(
             residuals,
@@ -133,7 +133,7 @@ def _repair(
         )
     except _Stop:
         pass
-    full = problem.full_parameters(canonical_free(coefficients.family, best["x"]))
+    full = problem.full_parameters(coefficients.family.canonical_free(best["x"]))
     return JointTrajectory(tuple(full), generated.duration_s)
 
 
@@ -152,7 +152,7 @@ def generate_certified(
         NoCertifiedTrajectoryError: neither the regression's answer nor its repair has a
             certified clearance of at least the margin.
         InvalidParameterError, UnreachableObstacleError, OutOfFittedRangeError: as
-            :func:`pipeline.generator.generate`.
+            :func:`pipeline.online.generator.generate`.
     """
     config = config if config is not None else RepairConfig()
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
@@ -183,7 +183,8 @@ def generate_certified(
 
 def _refusal_reason(generated: GeneratedTrajectory, arm: PlanarArm, coefficients: Coefficients, margin: float) -> str:
     """Why the repair could not reach the margin, in words that group well across cases."""
-    if coefficients.family == "exact-endpoints":
+    family = coefficients.family
+    if family.pins_endpoints:
         # The family pins the poses at P1 and P5: if one of them is closer than the margin,
         # no trajectory of the family can keep it.
         ends = np.array([0.0, generated.duration_s])
@@ -191,5 +192,5 @@ def _refusal_reason(generated: GeneratedTrajectory, arm: PlanarArm, coefficients
         closest = clearance.min(axis=1)
         if closest.min() < margin:
             name = "P1" if closest[0] <= closest[1] else "P5"
-            return f"the end pose at {name}, fixed by the exact-endpoints family, is closer than the margin"
+            return f"the end pose at {name}, fixed by the {family.name} family, is closer than the margin"
     return "the repair did not reach the margin"

@@ -1,7 +1,7 @@
 """Coefficients files: the closed-form parameters(L, W) the online generator evaluates.
 
 ``coefficients.json`` holds, per free parameter of the trajectory family, the six
-coefficients of :data:`pipeline.regression.BASIS`, the (L, W) range they were fitted on,
+coefficients of :data:`pipeline.offline.regression.BASIS`, the (L, W) range they were fitted on,
 and the scene and arm they assume. ``"paper"`` names the paper's own Eq. 9, shipped with
 the package (``pipeline/data/paper_eq9_coefficients.json``).
 """
@@ -16,15 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
-from .exceptions import DataFileError, InvalidParameterError, PipelineError
-from .family import FAMILY_NAMES, FREE_PARAMETERS
-from .jsonio import dumps, read_json, write_text_atomic
-from .regression import BASIS, fit_quadratic, predict
-from .scene import Scene
+from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
+from pipeline.io.jsonio import dumps, read_json, write_text_atomic
+from pipeline.model.scene import Scene
+from pipeline.motion.families import PAPER_SOURCE, TrajectoryFamily, family_from_name
+from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
+from pipeline.offline.regression import BASIS, fit_quadratic, predict
 
 FORMAT = "twolink-coefficients/1"
-PAPER = "paper"
+PAPER = PAPER_SOURCE
 
 
 def paper_data_path(name: str) -> Path:
@@ -37,7 +37,7 @@ class Coefficients:
     """Regression coefficients of one trajectory family.
 
     Attributes:
-        family: "paper" or "exact-endpoints".
+        family: The trajectory family the coefficients span.
         parameters: Free-parameter name -> (b0..b5) in BASIS order.
         fitted_range_m: {"L": (lo, hi), "W": (lo, hi)} [m].
         scene: The scene the coefficients were fitted in.
@@ -49,7 +49,7 @@ class Coefficients:
         source_sha256: SHA-256 of the file's bytes.
     """
 
-    family: str
+    family: TrajectoryFamily
     parameters: dict[str, tuple[float, ...]]
     fitted_range_m: dict[str, tuple[float, float]]
     scene: Scene
@@ -66,8 +66,8 @@ class Coefficients:
         return dict(self.extra.get("provenance", {}))
 
     def predict_free(self, length_m, width_m) -> np.ndarray:
-        """The family's free parameters at (L, W) [m]: shape (..., k), k as in FREE_PARAMETERS."""
-        ordered = {name: self.parameters[name] for name in FREE_PARAMETERS[self.family]}
+        """The family's free parameters at (L, W) [m]: shape (..., k), k as in ``family.free_parameter_names``."""
+        ordered = {name: self.parameters[name] for name in self.family.free_parameter_names}
         return predict(ordered, length_m, width_m)
 
     def in_range(self, length_m: float, width_m: float) -> bool:
@@ -79,7 +79,7 @@ class Coefficients:
         """The plain-JSON document of the coefficients file."""
         document = {
             "format": FORMAT,
-            "family": self.family,
+            "family": self.family.name,
             "basis": list(BASIS),
             "parameters": {name: list(values) for name, values in self.parameters.items()},
             "fitted_range": {key: list(value) for key, value in self.fitted_range_m.items()},
@@ -118,16 +118,17 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
     """
     if document.get("format") != FORMAT:
         raise DataFileError(source, f"format is {document.get('format')!r}, expected {FORMAT!r}")
-    family = document.get("family")
-    if family not in FAMILY_NAMES:
-        raise DataFileError(source, f"family is {family!r}, expected one of {FAMILY_NAMES}")
+    try:
+        family = family_from_name(document.get("family"))
+    except PipelineError as exc:
+        raise DataFileError(source, str(exc)) from None
     if document.get("basis") != list(BASIS):
         raise DataFileError(source, f"basis is {document.get('basis')!r}, expected {list(BASIS)}")
     raw = document.get("parameters")
     if not isinstance(raw, dict):
         raise DataFileError(source, "'parameters' must be an object of name -> 6 coefficients")
     parameters = {}
-    for name in FREE_PARAMETERS[family]:
+    for name in family.free_parameter_names:
         values = raw.get(name)
         if (
             not isinstance(values, list)
@@ -188,19 +189,19 @@ def load_coefficients(source: str | Path) -> Coefficients:
 def fit_coefficients(
     doe, extra: dict | None = None, endpoint_constraint: EndpointConstraint | None = None
 ) -> tuple[Coefficients, object]:
-    """Regress a DOE (a :class:`pipeline.doe.DoeData`) into coefficients.
+    """Regress a DOE (a :class:`pipeline.offline.doe.DoeData`) into coefficients.
 
     Every optimum is first mapped to the canonical form of Eq. 8, then each free
     parameter of the family is fitted on the quadratic basis: by plain least squares (the
-    paper's Eq. 9), or, given an :class:`pipeline.endpoint_regression.EndpointConstraint`
+    paper's Eq. 9), or, given an :class:`pipeline.offline.endpoint_regression.EndpointConstraint`
     (paper family only), with the endpoint errors held within its tolerance over the range.
 
     Returns:
-        (coefficients, the :class:`pipeline.regression.QuadraticFit` with R^2 and LOO errors).
+        (coefficients, the :class:`pipeline.offline.regression.QuadraticFit` with R^2 and LOO errors).
 
     Raises:
         InvalidParameterError: an endpoint constraint for a family that is exact by
-            construction, or as :func:`pipeline.regression.fit_quadratic`.
+            construction, or as :func:`pipeline.offline.regression.fit_quadratic`.
     """
     fitted_range = {
         "L": (float(doe.lengths_m.min()), float(doe.lengths_m.max())),
@@ -209,9 +210,9 @@ def fit_coefficients(
     if endpoint_constraint is None:
         fit = fit_quadratic(doe.lengths_m, doe.widths_m, doe.free_parameters())
         method = {"regression": "least squares"}
-    elif doe.family != "paper":
+    elif doe.family.pins_endpoints:
         raise InvalidParameterError(
-            "endpoint_constraint", endpoint_constraint, f"None for the {doe.family} family (exact by construction)"
+            "endpoint_constraint", endpoint_constraint, f"None for the {doe.family.name} family (exact by construction)"
         )
     else:
         targets = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.grid_points)

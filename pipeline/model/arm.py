@@ -15,11 +15,11 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import RobotModelError
-from .family import forward_kinematics, reach_annulus_m
+from pipeline.exceptions import RobotModelError
+from pipeline.model.kinematics import forward_kinematics, reach_annulus_m
 
 #: The paper's arm, shipped with the project.
-DEFAULT_URDF = Path(__file__).resolve().parent.parent / "urdf" / "planar_2link.urdf"
+DEFAULT_URDF = Path(__file__).resolve().parents[2] / "urdf" / "planar_2link.urdf"
 
 _TOL = 1e-9
 

@@ -12,13 +12,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .coefficients import Coefficients
-from .exceptions import InvalidParameterError, OutOfFittedRangeError, OutOfFittedRangeWarning
-from .family import endpoint_context, expand, reach_annulus_m
-from .obstacle import Obstacle
-from .path import QuarticPath, desired_path
-from .scene import Scene
-from .trajectory import JointTrajectory
+from pipeline.exceptions import (
+    InexactEndpointsWarning,
+    InvalidParameterError,
+    OutOfFittedRangeError,
+    OutOfFittedRangeWarning,
+)
+from pipeline.model.kinematics import reach_annulus_m
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.families import TrajectoryFamily
+from pipeline.motion.path import QuarticPath, desired_path
+from pipeline.motion.trajectory import JointTrajectory
+from pipeline.offline.coefficients import Coefficients
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
 
@@ -39,7 +45,7 @@ class GeneratedTrajectory:
 
     length_m: float
     width_m: float
-    family: str
+    family: TrajectoryFamily
     scene: Scene
     obstacle: Obstacle
     path: QuarticPath
@@ -75,7 +81,7 @@ def generate(
     """The trajectory for the obstacle L x W [m] from regression coefficients.
 
     Args:
-        coefficients: Loaded with :func:`pipeline.coefficients.load_coefficients`.
+        coefficients: Loaded with :func:`pipeline.offline.coefficients.load_coefficients`.
         length_m, width_m: Obstacle size [m].
         out_of_range: What to do outside the fitted range: "warn" (an
             OutOfFittedRangeWarning), "error" (OutOfFittedRangeError) or "ignore".
@@ -90,12 +96,20 @@ def generate(
     path = desired_path(obstacle, scene, reach_annulus_m(coefficients.link_lengths_m))
     extrapolated = _check_range(coefficients, obstacle.length_m, obstacle.width_m, out_of_range)
     free = coefficients.predict_free(obstacle.length_m, obstacle.width_m)
+    family = coefficients.family
     context = (
-        endpoint_context(path, coefficients.link_lengths_m, coefficients.elbow)
-        if coefficients.family != "paper"
+        family.endpoint_context(path, coefficients.link_lengths_m, coefficients.elbow)
+        if family.uses_endpoint_context
         else None
     )
-    full = expand(coefficients.family, free, context)
+    full = family.expand(free, context)
+    if family.pins_endpoints and not bool(family.endpoints_exact(free, context)):
+        warnings.warn(
+            f"L = {obstacle.length_m} m, W = {obstacle.width_m} m: the {family.name} family could not pin "
+            "the tip to P1 and P5 for these parameters (A1 clamped); endpoints are approximate",
+            InexactEndpointsWarning,
+            stacklevel=2,
+        )
     return GeneratedTrajectory(
         length_m=obstacle.length_m,
         width_m=obstacle.width_m,
@@ -111,11 +125,11 @@ def generate(
 def generate_parameters(coefficients: Coefficients, lengths_m: np.ndarray, widths_m: np.ndarray) -> np.ndarray:
     """Batched generator: the 8 parameters (n, 8) for n obstacles, equal to :func:`generate`'s.
 
-    For the paper family this is the regression alone, vectorised and without checks; the
-    exact-endpoints family needs each obstacle's path and inverse kinematics, so it calls
-    :func:`generate` per obstacle (range checks off).
+    Where the family's parameters are the regression's alone, this is the regression,
+    vectorised and without checks; a family that needs each obstacle's path and inverse
+    kinematics calls :func:`generate` per obstacle (range checks off).
     """
-    if coefficients.family == "paper":
+    if not coefficients.family.uses_endpoint_context:
         return coefficients.predict_free(np.asarray(lengths_m, float), np.asarray(widths_m, float))
     pairs = zip(np.atleast_1d(lengths_m), np.atleast_1d(widths_m), strict=True)
     return np.array(

@@ -17,21 +17,19 @@ penalise, by different amounts.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from .clearance import CoalClearance, analytic_link_clearance, check_fast_route
-from .exceptions import InvalidParameterError
-from .family import EndpointContext, check_family, endpoint_context, expand
-from .obstacle import Obstacle
-from .path import QuarticPath, desired_path
-from .robot import PlanarArm
-from .scene import Scene
-from .trajectory import joint_angles
-from .validation import check_non_negative, check_positive, check_positive_int
-
-CLEARANCE_ROUTES = ("analytic", "coal")
+from pipeline.exceptions import InvalidParameterError
+from pipeline.geometry.clearance import ANALYTIC, ClearanceFunction, ClearanceRoute, route_from_name
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
+from pipeline.motion.families import PAPER, EndpointContext, TrajectoryFamily
+from pipeline.motion.path import QuarticPath, desired_path
+from pipeline.motion.trajectory import joint_angles
+from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
 
 @dataclass(frozen=True)
@@ -51,7 +49,8 @@ class FitnessConfig:
             scene's safety margin plus ``margin_buffer_m``.
         margin_buffer_m: Extra clearance asked of the optimiser beyond the scene's margin [m],
             so that the optimum keeps the margin on the dense check, not only at the samples.
-        clearance_route: "analytic" (fast, default) or "coal" (Pinocchio + Coal).
+        clearance_route: :data:`pipeline.geometry.clearance.ANALYTIC` (fast, default) or
+            :data:`pipeline.geometry.clearance.COAL` (Pinocchio + Coal).
         elbow: Elbow branch (+1 or -1): the exact-endpoints family's inverse kinematics
             use it, and every family is penalised (same weight) where elbow * theta2 falls
             below ``min_elbow_angle_rad``, so all optima lie on one branch and regress smoothly.
@@ -66,7 +65,7 @@ class FitnessConfig:
     penalty_weight: float = 1.0e4
     penalty_margin_m: float | None = None
     margin_buffer_m: float = 0.002
-    clearance_route: str = "analytic"
+    clearance_route: ClearanceRoute = ANALYTIC
     elbow: int = 1
     min_elbow_angle_rad: float = 0.05
 
@@ -81,11 +80,27 @@ class FitnessConfig:
         if self.penalty_margin_m is not None:
             check_non_negative("penalty_margin_m", self.penalty_margin_m)
         check_non_negative("margin_buffer_m", self.margin_buffer_m)
-        if self.clearance_route not in CLEARANCE_ROUTES:
-            raise InvalidParameterError("clearance_route", self.clearance_route, f"one of {CLEARANCE_ROUTES}")
+        if not isinstance(self.clearance_route, ClearanceRoute):
+            raise InvalidParameterError("clearance_route", self.clearance_route, "a ClearanceRoute (COAL or ANALYTIC)")
         if self.elbow not in (1, -1):
             raise InvalidParameterError("elbow", self.elbow, "+1 or -1")
         check_non_negative("min_elbow_angle_rad", self.min_elbow_angle_rad)
+
+    def to_json(self) -> dict:
+        """Plain-JSON settings (the route by name), as the build records them."""
+        return {**{f.name: getattr(self, f.name) for f in fields(self)}, "clearance_route": self.clearance_route.name}
+
+    @classmethod
+    def from_json(cls, document: dict) -> FitnessConfig:
+        """Inverse of :meth:`to_json`.
+
+        Raises:
+            InvalidParameterError: an unknown route or a bad setting. TypeError: an unknown key.
+        """
+        document = dict(document)
+        if "clearance_route" in document:
+            document["clearance_route"] = route_from_name(document["clearance_route"])
+        return cls(**document)
 
 
 @dataclass(eq=False)
@@ -101,18 +116,18 @@ class FitnessProblem:
     scene: Scene
     path: QuarticPath
     config: FitnessConfig
-    family: str
+    family: TrajectoryFamily
     context: EndpointContext
     times_s: np.ndarray
     targets_m: np.ndarray
     weights: np.ndarray
     clearance_times_s: np.ndarray
     penalty_margin_m: float
-    coal: CoalClearance | None = field(default=None)
+    clearance_function: ClearanceFunction | None = field(default=None)
 
     def full_parameters(self, free: np.ndarray) -> np.ndarray:
         """The 8 sinusoid parameters (..., 8) from free parameters (..., k)."""
-        return expand(self.family, free, self.context)
+        return self.family.expand(free, self.context)
 
     def tip_positions(self, full: np.ndarray, times_s: np.ndarray) -> np.ndarray:
         """End-effector (x, y) [m] by Eq. 2 at the given times: shape (..., m, 2)."""
@@ -128,10 +143,8 @@ class FitnessProblem:
 
     def clearance_at(self, q: np.ndarray) -> np.ndarray:
         """Link clearance [m] for configurations q (..., 2) by the configured route: (..., 2)."""
-        if self.config.clearance_route == "analytic":
-            return analytic_link_clearance(q, self.arm, self.obstacle)
         flat = q.reshape(-1, 2)
-        return self.coal.link_clearance(flat).reshape(q.shape)
+        return self.clearance_function(flat).reshape(q.shape)
 
     def violations(self, full: np.ndarray) -> np.ndarray:
         """Penalised shortfalls at the penalty times, shape (..., k, 3): clearance of link 1
@@ -171,7 +184,7 @@ def fitness_problem(
     width_m: float,
     scene: Scene,
     config: FitnessConfig,
-    family: str = "paper",
+    family: TrajectoryFamily = PAPER,
 ) -> FitnessProblem:
     """Precompute the objective for the obstacle L x W.
 
@@ -179,11 +192,11 @@ def fitness_problem(
         InvalidParameterError: non-positive or NaN L or W.
         UnreachableObstacleError: the path's constraint points are outside the arm's reach.
     """
-    check_family(family)
+    if not isinstance(family, TrajectoryFamily):
+        raise InvalidParameterError("family", family, "a TrajectoryFamily (pipeline.motion.families)")
     obstacle = Obstacle.in_scene(length_m, width_m, scene)
     path = desired_path(obstacle, scene, arm.reach_m)
-    if config.clearance_route == "analytic":
-        check_fast_route(arm)
+    config.clearance_route.check_arm(arm)
     times, targets = path.samples(config.n_points)
     weights = np.ones(config.n_points)
     weights[: config.weighted_points] = config.endpoint_weight
@@ -198,11 +211,11 @@ def fitness_problem(
         path=path,
         config=config,
         family=family,
-        context=endpoint_context(path, arm.link_lengths_m, config.elbow),
+        context=family.endpoint_context(path, arm.link_lengths_m, config.elbow),
         times_s=times,
         targets_m=targets,
         weights=weights,
         clearance_times_s=np.linspace(0.0, path.duration_s, config.clearance_samples),
         penalty_margin_m=margin,
-        coal=CoalClearance(arm, obstacle) if config.clearance_route == "coal" else None,
+        clearance_function=config.clearance_route.function(arm, obstacle),
     )

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-from .validation import check_finite, check_non_negative, check_positive
+from pipeline.validation import check_finite, check_non_negative, check_positive
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """One DOE experiment: the best sinusoid parameters for one obstacle (L, W).
 
-PSO (:mod:`pipeline.pso`) searches the family's free parameters on the fitness of
-:mod:`pipeline.fitness`; every restart's best point is then polished by
+PSO (:mod:`pipeline.offline.pso`) searches the family's free parameters on the fitness of
+:mod:`pipeline.offline.fitness`; every restart's best point is then polished by
 ``scipy.optimize.least_squares`` on the same objective (written as residuals) and the best
 polished point wins. The winner is mapped to the canonical form of Eq. 8 and checked on a
 dense time grid with the canonical Pinocchio + Coal route. If that dense clearance falls
@@ -21,14 +21,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from .clearance import CoalClearance
-from .family import FREE_PARAMETERS, canonical_free, polish_bounds, search_bounds
-from .fitness import FitnessConfig, FitnessProblem, fitness_problem
-from .pso import PsoConfig, minimize
-from .robot import PlanarArm
-from .scene import Scene
-from .trajectory import PARAMETER_NAMES, joint_angles
-from .validation import check_non_negative, check_positive_int
+from pipeline.geometry.clearance import CoalClearance
+from pipeline.model.arm import PlanarArm
+from pipeline.model.scene import Scene
+from pipeline.motion.families import PAPER, TrajectoryFamily
+from pipeline.motion.trajectory import PARAMETER_NAMES, joint_angles
+from pipeline.offline.fitness import FitnessConfig, FitnessProblem, fitness_problem
+from pipeline.offline.pso import PsoConfig, minimize
+from pipeline.validation import check_non_negative, check_positive_int
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class SolverConfig:
     """How one experiment is solved.
 
     Attributes:
-        family: "paper" or "exact-endpoints" (see :mod:`pipeline.family`).
+        family: The trajectory family (see :mod:`pipeline.motion.families`).
         fitness: Objective settings.
         pso: PSO settings.
         polish: Polish each PSO restart with least_squares.
@@ -44,7 +44,7 @@ class SolverConfig:
         margin_retries: Re-polishes with a raised penalty margin if the dense check fails.
     """
 
-    family: str = "paper"
+    family: TrajectoryFamily = PAPER
     fitness: FitnessConfig = field(default_factory=FitnessConfig)
     pso: PsoConfig = field(default_factory=PsoConfig)
     polish: bool = True
@@ -81,7 +81,7 @@ class ExperimentResult:
 
     length_m: float
     width_m: float
-    family: str
+    family: TrajectoryFamily
     parameters: dict[str, float]
     free_parameters: dict[str, float]
     fitness: float
@@ -126,7 +126,7 @@ def dense_coal_clearance(problem: FitnessProblem, full: np.ndarray, samples: int
 
 def _polish(problem: FitnessProblem, starts: np.ndarray, evaluations: list[int]) -> tuple[np.ndarray, float]:
     """least_squares from each start, inside the search box but for the phases; the best result."""
-    lower, upper = polish_bounds(problem.family)
+    lower, upper = problem.family.polish_bounds()
     best_x, best_f = None, np.inf
     for start in starts:
         start = np.clip(start, lower, upper)
@@ -154,7 +154,7 @@ def solve_experiment(
     """
     start = time.perf_counter()
     problem = fitness_problem(arm, length_m, width_m, scene, config.fitness, config.family)
-    lower, upper = search_bounds(config.family)
+    lower, upper = config.family.search_bounds()
     swarm = minimize(problem.evaluate, lower, upper, rng, config.pso)
     evaluations = [swarm.evaluations]
     best_x, best_f, solver = swarm.x, swarm.value, "pso"
@@ -163,7 +163,7 @@ def solve_experiment(
         if polished_f < best_f:
             best_x, best_f, solver = polished_x, polished_f, "pso+least_squares"
 
-    free = canonical_free(config.family, best_x)
+    free = config.family.canonical_free(best_x)
     full = problem.full_parameters(free)
     clearance, queries = dense_coal_clearance(problem, full, config.verify_samples)
     coal_queries = queries
@@ -175,7 +175,7 @@ def solve_experiment(
         stiffer = replace(retry.config, penalty_weight=retry.config.penalty_weight * 100.0)
         retry = replace(retry, config=stiffer, penalty_margin_m=retry.penalty_margin_m + shortfall + 1e-4)
         retry_x, _ = _polish(retry, free[None, :], evaluations)
-        retry_free = canonical_free(config.family, retry_x)
+        retry_free = config.family.canonical_free(retry_x)
         retry_full = retry.full_parameters(retry_free)
         retry_clearance, queries = dense_coal_clearance(retry, retry_full, config.verify_samples)
         coal_queries += queries
@@ -190,7 +190,7 @@ def solve_experiment(
         width_m=float(width_m),
         family=config.family,
         parameters=dict(zip(PARAMETER_NAMES, (float(v) for v in full), strict=True)),
-        free_parameters=dict(zip(FREE_PARAMETERS[config.family], (float(v) for v in free), strict=True)),
+        free_parameters=dict(zip(config.family.free_parameter_names, (float(v) for v in free), strict=True)),
         fitness=float(problem.evaluate(free)),
         tracking_fitness=float(np.sum(problem.weights * np.sum(errors * errors, axis=-1))),
         clearance_m=clearance,
@@ -210,7 +210,7 @@ def score_parameters(
 ) -> dict[str, float]:
     """Our fitness, dense Coal clearance and endpoint errors of given 8 parameters (e.g. the
     paper's Table 2 row) at the obstacle L x W, on the paper family's objective."""
-    problem = fitness_problem(arm, length_m, width_m, scene, config.fitness, "paper")
+    problem = fitness_problem(arm, length_m, width_m, scene, config.fitness, PAPER)
     full = np.asarray(parameters, dtype=float)
     clearance, _ = dense_coal_clearance(problem, full, config.verify_samples)
     start_err, end_err = problem.endpoint_errors_m(full)

@@ -6,8 +6,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .regression import BASIS
-from .trajectory import PARAMETER_NAMES
+from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.regression import BASIS
 
 
 def table2(rows: Sequence[Mapping], paper_rows: Sequence[Mapping] | None) -> str:

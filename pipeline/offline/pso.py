@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .exceptions import InvalidParameterError
-from .validation import check_non_negative, check_positive, check_positive_int
+from pipeline.exceptions import InvalidParameterError
+from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
 
 @dataclass(frozen=True)

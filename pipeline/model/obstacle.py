@@ -13,9 +13,9 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import InvalidParameterError
-from .scene import Scene
-from .validation import check_finite, check_non_negative, check_positive
+from pipeline.exceptions import InvalidParameterError
+from pipeline.model.scene import Scene
+from pipeline.validation import check_finite, check_non_negative, check_positive
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .exceptions import InvalidParameterError
-from .validation import check_finite, check_positive
+from pipeline.exceptions import InvalidParameterError
+from pipeline.validation import check_finite, check_positive
 
 PARAMETER_NAMES: tuple[str, ...] = ("A1", "w1", "phi1", "gamma1", "A2", "w2", "phi2", "gamma2")
 PARAMETER_UNITS: dict[str, str] = {name: ("rad/s" if name.startswith("w") else "rad") for name in PARAMETER_NAMES}

@@ -1,0 +1,163 @@
+"""What every command line of the project shares (``pipeline.build``, ``pipeline.regress``,
+``pipeline.generate``, ``pipeline.certify_range``, ``verify.sweep``, ``verify.online_sweep``,
+``verify.bench``, ``verify.view``): one parser class, one-line errors naming the program, exit
+codes, Ctrl-C, ``--jobs 0`` = every CPU, output paths checked before any work, and the
+coefficients to use with the build's file as default.
+
+A CLI module only declares its options and calls :func:`run_cli` with a function that does the
+work; the work lives in importable functions below.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import NoReturn, TextIO
+
+from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
+from pipeline.motion.families import PAPER_SOURCE
+from pipeline.offline.coefficients import Coefficients, load_coefficients
+
+#: Exit status: success, or every check passed.
+EXIT_OK = 0
+#: Exit status: the work ran and its verdict is negative (a failed check, a refused certification).
+EXIT_FAILED = 1
+#: Exit status: bad command-line input or an unusable input file (argparse's own convention).
+EXIT_USAGE = 2
+#: Exit status: interrupted by Ctrl-C (128 + SIGINT).
+EXIT_INTERRUPTED = 130
+
+#: Where ``python -m pipeline.build`` writes the coefficients by default.
+DEFAULT_COEFFICIENTS = "results/coefficients.json"
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Appends "(default: ...)" only where a default means something: not for flags that are
+    off by default, options without a default, or help that already states its default."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if (
+            "(default" in text
+            or action.default in (None, False, argparse.SUPPRESS)
+            or action.required
+            or action.option_strings == ["-h", "--help"]
+        ):
+            return text
+        return super()._get_help_string(action)
+
+
+class Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line (no usage block) and exit with status 2."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str) -> NoReturn:  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+def usage_error(prog: str, message: str, stream: TextIO | None = None) -> int:
+    """Print ``prog: error: message`` on one line; returns :data:`EXIT_USAGE`."""
+    print(f"{prog}: error: {' '.join(str(message).split())}", file=sys.stderr if stream is None else stream)
+    return EXIT_USAGE
+
+
+def run_cli(
+    parser: argparse.ArgumentParser, work: Callable[[argparse.Namespace], int], argv: Sequence[str] | None
+) -> int:
+    """Parse ``argv`` and run ``work(args)``; every failure becomes one line and an exit status.
+
+    * a usage error or ``--help``: argparse's status (2 or 0), already printed;
+    * a :class:`pipeline.exceptions.PipelineError` (bad value, unreadable file, refused output
+      path): ``prog: error: message`` and :data:`EXIT_USAGE`;
+    * Ctrl-C: ``prog: interrupted`` and :data:`EXIT_INTERRUPTED`.
+    """
+    try:
+        args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    try:
+        return work(args)
+    except PipelineError as exc:
+        return usage_error(parser.prog, str(exc))
+    except KeyboardInterrupt:
+        print(f"{parser.prog}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def jobs_count(text: str) -> int:
+    """argparse type of ``--jobs``: a count >= 0, where 0 means every CPU of this machine."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--jobs {text!r} is not an integer (0 = every CPU)") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"--jobs {value} must be >= 0 (0 = every CPU)")
+    return value if value > 0 else (os.cpu_count() or 1)
+
+
+def check_output_file(path: str | Path | None, option: str) -> Path | None:
+    """Check, before any work, that ``path`` can be written as a file (its folder can exist).
+
+    Raises:
+        InvalidParameterError: the path is a directory, or a parent is a file, or the first
+            existing parent is not writable.
+    """
+    if path is None:
+        return None
+    path = Path(path)
+    if path.is_dir():
+        raise InvalidParameterError(option, str(path), "a file name, not a directory")
+    _check_parent(path, option)
+    return path
+
+
+def check_output_folder(path: str | Path | None, option: str) -> Path | None:
+    """Check, before any work, that ``path`` is a folder or can be made one (creates nothing).
+
+    Raises:
+        InvalidParameterError: the path is an existing file, or it cannot be created.
+    """
+    if path is None:
+        return None
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InvalidParameterError(option, str(path), "a folder, not an existing file")
+    if not path.exists():
+        _check_parent(path, option)
+    elif not os.access(path, os.W_OK):
+        raise InvalidParameterError(option, str(path), "a writable folder")
+    return path
+
+
+def _check_parent(path: Path, option: str) -> None:
+    parent = path.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise InvalidParameterError(option, str(path), f"a path whose parent {parent} is a folder, not a file")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InvalidParameterError(option, str(path), f"a path under a writable folder ({parent} is not)")
+
+
+def load_coefficients_for_cli(source: str | Path) -> Coefficients:
+    """:func:`pipeline.offline.coefficients.load_coefficients`, with a hint when the build's file is missing.
+
+    Raises:
+        DataFileError: missing, unreadable or malformed file.
+    """
+    source = str(source)
+    if source != PAPER_SOURCE and not Path(source).is_file():
+        hint = f" (run python -m pipeline.build first, or pass --coefficients {PAPER_SOURCE})"
+        raise DataFileError(source, "coefficients file not found" + (hint if source == DEFAULT_COEFFICIENTS else ""))
+    return load_coefficients(source)
+
+
+def describe_coefficients(coefficients: Coefficients) -> str:
+    """One line saying which coefficients are in use: source, family and short hash."""
+    return f"coefficients: {coefficients.source} ({coefficients.family.name}, sha256 {coefficients.source_sha256[:12]})"

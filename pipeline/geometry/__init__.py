@@ -1,0 +1,1 @@
+"""Geometry: link-to-obstacle clearance routes and the continuous-time clearance certificates."""

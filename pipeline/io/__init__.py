@@ -1,0 +1,1 @@
+"""Files and processes: atomic JSON, provenance (versions, hashes)."""

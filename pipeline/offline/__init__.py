@@ -1,0 +1,1 @@
+"""The offline stage: fitness, PSO, one experiment, the DOE, the regression and the coefficients file."""
