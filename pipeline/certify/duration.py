@@ -48,10 +48,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..exceptions import InvalidParameterError
-from ..scene import Scene
-from ..validation import check_positive_int
-from .interval import Interval, Jet
+from pipeline.certify.interval import Interval, Jet
+from pipeline.exceptions import InvalidParameterError
+from pipeline.model.scene import Scene
+from pipeline.validation import check_positive_int
 
 _NODES = 10
 _PANELS = 24

@@ -39,9 +39,10 @@ tolerance and the margin anywhere in the cell: the cell is *infeasible*. An uppe
   l1 D1 + l2 (D1 + D2)); the obstacle moves
   by at most sqrt((h_L / 2)^2 + h_W^2). Distance being 1-Lipschitz,
   c(q, O) <= min_k (c_k(q_m, O_centre) + move_k) + obstacle motion + distance error.
-* Sub-boxes whose sector misses the disc are dropped. The others are bisected (branch and bound for a maximum) until every bound is below the
-  margin, or a sub-box centre, whose pose has its tip inside the disc, clears the margin
-  (then U >= margin: not infeasible), or a depth limit; U is the largest bound left.
+* Sub-boxes whose sector misses the disc are dropped. The others are bisected (branch and
+  bound for a maximum) until every bound is below the margin, or a sub-box centre, whose pose
+  has its tip inside the disc, clears the margin (then U >= margin: not infeasible), or a
+  depth limit; U is the largest bound left.
 """
 
 from __future__ import annotations
@@ -50,13 +51,12 @@ import math
 
 import numpy as np
 
-from ..certificate import ANALYTIC_DISTANCE_ERROR_M
-from ..clearance import link_segments, segment_rectangle_distance
-from .clearance_bound import FLOAT_SLACK_M, obstacle_motion_m
-from .interval import lower_bound, upper_bound
-from .range_model import RangeModel
+from pipeline.certify.clearance_bound import FLOAT_SLACK_M, obstacle_motion_m
+from pipeline.certify.interval import lower_bound, upper_bound
+from pipeline.certify.range_model import RangeModel
+from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, link_segments, segment_rectangle_distance
 
-__all__ = ["endpoint_error_bounds", "endpoint_clearance_upper_bounds"]
+__all__ = ["endpoint_clearance_upper_bounds", "endpoint_error_bounds"]
 
 
 def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:

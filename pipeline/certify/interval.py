@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import InvalidParameterError
+from pipeline.exceptions import InvalidParameterError
 
 _TWO_PI = 2.0 * math.pi
 

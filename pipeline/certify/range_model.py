@@ -7,7 +7,7 @@ theta_i(L, W, s) = A_i(L, W) sin(w_i(L, W) s T(L, W) + phi_i(L, W)) + gamma_i(L,
 * ``paper`` family: all 8 parameters are the regression's quadratics
   p(L, W) = b0 + b1 L + b2 W + b3 L^2 + b4 L W + b5 W^2.
 * ``exact-endpoints`` family: (w1, phi1, A2, w2) are quadratics; A1, gamma1, phi2, gamma2
-  follow from the inverse kinematics of P1, P5 and from T (``pipeline.family``):
+  follow from the inverse kinematics of P1, P5 and from T (``pipeline.motion.families.exact_endpoints``):
   A1 = (th1_e - th1_s) / (sin(w1 T + phi1) - sin(phi1)), gamma1 = th1_s - A1 sin(phi1),
   phi2 = (pi - w2 T) / 2, gamma2 = th2_s - A2 sin(phi2), with th2 = elbow * acos(c),
   c = (|P|^2 - l1^2 - l2^2) / (2 l1 l2), th1 = atan2(P) - atan2(l2 sin th2, l1 + l2 cos th2).
@@ -22,16 +22,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..coefficients import Coefficients
-from ..exceptions import InvalidParameterError
-from ..family import FREE_PARAMETERS
-from ..scene import Scene
-from .duration import DurationModel
-from .interval import Interval, Jet
+from pipeline.certify.duration import DurationModel
+from pipeline.certify.interval import Interval, Jet
+from pipeline.exceptions import InvalidParameterError
+from pipeline.model.scene import Scene
+from pipeline.motion.families import TrajectoryFamily
+from pipeline.motion.families.exact_endpoints import MIN_DENOMINATOR, ExactEndpointsFamily
+from pipeline.motion.families.paper import PaperFamily
+from pipeline.offline.coefficients import Coefficients
 
 #: Names of the jet variables, in order.
 VARIABLES = ("L", "W", "s")
-_MIN_DENOMINATOR = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,7 +40,8 @@ class RangeModel:
     """The closed-form map (L, W, s) -> joint angles of one coefficients file.
 
     Attributes:
-        family: "paper" or "exact-endpoints".
+        family: The trajectory family (``pipeline.motion.families``); its parameter map is
+            followed by the jets of :data:`JET_EXPANSIONS`.
         coefficients: Free parameter -> (b0..b5), in the family's order, shape (k, 6).
         scene: The scene.
         link_lengths_m: (l1, l2) [m].
@@ -50,7 +52,7 @@ class RangeModel:
         duration: Enclosures of T over the range.
     """
 
-    family: str
+    family: TrajectoryFamily
     coefficients: np.ndarray
     scene: Scene
     link_lengths_m: tuple[float, float]
@@ -62,10 +64,10 @@ class RangeModel:
     duration: DurationModel = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        if self.family not in FREE_PARAMETERS:
-            raise InvalidParameterError("family", self.family, f"one of {tuple(FREE_PARAMETERS)}")
+        if type(self.family) not in JET_EXPANSIONS:
+            raise InvalidParameterError("family", self.family, f"a family with jets, one of {list(JET_EXPANSIONS)}")
         coefficients = np.array(self.coefficients, dtype=float)
-        if coefficients.shape != (len(FREE_PARAMETERS[self.family]), 6) or not np.all(np.isfinite(coefficients)):
+        if coefficients.shape != (self.family.free_count, 6) or not np.all(np.isfinite(coefficients)):
             raise InvalidParameterError("coefficients", coefficients.shape, "finite, one row of 6 per free parameter")
         coefficients.setflags(write=False)
         object.__setattr__(self, "coefficients", coefficients)
@@ -80,7 +82,7 @@ class RangeModel:
     @classmethod
     def from_coefficients(cls, coefficients: Coefficients) -> RangeModel:
         """The model of a loaded coefficients file."""
-        names = FREE_PARAMETERS[coefficients.family]
+        names = coefficients.family.free_parameter_names
         return cls(
             family=coefficients.family,
             coefficients=np.array([coefficients.parameters[n] for n in names]),
@@ -120,13 +122,14 @@ class RangeModel:
 
     def parameter_jets(self, L: Jet, W: Jet, T: Jet) -> list[Jet]:
         """Jets of the 8 parameters (A1, w1, phi1, gamma1, A2, w2, phi2, gamma2)."""
-        free = self.free_jets(L, W)
-        if self.family == "paper":
-            return free
+        return JET_EXPANSIONS[type(self.family)](self, self.free_jets(L, W), L, W, T)
+
+    def _exact_endpoints_jets(self, free: list[Jet], L: Jet, W: Jet, T: Jet) -> list[Jet]:
+        """Jets of ``ExactEndpointsFamily.expand`` (module docstring)."""
         w1, phi1, a2, w2 = free
         start, end = self._ik_jets(L, W, 1.0), self._ik_jets(L, W, -1.0)
         denominator = (w1 * T + phi1).sin() - phi1.sin()
-        small = (denominator.value.lo <= _MIN_DENOMINATOR) & (denominator.value.hi >= -_MIN_DENOMINATOR)
+        small = (denominator.value.lo <= MIN_DENOMINATOR) & (denominator.value.hi >= -MIN_DENOMINATOR)
         a1 = (end[0] - start[0]) / _unbounded_where(denominator, small)
         gamma1 = start[0] - a1 * phi1.sin()
         phi2 = (w2 * T) * (-0.5) + math.pi / 2
@@ -155,6 +158,18 @@ class RangeModel:
         theta1 = (p[1] * sT + p[2]).sin() * p[0] + p[3]
         theta2 = (p[5] * sT + p[6]).sin() * p[4] + p[7]
         return theta1, theta2
+
+
+def _paper_jets(model: RangeModel, free: list[Jet], L: Jet, W: Jet, T: Jet) -> list[Jet]:
+    """The paper family: the 8 parameters are the free ones."""
+    return free
+
+
+#: Jet version of each family's ``expand``: (model, free jets, L, W, T) -> 8 parameter jets.
+JET_EXPANSIONS = {
+    PaperFamily: _paper_jets,
+    ExactEndpointsFamily: lambda model, free, L, W, T: model._exact_endpoints_jets(free, L, W, T),
+}
 
 
 def _unbounded_where(jet: Jet, mask: np.ndarray) -> Jet:

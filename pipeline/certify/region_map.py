@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
-from ..jsonio import json_safe, read_json, write_text_atomic
-from ..validation import check_non_negative
+from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
+from pipeline.io.jsonio import json_safe, read_json, write_text_atomic
+from pipeline.validation import check_non_negative
 
 FORMAT = "twolink-region-map/1"
 STATUSES: tuple[str, ...] = ("margin", "collision_free", "infeasible", "undecided")
@@ -299,9 +299,11 @@ class RegionMap:
                 depth=np.array(cells["depth"], dtype=np.int64),
                 index_l=np.array(cells["index_L"], dtype=np.int64),
                 index_w=np.array(cells["index_W"], dtype=np.int64),
-                clearance_bound_m=np.array([_number(v) for v in cells["clearance_bound_m"]]),
-                endpoint_bound_m=np.array([_number(v) for v in cells["endpoint_bound_m"]]),
-                endpoint_clearance_upper_m=np.array([_number(v) for v in cells["endpoint_clearance_upper_m"]]),
+                clearance_bound_m=np.array([_number(v, -math.inf) for v in cells["clearance_bound_m"]]),
+                endpoint_bound_m=np.array([_number(v, math.inf) for v in cells["endpoint_bound_m"]]),
+                endpoint_clearance_upper_m=np.array(
+                    [_number(v, math.inf) for v in cells["endpoint_clearance_upper_m"]]
+                ),
                 status=np.array(status, dtype=np.int64),
                 seconds=float(document.get("summary", {}).get("seconds", 0.0)),
                 details=dict(document.get("details", {})),
@@ -312,9 +314,10 @@ class RegionMap:
             raise DataFileError(source, f"malformed region map ({exc.__class__.__name__}: {exc})") from None
 
 
-def _number(value) -> float:
-    """JSON number, or None for -inf (json_safe writes non-finite values as null)."""
-    return -math.inf if value is None else float(value)
+def _number(value, infinite: float) -> float:
+    """A JSON number; null stands for the column's infinite value (json_safe writes non-finite
+    values as null): -inf for lower bounds, +inf for upper bounds."""
+    return infinite if value is None else float(value)
 
 
 def save_region_map(region_map: RegionMap, path: str | Path, overwrite: bool = True) -> str:

@@ -13,9 +13,9 @@ A box is one (L, W) node times one s interval. Each round bounds every open box
 * it cannot be cut further (both depths at their limits) or the box budget is spent.
 
 Otherwise it is cut in two along s or in four along (L, W), whichever dominates its gap
-(``BoxBounds.split_s``), and closed if that one is at its depth limit. Boxes of a node's children always come in complete sets of four, so
-the (L, W) nodes of the closed boxes form a quadtree whose leaves tile the range, and every
-point (L, W, s) lies in exactly one closed box.
+(``BoxBounds.split_s``), and closed if that one is at its depth limit. Boxes of a node's
+children always come in complete sets of four, so the (L, W) nodes of the closed boxes form a
+quadtree whose leaves tile the range, and every point (L, W, s) lies in exactly one closed box.
 """
 
 from __future__ import annotations
@@ -24,10 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import InvalidParameterError
-from ..validation import check_non_negative, check_positive_int
-from .clearance_bound import box_clearance_bounds
-from .range_model import RangeModel
+from pipeline.certify.clearance_bound import box_clearance_bounds
+from pipeline.certify.range_model import RangeModel
+from pipeline.exceptions import InvalidParameterError
+from pipeline.validation import check_non_negative, check_positive_int
 
 _CHUNK = 20_000
 
