@@ -123,7 +123,8 @@ def _work(args: argparse.Namespace) -> int:
     print(
         f"certified collision-free {100 * summary['certified_collision_free_fraction']:.2f} %; clearance bound min "
         f"{1e3 * summary['clearance_bound_min_m']:.3f} mm; endpoint bound max "
-        f"{1e3 * summary['endpoint_bound_max_m']:.3f} mm, <= tolerance on {100 * summary['endpoint_within_tolerance_fraction']:.2f} %; "
+        f"{1e3 * summary['endpoint_bound_max_m']:.3f} mm, <= tolerance on "
+        f"{100 * summary['endpoint_within_tolerance_fraction']:.2f} %; "
         f"{summary['cells']} cells in {region_map.seconds:.1f} s"
     )
     if output is not None:
