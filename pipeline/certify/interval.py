@@ -93,11 +93,14 @@ class Interval:
         return (-self) + other
 
     def __mul__(self, other) -> Interval:
+        # 0 * inf is taken as 0 (the convention of interval arithmetic: an infinite bound stands
+        # for "unbounded", and 0 times anything finite is 0).
         if isinstance(other, Interval):
-            products = (self.lo * other.lo, self.lo * other.hi, self.hi * other.lo, self.hi * other.hi)
+            products = [_times(self.lo, other.lo), _times(self.lo, other.hi), _times(self.hi, other.lo)]
+            products.append(_times(self.hi, other.hi))
             return Interval(np.minimum.reduce(products), np.maximum.reduce(products))
         o = np.asarray(other, dtype=float)
-        a, b = self.lo * o, self.hi * o
+        a, b = _times(self.lo, o), _times(self.hi, o)
         return Interval(np.minimum(a, b), np.maximum(a, b))
 
     __rmul__ = __mul__
@@ -149,6 +152,12 @@ class Interval:
     def sum(self, axis: int) -> Interval:
         """Sum along an axis."""
         return Interval(np.sum(self.lo, axis=axis), np.sum(self.hi, axis=axis))
+
+
+def _times(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    with np.errstate(invalid="ignore"):
+        product = a * b
+    return np.where(np.isnan(product), 0.0, product)
 
 
 def _sin_range(lo: np.ndarray, hi: np.ndarray) -> Interval:
