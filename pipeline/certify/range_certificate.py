@@ -107,7 +107,7 @@ def run_search(model: RangeModel, settings: SearchSettings, jobs: int) -> Closed
     roots = np.column_stack([np.full(n * n, settings.initial_depth_lw), i.ravel(), j.ravel()])
     if jobs <= 1 or roots.shape[0] == 1:
         return search(model, settings, roots)
-    tasks = min(roots.shape[0], 8 * jobs)
+    tasks = min(roots.shape[0], jobs)  # one task per worker: each round is vectorised, rounds cost overhead
     groups = [roots[k::tasks] for k in range(tasks)]
     with ProcessPoolExecutor(max_workers=jobs) as pool:
         parts = list(pool.map(_search_task, [model] * tasks, [settings] * tasks, groups))

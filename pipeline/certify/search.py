@@ -7,9 +7,10 @@ A box is one (L, W) node times one s interval. Each round bounds every open box
 
 * its bound reaches the margin; or
 * the margin is out of reach in its (L, W) node (the clearance at the box centre, a value the
-  clearance takes there, is below the margin), its bound is positive or the centre itself is
-  in collision, and its node is at the boundary depth (so the region map resolves where the
-  margin or the clearance is lost); or
+  clearance takes there, is below the margin), its bound is positive and within
+  ``resolution_m`` of that centre value, or the centre itself is in collision, and its node is
+  at the boundary depth (so the region map resolves where the margin or the clearance is
+  lost); or
 * it cannot be cut further (both depths at their limits) or the box budget is spent.
 
 Otherwise it is cut in two along s or in four along (L, W), whichever dominates its gap
@@ -27,7 +28,7 @@ import numpy as np
 from pipeline.certify.clearance_bound import box_clearance_bounds
 from pipeline.certify.range_model import RangeModel
 from pipeline.exceptions import InvalidParameterError
-from pipeline.validation import check_non_negative, check_positive_int
+from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
 _CHUNK = 20_000
 
@@ -44,6 +45,8 @@ class SearchSettings:
         initial_depth_lw: Depth of the starting grid in (L, W).
         initial_depth_s: Depth of the starting grid in s.
         max_boxes: Budget of box evaluations (the search stops with valid, looser bounds).
+        resolution_m: Where the margin is out of reach, boxes are cut until their bound is within
+            this of the clearance at their centre [m] (so the map's minimum is close to the truth).
     """
 
     margin_m: float = 0.01
@@ -53,9 +56,11 @@ class SearchSettings:
     initial_depth_lw: int = 2
     initial_depth_s: int = 4
     max_boxes: int = 5_000_000
+    resolution_m: float = 5e-4
 
     def __post_init__(self) -> None:
         check_non_negative("margin_m", self.margin_m)
+        check_positive("resolution_m", self.resolution_m)
         check_positive_int("max_depth_lw", self.max_depth_lw, minimum=0)
         check_positive_int("max_depth_s", self.max_depth_s, minimum=0)
         check_positive_int("initial_depth_lw", self.initial_depth_lw, minimum=0)
@@ -133,7 +138,8 @@ def search(model: RangeModel, settings: SearchSettings, roots: np.ndarray | None
         evaluations += dl.size
         out_of_reach = centre < settings.margin_m
         done = bound >= settings.margin_m
-        resolved = (bound > 0.0) | (centre <= 0.0)  # certified free, or a collision seen at the centre
+        # Certified free to within the resolution of the clearance seen, or a collision seen at the centre.
+        resolved = ((bound > 0.0) & (centre - bound <= settings.resolution_m)) | (centre <= 0.0)
         done |= out_of_reach & resolved & (dl >= settings.boundary_depth_lw)
         can_s, can_lw = ds < settings.max_depth_s, dl < settings.max_depth_lw
         # Resolve the boundary of the margin in (L, W) before anything else.
