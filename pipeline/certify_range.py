@@ -78,8 +78,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--endpoint-tolerance",
         type=_metres,
-        default=DEFAULT_ENDPOINT_TOLERANCE_M,
-        help="endpoint tolerance of the infeasibility certificate [m]",
+        default=None,
+        help=f"endpoint tolerance of the infeasibility certificate [m] (default: {DEFAULT_ENDPOINT_TOLERANCE_M}, "
+        "0 for a family that pins the endpoints)",
     )
     p.add_argument("--jobs", type=jobs_count, default=1, help="worker processes [count], 0 = every CPU")
     p.add_argument(
@@ -103,9 +104,12 @@ def _work(args: argparse.Namespace) -> int:
     coefficients = load_coefficients_for_cli(args.coefficients)
     if output is None and args.coefficients != PAPER_SOURCE:
         output = Path(args.coefficients).with_name(DEFAULT_MAP_NAME)
+    tolerance = args.endpoint_tolerance
+    if tolerance is None:
+        tolerance = 0.0 if coefficients.family.pins_endpoints else DEFAULT_ENDPOINT_TOLERANCE_M
     config = RangeCertificateConfig(
         margin_m=args.margin,
-        endpoint_tolerance_m=args.endpoint_tolerance,
+        endpoint_tolerance_m=tolerance,
         min_cell=args.min_cell,
         boundary_cell=min(args.boundary_cell, 1.0),
         jobs=args.jobs,

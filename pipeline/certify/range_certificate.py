@@ -9,8 +9,9 @@ whose docstrings carry the derivations; this module only combines them:
   contains the leaf (the node itself or an ancestor, ``pipeline.certify.search``): those boxes
   cover the leaf times all of s in [0, 1];
 * a leaf is cut further (its children inherit that clearance bound, still valid on them) while
-  its endpoint bound exceeds the tolerance, or while it is below the margin, not yet proven
-  infeasible and close to being so, down to the smallest cell.
+  its endpoint bound exceeds the tolerance (unless the family pins the endpoints by
+  construction), or while it is below the margin, not yet proven infeasible and close to being
+  so, down to the smallest cell.
 """
 
 from __future__ import annotations
@@ -187,7 +188,9 @@ def refine_leaves(
             upper[todo] = values
         deep = depth < max_depth
         close = (bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M)
-        rows = deep & ((endpoint > tolerance_m) | close)
+        # A family that pins the endpoints has errors of rounding size: its bound is reported, not refined.
+        loose = (endpoint > tolerance_m) & (not model.family.pins_endpoints)
+        rows = deep & (loose | close)
         if not np.any(rows):
             return [depth, i_l, i_w, bound], endpoint, upper
         arrays = _split([depth, i_l, i_w, bound, endpoint, upper], rows)
