@@ -61,7 +61,7 @@ class CertifiableFitConfig:
         max_rounds: Rounds of certify -> add constraints -> refit.
         cushion_m: Clearance asked above the margin at the constraint points [m] (the margin
             must hold between them too).
-        points_per_round: Cap on new clearance constraint points per round.
+        points_per_round: Cap on new clearance constraint points and on new endpoint targets per round.
     """
 
     certificate: RangeCertificateConfig = field(default_factory=RangeCertificateConfig)
@@ -144,7 +144,7 @@ def clearance_jacobian(b: np.ndarray, data: ClearancePoints, coefficients: Coeff
 def worst_points(coefficients: Coefficients, region_map: RegionMap, limit: int) -> tuple[np.ndarray, np.ndarray]:
     """Clearance points (L, W, s) of the leaves that miss the margin without being infeasible,
     lowest first (at most ``limit``), and the centres (L, W) of leaves whose endpoint bound
-    exceeds the tolerance."""
+    exceeds the tolerance, largest bound first (at most ``limit``)."""
     failing = np.flatnonzero(
         (region_map.status == STATUSES.index("collision_free")) | (region_map.status == STATUSES.index("undecided"))
     )
@@ -168,7 +168,8 @@ def worst_points(coefficients: Coefficients, region_map: RegionMap, limit: int) 
         values.append(clearance[k])
     order = np.argsort(values)[:limit]
     clearance_points = np.array(points)[order] if points else np.empty((0, 3))
-    loose = region_map.endpoint_bound_m > region_map.endpoint_tolerance_m
+    loose = np.flatnonzero(region_map.endpoint_bound_m > region_map.endpoint_tolerance_m)
+    loose = loose[np.argsort(-region_map.endpoint_bound_m[loose])][:limit]
     return clearance_points, centres[loose]
 
 
