@@ -41,7 +41,8 @@ tolerance and the margin anywhere in the cell: the cell is *infeasible*. An uppe
   c(q, O) <= min_k (c_k(q_m, O_centre) + move_k) + obstacle motion + distance error.
 * Sub-boxes whose sector misses the disc are dropped. The others are bisected (branch and
   bound for a maximum) until every bound is below the margin, or a sub-box centre, whose pose
-  has its tip inside the disc, clears the margin (then U >= margin: not infeasible), or a
+  has its tip within tol of P(L', W) for some L' of the cell, clears the margin (then
+  U >= margin: not infeasible; the pose with its tip exactly at P(centre) is tried first), or a
   depth limit; U is the largest bound left.
 """
 
@@ -55,6 +56,9 @@ from pipeline.certify.clearance_bound import FLOAT_SLACK_M, obstacle_motion_m
 from pipeline.certify.interval import lower_bound, upper_bound
 from pipeline.certify.range_model import RangeModel
 from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, link_segments, segment_rectangle_distance
+
+#: Cap on the polar sub-boxes alive at once in :func:`endpoint_clearance_upper_bounds`.
+_MAX_SUB_BOXES = 400_000
 
 __all__ = ["endpoint_clearance_upper_bounds", "endpoint_error_bounds"]
 
@@ -185,11 +189,15 @@ def endpoint_clearance_upper_bounds(
         r_lo, r_hi = dist - rho, dist + rho
         p_lo, p_hi = psi - spread, psi + spread
         best = np.full(n, -np.inf)
-        witnessed = np.zeros(n, dtype=bool)
+        # A witness: the pose with its tip exactly at P(centre) clears the margin there.
+        _, exact_c, _ = _pose_box_upper_bounds(model, dist, dist, psi, psi, center2, np.zeros_like(radius2))
+        witnessed = exact_c >= margin_m
         for depth in range(max_depth + 1):
             upper, centre_c, tip = _pose_box_upper_bounds(model, r_lo, r_hi, p_lo, p_hi, center2[owner], radius2[owner])
-            in_disc = np.hypot(tip[:, 0] - px[owner], tip[:, 1] - py[owner]) <= tolerance_m
-            hit = in_disc & (centre_c >= margin_m)
+            # Tip within the tolerance of P(L', W) for some L' of the cell (P moves along x by h_L / 2).
+            gap_x = np.maximum(np.abs(tip[:, 0] - px[owner]) - radius2[owner, 0] / 2, 0.0)
+            in_set = np.hypot(gap_x, tip[:, 1] - py[owner]) <= tolerance_m
+            hit = in_set & (centre_c >= margin_m)
             np.logical_or.at(witnessed, owner[hit], True)
             # Sub-boxes of the polar box that miss the disc hold no pose of the set.
             meets = _sector_distance(dist[owner], psi[owner], r_lo, r_hi, p_lo, p_hi) <= rho[owner] * (1 + 1e-12)
@@ -198,6 +206,9 @@ def endpoint_clearance_upper_bounds(
             closed = ~open_ | (depth == max_depth)
             np.maximum.at(best, owner[closed], upper[closed])
             keep = open_ & (depth < max_depth)
+            if np.count_nonzero(keep) > _MAX_SUB_BOXES:  # memory cap: close the rest with their (valid) bounds
+                np.maximum.at(best, owner[keep], upper[keep])
+                keep[:] = False
             if not np.any(keep):
                 break
             owner, r_lo, r_hi, p_lo, p_hi = owner[keep], r_lo[keep], r_hi[keep], p_lo[keep], p_hi[keep]
