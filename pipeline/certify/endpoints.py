@@ -10,7 +10,10 @@ P1 = (L/2 + dx1, y1), P5 = (-(L/2 + dx1), y1). Each component is a smooth functi
 enclosed over a cell by the mean-value form around the cell centre (interval jets of
 ``pipeline.certify.range_model``, T(L, W) included through s = 1); |e| <= the norm of the
 largest corner of the enclosing box. The form is exact to first order, so the bound exceeds
-the cell's true maximum by O(h^2).
+the cell's true maximum by O(h^2). For a family that pins the endpoints (exact-endpoints), the
+errors vanish algebraically wherever its A1 is not clamped over the cell
+(:meth:`pipeline.certify.range_model.RangeModel.endpoints_pinned`); the bound there is the
+rounding slack.
 
 Infeasibility at the margin
 ===========================
@@ -92,6 +95,8 @@ def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.
         mag_x = np.maximum(np.abs(lower_bound(px_, bx_, radius)), np.abs(upper_bound(px_, bx_, radius)))
         mag_y = np.maximum(np.abs(lower_bound(py_, by_, radius)), np.abs(upper_bound(py_, by_, radius)))
         out[:, column] = np.hypot(mag_x, mag_y) + FLOAT_SLACK_M
+    pinned = model.endpoints_pinned(center2, radius2)
+    out[pinned] = FLOAT_SLACK_M  # exact by construction (RangeModel.endpoints_pinned), up to rounding
     return out
 
 

@@ -136,6 +136,26 @@ class RangeModel:
         gamma2 = start[1] - a2 * phi2.sin()
         return [a1, w1, phi1, gamma1, a2, w2, phi2, gamma2]
 
+    def endpoints_pinned(self, center: np.ndarray, radius: np.ndarray) -> np.ndarray:
+        """True per (L, W) box (centres, half widths (N, >= 2)) where the family pins the tip to
+        P1 and P5 exactly for every (L, W) of the box.
+
+        For exact-endpoints, theta(0) = theta_s and theta(T) = theta_e hold algebraically
+        (gamma1 + A1 sin(phi1) = th1_s, A1 D = th1_e - th1_s, sin(w2 T + phi2) = sin(phi2) and
+        th2_s = th2_e) wherever A1 = (th1_e - th1_s) / D is not clamped, i.e. where the interval
+        of D over the box excludes [-1e-3, 1e-3]; the tip is then FK(IK(P)) = P up to rounding.
+        """
+        n = center.shape[0]
+        if not self.family.pins_endpoints:
+            return np.zeros(n, dtype=bool)
+        c3 = np.column_stack([center[:, :2], np.zeros(n)])
+        r3 = np.column_stack([radius[:, :2], np.zeros(n)])
+        L, W, _ = self.variables(c3, r3)
+        w1, phi1 = self.free_jets(L, W)[:2]
+        T = self.duration.jet(c3, r3)
+        d = ((w1 * T + phi1).sin() - phi1.sin()).value
+        return (d.lo > MIN_DENOMINATOR) | (d.hi < -MIN_DENOMINATOR)
+
     def _ik_jets(self, L: Jet, W: Jet, side: float) -> tuple[Jet, Jet]:
         """Joint angles (th1, th2) of P1 (side +1) or P5 (side -1) on the elbow branch, as jets."""
         l1, l2 = self.link_lengths_m

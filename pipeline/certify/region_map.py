@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.certify.clearance_bound import FLOAT_SLACK_M
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
 from pipeline.io.jsonio import json_safe, read_json, write_text_atomic
 from pipeline.validation import check_non_negative
@@ -229,8 +230,9 @@ class RegionMap:
             "area_fraction": fractions,
             "certified_collision_free_fraction": float(np.sum(area[self.clearance_bound_m > 0.0])),
             "margin_fraction_of_feasible": fractions["margin"] / feasible if feasible > 0 else None,
+            # Bounds carry the rounding slack, so a tolerance of 0 (pinned endpoints) is met up to it.
             "endpoint_within_tolerance_fraction": float(
-                np.sum(area[self.endpoint_bound_m <= self.endpoint_tolerance_m])
+                np.sum(area[self.endpoint_bound_m <= self.endpoint_tolerance_m + FLOAT_SLACK_M])
             ),
             "clearance_bound_min_m": float(self.clearance_bound_m[worst]),
             "worst_cell": {"L_m": list(worst_cell.length_range_m), "W_m": list(worst_cell.width_range_m)},

@@ -152,6 +152,22 @@ def test_exact_endpoints_parameter_jets_contain_the_family_expansion(eq9: Coeffi
                 assert jet.value.lo[k] - 1e-9 <= p <= jet.value.hi[k] + 1e-9
 
 
+def test_exact_endpoints_are_certified_pinned_where_a1_is_not_clamped(eq9: Coefficients, arm: PlanarArm) -> None:
+    coefficients = exact_endpoints_from(eq9)
+    model = RangeModel.from_coefficients(coefficients)
+    centers = random_points(coefficients, 40, seed=9)[:, :2]
+    radius = np.full((40, 2), 1e-3)
+    centers = np.clip(centers, [0.2 + 1e-3, 0.08 + 1e-3], [0.3 - 1e-3, 0.12 - 1e-3])
+    bounds = endpoint_error_bounds(model, centers, radius)
+    pinned = model.endpoints_pinned(centers, radius)
+    assert np.mean(pinned) > 0.5
+    for (L, W), bound in zip(centers[pinned], bounds[pinned], strict=True):
+        answer = generate(coefficients, L, W)
+        start = np.linalg.norm(arm.end_effector_position(answer.q(0.0))[:2] - answer.path.points_m[0])
+        end = np.linalg.norm(arm.end_effector_position(answer.q(answer.duration_s))[:2] - answer.path.points_m[-1])
+        assert max(start, end) <= bound.max() <= 1e-8
+
+
 def test_bound_gap_shrinks_quadratically(eq9: Coefficients, arm: PlanarArm) -> None:
     """Near the obstacle (link 2 passing a corner at the end of the motion): halving the box divides
     the gap between the sampled minimum over the box and the bound by about 4."""
