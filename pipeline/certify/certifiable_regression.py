@@ -14,7 +14,10 @@ Round k:
    (analytic distance, d clearance / d theta by central differences, chained in closed form to
    the 48 coefficients);
 
-until the map has no such leaf or ``max_rounds`` is reached. The fit remains a closed-form
+until the map has no such leaf or ``max_rounds`` is reached, or a refit fails to converge (then
+the previous fit and its map are returned and the report says so). Leaves whose endpoint-pose
+clearance bound (the infeasibility certificate's U) is below margin + 1 mm are not constrained:
+there the family can barely keep the margin at all with the endpoint tolerance. The fit remains a closed-form
 quadratic in (L, W); its certificate is the last map, so nothing here needs trusting beyond
 ``certify_range``. Paper family only (all 8 parameters regressed).
 """
@@ -49,6 +52,8 @@ from pipeline.validation import check_non_negative, check_positive_int
 
 _SAMPLES_S = 401
 _FD_STEP_RAD = 1e-6
+#: Leaves whose endpoint-pose clearance bound U is below margin + this are not constrained [m].
+_FEASIBLE_SLACK_M = 1e-3
 
 
 @dataclass(frozen=True)
@@ -146,7 +151,10 @@ def worst_points(coefficients: Coefficients, region_map: RegionMap, limit: int) 
     lowest first (at most ``limit``), and the centres (L, W) of leaves whose endpoint bound
     exceeds the tolerance, largest bound first (at most ``limit``)."""
     failing = np.flatnonzero(
-        (region_map.status == STATUSES.index("collision_free")) | (region_map.status == STATUSES.index("undecided"))
+        ((region_map.status == STATUSES.index("collision_free")) | (region_map.status == STATUSES.index("undecided")))
+        # Leaves whose endpoint poses can barely keep the margin are left out: the constraint
+        # would be (nearly) infeasible there (the infeasibility certificate's upper bound U).
+        & (region_map.endpoint_clearance_upper_m >= region_map.margin_m + _FEASIBLE_SLACK_M)
     )
     model_lo = np.array([region_map.length_range_m[0], region_map.width_range_m[0]])
     size = np.array([region_map.length_range_m[1], region_map.width_range_m[1]]) - model_lo
@@ -304,10 +312,14 @@ def fit_certifiable(
             more = _targets_at(current, loose)
             extra_targets = more if extra_targets is None else _merge_targets(extra_targets, more)
         targets = _merge_targets(grid, extra_targets)
-        current, converged = refit(
+        candidate, converged = refit(
             current, length_m, width_m, values, targets, _clearance_points(current, collected), margin, config
         )
         rounds[-1]["refit_converged"] = converged
+        if not converged:  # SLSQP's last iterate need not satisfy anything: keep the certified fit
+            rounds[-1]["stopped"] = "refit did not converge; the previous coefficients are returned"
+            break
+        current = candidate
         rounds[-1]["refit_seconds"] = time.perf_counter() - start - region_map.seconds
         rounds[-1]["grid_endpoint_error_max_m"] = float(
             endpoint_errors_m(design_matrix(targets.lengths_m, targets.widths_m) @ _matrix(current), targets).max()
