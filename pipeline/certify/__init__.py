@@ -1,0 +1,30 @@
+"""Offline range certificates of a coefficients file (layer between ``offline`` and ``online``).
+
+For every (L, W) of the fitted range and every t in [0, T(L, W)]: a rigorous lower bound on the
+clearance of both links, an upper bound on the endpoint errors, and an infeasibility
+certificate for the margin at the endpoint tolerance, stored as a quadtree region map.
+
+* :func:`certify_range` (``range_certificate``): coefficients -> :class:`RegionMap`;
+* :class:`RegionMap` (``region_map``): ``cell_at`` / ``cells_at`` lookups, summary, JSON;
+* :func:`fit_certifiable` (``certifiable_regression``): constraint generation towards a fit
+  the certificate accepts.
+
+Derivations: ``duration`` (T and its gradient), ``clearance_bound`` (the three lower bounds),
+``endpoints`` (endpoint errors and infeasibility), ``search`` (branch and bound).
+"""
+
+from pipeline.certify.certifiable_regression import CertifiableFitConfig, fit_certifiable
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.region_map import STATUSES, RegionCell, RegionMap, load_region_map, save_region_map
+
+__all__ = [
+    "STATUSES",
+    "CertifiableFitConfig",
+    "RangeCertificateConfig",
+    "RegionCell",
+    "RegionMap",
+    "certify_range",
+    "fit_certifiable",
+    "load_region_map",
+    "save_region_map",
+]

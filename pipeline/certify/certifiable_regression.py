@@ -1,0 +1,331 @@
+"""A regression the range certificate can certify: constraint generation between the
+endpoint-constrained fit (``pipeline.offline.endpoint_regression``) and the range certificate.
+
+Round k:
+
+1. certify the current coefficients over the fitted range (``certify_range``);
+2. for every leaf that misses the margin without being proven infeasible (status
+   ``collision_free`` or ``undecided``), take its worst point: the (L, W) of its centre and the
+   s in [0, 1] where the clearance along that motion is lowest (dense sampling); for every
+   leaf whose endpoint bound exceeds the tolerance, take its centre as an endpoint target;
+3. refit the same quadratic model by SLSQP: minimise the squared distance to the DOE optima
+   subject to the endpoint errors <= tolerance on the build's grid plus the new endpoint
+   targets, and to clearance(L_i, W_i, s_i) >= margin + cushion at every point collected so far
+   (analytic distance, d clearance / d theta by central differences, chained in closed form to
+   the 48 coefficients);
+
+until the map has no such leaf or ``max_rounds`` is reached, or a refit fails to converge (then
+the previous fit and its map are returned and the report says so). Leaves whose endpoint-pose
+clearance bound (the infeasibility certificate's U) is below margin + 1 mm are not constrained:
+there the family can barely keep the margin at all with the endpoint tolerance. The fit remains a closed-form
+quadratic in (L, W); its certificate is the last map, so nothing here needs trusting beyond
+``certify_range``. Paper family only (all 8 parameters regressed).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import minimize
+
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.region_map import STATUSES, RegionMap
+from pipeline.exceptions import InvalidParameterError
+from pipeline.geometry.clearance import segment_rectangle_distance
+from pipeline.model.obstacle import Obstacle
+from pipeline.motion.path import desired_path
+from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.coefficients import Coefficients
+from pipeline.offline.endpoint_regression import (
+    EndpointConstraint,
+    EndpointTargets,
+    endpoint_errors_m,
+    endpoint_slack,
+    endpoint_slack_jacobian,
+    endpoint_targets,
+)
+from pipeline.offline.regression import design_matrix
+from pipeline.validation import check_non_negative, check_positive_int
+
+_SAMPLES_S = 401
+_FD_STEP_RAD = 1e-6
+#: Leaves whose endpoint-pose clearance bound U is below margin + this are not constrained [m].
+_FEASIBLE_SLACK_M = 1e-3
+
+
+@dataclass(frozen=True)
+class CertifiableFitConfig:
+    """Settings of :func:`fit_certifiable`.
+
+    Attributes:
+        certificate: Settings of each round's range certificate.
+        endpoint: The endpoint constraint (tolerance and grid) of the regression.
+        max_rounds: Rounds of certify -> add constraints -> refit.
+        cushion_m: Clearance asked above the margin at the constraint points [m] (the margin
+            must hold between them too).
+        points_per_round: Cap on new clearance constraint points and on new endpoint targets per round.
+    """
+
+    certificate: RangeCertificateConfig = field(default_factory=RangeCertificateConfig)
+    endpoint: EndpointConstraint = field(default_factory=EndpointConstraint)
+    max_rounds: int = 4
+    cushion_m: float = 5e-4
+    points_per_round: int = 200
+
+    def __post_init__(self) -> None:
+        check_positive_int("max_rounds", self.max_rounds)
+        check_non_negative("cushion_m", self.cushion_m)
+        check_positive_int("points_per_round", self.points_per_round)
+
+
+@dataclass(frozen=True, eq=False)
+class ClearancePoints:
+    """Points (L, W, s) where the refit must keep the clearance, with their T and obstacle geometry.
+
+    Attributes:
+        points: (n, 3) L [m], W [m], s [-].
+        duration_s: T(L, W) [s], (n,).
+    """
+
+    points: np.ndarray
+    duration_s: np.ndarray
+
+
+def _clearance_points(coefficients: Coefficients, points: np.ndarray) -> ClearancePoints:
+    scene = coefficients.scene
+    durations = np.array([desired_path(Obstacle.in_scene(L, W, scene), scene).duration_s for L, W, _ in points])
+    return ClearancePoints(np.asarray(points, dtype=float), durations)
+
+
+def _theta(parameters: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Joint angles (n, 2) and d theta_j / d (A_j, w_j, phi_j, gamma_j) (n, 2, 4) at times t (n,)."""
+    A, w, phi, gamma = (parameters[:, i::4] for i in range(4))
+    u = w * t[:, None] + phi
+    theta = A * np.sin(u) + gamma
+    d = np.stack([np.sin(u), A * t[:, None] * np.cos(u), A * np.cos(u), np.ones_like(u)], -1)
+    return theta, d
+
+
+def _clearance_of_theta(theta: np.ndarray, points: np.ndarray, coefficients: Coefficients) -> np.ndarray:
+    """Analytic clearance (both links) of configurations (n, 2) against the obstacles of ``points``."""
+    l1, l2 = coefficients.link_lengths_m
+    scene = coefficients.scene
+    r = scene.corner_radius_m
+    elbow = l1 * np.stack([np.cos(theta[:, 0]), np.sin(theta[:, 0])], -1)
+    phi = theta.sum(-1)
+    tip = elbow + l2 * np.stack([np.cos(phi), np.sin(phi)], -1)
+    center = np.stack([np.zeros(len(points)), scene.top_y_m - points[:, 1] / 2], -1)
+    half = np.stack([points[:, 0] / 2 - r, points[:, 1] / 2 - r], -1)
+    c1 = segment_rectangle_distance(np.zeros_like(elbow), elbow, center, half) - coefficients.link_radii_m[0]
+    c2 = segment_rectangle_distance(elbow, tip, center, half) - coefficients.link_radii_m[1]
+    return np.minimum(c1, c2) - r
+
+
+def clearance_at(b: np.ndarray, data: ClearancePoints, coefficients: Coefficients) -> np.ndarray:
+    """Clearance [m] of the fit with coefficient matrix ``b`` (6 x 8, row-major) at the points."""
+    X = design_matrix(data.points[:, 0], data.points[:, 1])
+    theta, _ = _theta(X @ np.reshape(b, (6, 8)), data.points[:, 2] * data.duration_s)
+    return _clearance_of_theta(theta, data.points, coefficients)
+
+
+def clearance_jacobian(b: np.ndarray, data: ClearancePoints, coefficients: Coefficients) -> np.ndarray:
+    """d :func:`clearance_at` / d b, (n, 48): central differences in theta, closed form beyond."""
+    X = design_matrix(data.points[:, 0], data.points[:, 1])
+    theta, d_theta = _theta(X @ np.reshape(b, (6, 8)), data.points[:, 2] * data.duration_s)
+    grad = np.empty_like(theta)
+    for j in (0, 1):
+        step = np.zeros(2)
+        step[j] = _FD_STEP_RAD
+        up = _clearance_of_theta(theta + step, data.points, coefficients)
+        down = _clearance_of_theta(theta - step, data.points, coefficients)
+        grad[:, j] = (up - down) / (2 * _FD_STEP_RAD)
+    d_p = (grad[:, :, None] * d_theta).reshape(len(theta), 8)  # joint-major = PARAMETER_NAMES order
+    return np.einsum("np,nk->nkp", d_p, X).reshape(len(theta), 48)
+
+
+def worst_points(coefficients: Coefficients, region_map: RegionMap, limit: int) -> tuple[np.ndarray, np.ndarray]:
+    """Clearance points (L, W, s) of the leaves that miss the margin without being infeasible,
+    lowest first (at most ``limit``), and the centres (L, W) of leaves whose endpoint bound
+    exceeds the tolerance, largest bound first (at most ``limit``)."""
+    failing = np.flatnonzero(
+        ((region_map.status == STATUSES.index("collision_free")) | (region_map.status == STATUSES.index("undecided")))
+        # Leaves whose endpoint poses can barely keep the margin are left out: the constraint
+        # would be (nearly) infeasible there (the infeasibility certificate's upper bound U).
+        & (region_map.endpoint_clearance_upper_m >= region_map.margin_m + _FEASIBLE_SLACK_M)
+    )
+    model_lo = np.array([region_map.length_range_m[0], region_map.width_range_m[0]])
+    size = np.array([region_map.length_range_m[1], region_map.width_range_m[1]]) - model_lo
+    centres = model_lo + (np.stack([region_map.index_l, region_map.index_w], -1) + 0.5) * size / (
+        2.0 ** region_map.depth[:, None]
+    )
+    points, values = [], []
+    s = np.linspace(0.0, 1.0, _SAMPLES_S)
+    X = design_matrix(centres[failing, 0], centres[failing, 1])
+    b = np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1)
+    data = _clearance_points(coefficients, np.column_stack([centres[failing], np.zeros(len(failing))]))
+    for row in range(len(failing)):
+        params = np.repeat((X[row] @ b)[None], _SAMPLES_S, 0)
+        theta, _ = _theta(params, s * data.duration_s[row])
+        where = np.repeat(data.points[row][None], _SAMPLES_S, 0)
+        clearance = _clearance_of_theta(theta, where, coefficients)
+        k = int(np.argmin(clearance))
+        points.append([*centres[failing[row]], s[k]])
+        values.append(clearance[k])
+    order = np.argsort(values)[:limit]
+    clearance_points = np.array(points)[order] if points else np.empty((0, 3))
+    loose = np.flatnonzero(region_map.endpoint_bound_m > region_map.endpoint_tolerance_m)
+    loose = loose[np.argsort(-region_map.endpoint_bound_m[loose])][:limit]
+    return clearance_points, centres[loose]
+
+
+def _merge_targets(grid: EndpointTargets, extra: EndpointTargets | None) -> EndpointTargets:
+    if extra is None:
+        return grid
+    return EndpointTargets(
+        *(np.concatenate([getattr(grid, f), getattr(extra, f)]) for f in ("lengths_m", "widths_m", "start_m")),
+        np.concatenate([grid.end_m, extra.end_m]),
+        np.concatenate([grid.duration_s, extra.duration_s]),
+        grid.link_lengths_m,
+    )
+
+
+def _targets_at(coefficients: Coefficients, centres: np.ndarray) -> EndpointTargets:
+    scene = coefficients.scene
+    paths = [desired_path(Obstacle.in_scene(L, W, scene), scene) for L, W in centres]
+    return EndpointTargets(
+        centres[:, 0].copy(),
+        centres[:, 1].copy(),
+        np.array([p.points_m[0] for p in paths]),
+        np.array([p.points_m[-1] for p in paths]),
+        np.array([p.duration_s for p in paths]),
+        tuple(coefficients.link_lengths_m),
+    )
+
+
+def refit(
+    start: Coefficients,
+    length_m: np.ndarray,
+    width_m: np.ndarray,
+    values: Mapping[str, np.ndarray],
+    targets: EndpointTargets,
+    clearance: ClearancePoints,
+    margin_m: float,
+    config: CertifiableFitConfig,
+) -> tuple[Coefficients, bool]:
+    """One SLSQP refit from ``start`` (module docstring, step 3); returns the coefficients and convergence."""
+    X_data = design_matrix(length_m, width_m)
+    X_grid = design_matrix(targets.lengths_m, targets.widths_m)
+    Y = np.stack([np.asarray(values[name], dtype=float) for name in PARAMETER_NAMES], -1)
+
+    def objective(b: np.ndarray) -> tuple[float, np.ndarray]:
+        residual = X_data @ b.reshape(6, 8) - Y
+        return float(np.sum(residual * residual)), (2.0 * X_data.T @ residual).ravel()
+
+    floor = margin_m + config.cushion_m
+    scale = 1.0 / max(floor, 1e-3)
+    constraints = [
+        {
+            "type": "ineq",
+            "fun": endpoint_slack,
+            "jac": endpoint_slack_jacobian,
+            "args": (X_grid, targets, config.endpoint.tolerance_m),
+        }
+    ]
+    if clearance.points.shape[0]:
+        constraints.append(
+            {
+                "type": "ineq",
+                "fun": lambda b: (clearance_at(b, clearance, start) - floor) * scale,
+                "jac": lambda b: clearance_jacobian(b, clearance, start) * scale,
+            }
+        )
+    b0 = np.stack([start.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
+    result = minimize(
+        objective,
+        b0,
+        jac=True,
+        method="SLSQP",
+        constraints=constraints,
+        options={"maxiter": config.endpoint.max_iterations, "ftol": 1e-12},
+    )
+    B = result.x.reshape(6, 8)
+    parameters = {name: tuple(float(v) for v in B[:, i]) for i, name in enumerate(PARAMETER_NAMES)}
+    return replace(start, parameters=parameters, source_sha256=""), bool(result.success)
+
+
+def fit_certifiable(
+    coefficients: Coefficients,
+    length_m: np.ndarray,
+    width_m: np.ndarray,
+    values: Mapping[str, np.ndarray],
+    config: CertifiableFitConfig | None = None,
+) -> tuple[Coefficients, RegionMap, dict]:
+    """Constraint generation (module docstring) from ``coefficients`` (e.g. the build's fit).
+
+    Args:
+        coefficients: The starting fit (paper family).
+        length_m, width_m: The DOE's obstacle sizes [m], (n,).
+        values: The DOE optima per parameter (canonical form), name -> (n,).
+        config: Settings; default :class:`CertifiableFitConfig`.
+
+    Returns:
+        (the final coefficients, their region map, a report per round: area fractions, points,
+        seconds). The returned coefficients carry no sha256 until saved; certify them again
+        after saving to link a map to the file.
+
+    Raises:
+        InvalidParameterError: a family other than the paper's (all 8 parameters regressed).
+    """
+    config = config or CertifiableFitConfig()
+    if tuple(coefficients.family.free_parameter_names) != PARAMETER_NAMES:
+        raise InvalidParameterError("family", coefficients.family.name, "a family regressing all 8 parameters")
+    margin = coefficients.scene.margin_m if config.certificate.margin_m is None else config.certificate.margin_m
+    grid = endpoint_targets(
+        coefficients.fitted_range_m, coefficients.scene, coefficients.link_lengths_m, config.endpoint.grid_points
+    )
+    extra_targets: EndpointTargets | None = None
+    collected = np.empty((0, 3))
+    current = coefficients
+    rounds = []
+    for round_index in range(config.max_rounds + 1):
+        start = time.perf_counter()
+        region_map = certify_range(current, config.certificate)
+        summary = region_map.summary()
+        new_points, loose = worst_points(current, region_map, config.points_per_round)
+        rounds.append(
+            {
+                "round": round_index,
+                "area_fraction": summary["area_fraction"],
+                "endpoint_within_tolerance_fraction": summary["endpoint_within_tolerance_fraction"],
+                "clearance_points": int(collected.shape[0]),
+                "endpoint_targets": 0 if extra_targets is None else int(extra_targets.lengths_m.size),
+                "certify_seconds": region_map.seconds,
+            }
+        )
+        if (new_points.shape[0] == 0 and loose.shape[0] == 0) or round_index == config.max_rounds:
+            break
+        collected = np.vstack([collected, new_points])
+        if loose.shape[0]:
+            more = _targets_at(current, loose)
+            extra_targets = more if extra_targets is None else _merge_targets(extra_targets, more)
+        targets = _merge_targets(grid, extra_targets)
+        candidate, converged = refit(
+            current, length_m, width_m, values, targets, _clearance_points(current, collected), margin, config
+        )
+        rounds[-1]["refit_converged"] = converged
+        if not converged:  # SLSQP's last iterate need not satisfy anything: keep the certified fit
+            rounds[-1]["stopped"] = "refit did not converge; the previous coefficients are returned"
+            break
+        current = candidate
+        rounds[-1]["refit_seconds"] = time.perf_counter() - start - region_map.seconds
+        rounds[-1]["grid_endpoint_error_max_m"] = float(
+            endpoint_errors_m(design_matrix(targets.lengths_m, targets.widths_m) @ _matrix(current), targets).max()
+        )
+    return current, region_map, {"rounds": rounds}
+
+
+def _matrix(coefficients: Coefficients) -> np.ndarray:
+    return np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1)

@@ -1,0 +1,221 @@
+"""Rigorous lower bounds on the clearance of both links over boxes of (L, W) x s, s = t / T(L, W).
+
+Geometry (``pipeline.obstacle``, ``pipeline.robot``): link k is a capsule, the segment
+S_k = [a_k, b_k] (link 1: base -> elbow, link 2: elbow -> tip) inflated by its radius r_k; the
+obstacle is the core rectangle R(L, W) = [-(L/2 - r), L/2 - r] x [d - W + r, d - r] inflated by
+the corner radius r, i.e. footprint x in [-L/2, L/2], y in [d - W, d]. Because the arm and the
+box are straight prisms over the same plane (the box is taller than the capsules), the 3-D
+distance Coal computes is the planar one, and for positive clearance
+
+    c_k = dist(S_k, R) - r_k - r        (the analytic route of ``pipeline.clearance``).
+
+Where the capsule and the box meet, dist(S_k, R) - r_k - r <= 0 and Coal's value (a penetration
+depth) is <= 0 too: every bound below is a lower bound on c_k, so a positive bound certifies
+both the analytic and the Coal clearance (up to Coal's error, :data:`COAL_DISTANCE_ERROR_M`).
+
+Every point x = (L, W, s) of a box X with centre c and half widths r (``radius``) has
+joint angles theta(x) from :class:`pipeline.certify.range_model.RangeModel` (the regression's
+parameters, T(L, W), the family's expansion); interval jets give enclosures of theta and of
+d theta / d(L, W, s) over X. Three lower bounds are computed per link and box, and the largest
+is kept (each is valid everywhere, so their maximum is):
+
+(a) **Separating direction (dual form).** For any unit vector n,
+    dist(S, R) >= min_{p in S} n.p - max_{q in R} n.q = min_{e in {a, b}, j} n.(e - v_j)
+    (v_j the four vertices of R; linear functionals take their extremes at vertices). n is
+    fixed per box as the direction of the closest pair at the centre c. Each of the eight
+    n.(e(x) - v_j(x)) is a smooth function of x, bounded over X by the mean-value form
+    f(x) >= f(c) - sum_i max_X |df/dx_i| r_i (arm and obstacle in one function, so that their
+    common dependence on L and W is not counted twice). At the centre the bound equals the
+    distance when the witness is a vertex of S (an endpoint) and by the envelope theorem its
+    first-order change equals the distance's, so the gap shrinks quadratically with the box.
+(b) **Supporting line of the link.** With m(x) = (-sin phi, cos phi) the unit normal of link k
+    (phi = theta1, resp. theta1 + theta2) and sigma = +-1, if sigma m.(v_j - a) > 0 for all j,
+    R lies on one side of the line through S and dist(S, R) >= dist(line, R) =
+    min_j sigma m.(v_j - a); otherwise this is <= 0 <= dist. The bound is exact when the
+    witness on S is interior (a corner of R against the side of the link), the case where (a)
+    loses first order; again each m.(v_j - a) is bounded by its mean-value form.
+(c) **Lipschitz form with the distance at the centre.** Distance is 1-Lipschitz in the Hausdorff
+    motion of either body. Over X, the segment of link 1 moves by at most l1 |d theta1|
+    (|e(x) - e(c)| = 2 l1 |sin(d theta1 / 2)|), link 2 by at most l1 |d theta1| + l2 |d(theta1 +
+    theta2)| (the Hausdorff distance of two segments is at most the larger endpoint
+    displacement), with |d theta| <= sum_i max_X |d theta / dx_i| r_i. The obstacle's core
+    rectangle moves by at most sqrt((r_L / 2)^2 + r_W^2) in Hausdorff distance (its bottom
+    corners move by (dL / 2, dW); note this is the Euclidean, not the max, of the two) and
+    the inflation by r does not increase that. So c_k(x) >= c_k(c) - motion - obstacle motion
+    - distance error, with c_k(c) from the analytic route (``distance_error_m`` its bound) or
+    from Coal (:data:`COAL_DISTANCE_ERROR_M`). This bound is first order; it guards the
+    degenerate centres where (a) and (b) have no good direction.
+
+Rounding: every bound is lowered by :data:`FLOAT_SLACK_M` (see ``pipeline.certify.interval``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.certify.interval import Jet, lower_bound, upper_bound
+from pipeline.certify.range_model import RangeModel
+from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, COAL_DISTANCE_ERROR_M, segment_rectangle_distance
+
+#: Slack [m] subtracted from every final bound for floating-point rounding of the whole chain.
+FLOAT_SLACK_M = 1e-9
+
+__all__ = ["COAL_DISTANCE_ERROR_M", "FLOAT_SLACK_M", "BoxBounds", "box_clearance_bounds", "obstacle_motion_m"]
+
+
+@dataclass(frozen=True, eq=False)
+class BoxBounds:
+    """Clearance bounds over N boxes of (L, W, s).
+
+    Attributes:
+        lower_m: Rigorous lower bound on the clearance of both links over each box [m], (N,).
+        link_lower_m: The same per link [m], (N, 2).
+        center_m: Analytic clearance (both links) at each box centre [m], (N,): a value the
+            clearance takes, so no bound over the box can exceed it.
+        split_s: True where the box's gap is dominated by its extent in s (bisect s first).
+    """
+
+    lower_m: np.ndarray
+    link_lower_m: np.ndarray
+    center_m: np.ndarray
+    split_s: np.ndarray
+
+
+def obstacle_motion_m(radius_l_m: np.ndarray, radius_w_m: np.ndarray) -> np.ndarray:
+    """Hausdorff distance [m] by which the obstacle can move within L +- radius_l, W +- radius_w."""
+    return np.hypot(0.5 * np.asarray(radius_l_m), np.asarray(radius_w_m))
+
+
+def _geometry(model: RangeModel, center: np.ndarray, radius: np.ndarray) -> dict:
+    """Jets of the joint angles, link endpoints and obstacle vertices over the boxes."""
+    l1, l2 = model.link_lengths_m
+    theta1, theta2 = model.joint_jets(center, radius)
+    phi2 = theta1 + theta2
+    c1, s1, c2, s2 = theta1.cos(), theta1.sin(), phi2.cos(), phi2.sin()
+    elbow = (c1 * l1, s1 * l1)
+    tip = (elbow[0] + c2 * l2, elbow[1] + s2 * l2)
+    L, W, _ = model.variables(center, radius)
+    r, d = model.scene.corner_radius_m, model.scene.top_y_m
+    half_x = L * 0.5 - r
+    bottom = W * (-1.0) + (d + r)
+    top = Jet.constant(np.full(center.shape[0], d - r), 3)
+    vertices = [(half_x, bottom), (half_x, top), (-half_x, top), (-half_x, bottom)]
+    zero = Jet.constant(np.zeros(center.shape[0]), 3)
+    return {
+        "theta": (theta1, phi2),
+        "normals": ((-s1, c1), (-s2, c2)),
+        "links": (((zero, zero), elbow), (elbow, tip)),
+        "vertices": vertices,
+    }
+
+
+def _dot(n: np.ndarray, p: tuple[Jet, Jet]) -> Jet:
+    return p[0] * n[:, 0] + p[1] * n[:, 1]
+
+
+def _witness_directions(a: np.ndarray, b: np.ndarray, center: np.ndarray, half: np.ndarray) -> tuple:
+    """Unit direction (N, 2) from the rectangle to the segment along their closest pair, and a validity mask."""
+    lo, hi = center - half, center + half
+    candidates = [p - np.clip(p, lo, hi) for p in (a, b)]
+    ab = b - a
+    length2 = np.maximum(np.sum(ab * ab, axis=1), 1e-300)
+    for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        v = center + half * np.array([sx, sy])
+        t = np.clip(np.sum((v - a) * ab, axis=1) / length2, 0.0, 1.0)
+        candidates.append(a + t[:, None] * ab - v)
+    stack = np.stack(candidates, axis=1)
+    lengths = np.linalg.norm(stack, axis=2)
+    best = np.argmin(lengths, axis=1)
+    rows = np.arange(a.shape[0])
+    vector, length = stack[rows, best], lengths[rows, best]
+    touching = segment_rectangle_distance(a, b, center, half) <= 0.0
+    valid = (length > 1e-12) & ~touching
+    n = vector / np.where(valid, length, 1.0)[:, None]
+    return n, valid
+
+
+def box_clearance_bounds(
+    model: RangeModel,
+    center: np.ndarray,
+    radius: np.ndarray,
+    *,
+    center_clearance_m: np.ndarray | None = None,
+    distance_error_m: float = ANALYTIC_DISTANCE_ERROR_M,
+) -> BoxBounds:
+    """Lower bounds on the clearance over boxes of (L, W, s) (module docstring).
+
+    Args:
+        model: The coefficients' range model.
+        center: Box centres (N, 3): L [m], W [m], s [-].
+        radius: Half widths (N, 3), same units; boxes must lie in the fitted range and s in [0, 1].
+        center_clearance_m: Per-link clearance (N, 2) [m] at each box centre's configuration
+            and obstacle from another route (e.g. Coal through Pinocchio); default the analytic route.
+        distance_error_m: Error bound of ``center_clearance_m`` [m] (Coal: COAL_DISTANCE_ERROR_M).
+
+    Returns:
+        The :class:`BoxBounds`.
+    """
+    center = np.asarray(center, dtype=float)
+    radius = np.asarray(radius, dtype=float)
+    point = _geometry(model, center, np.zeros_like(radius))
+    box = _geometry(model, center, radius)
+    r_corner = model.scene.corner_radius_m
+    d = model.scene.top_y_m
+    rect_center = np.stack([np.zeros(center.shape[0]), d - center[:, 1] / 2], -1)
+    rect_half = np.stack([center[:, 0] / 2 - r_corner, center[:, 1] / 2 - r_corner], -1)
+    l1, l2 = model.link_lengths_m
+    hausdorff = obstacle_motion_m(radius[:, 0], radius[:, 1])
+
+    link_lower = np.empty((center.shape[0], 2))
+    centre_values = np.empty((center.shape[0], 2))
+    motion = []
+    for k in (0, 1):
+        (pa, pb), (ba, bb) = point["links"][k], box["links"][k]
+        a_c = np.stack([pa[0].value.mid, pa[1].value.mid], -1)
+        b_c = np.stack([pb[0].value.mid, pb[1].value.mid], -1)
+        clearance_c = segment_rectangle_distance(a_c, b_c, rect_center, rect_half) - model.link_radii_m[k] - r_corner
+        centre_values[:, k] = clearance_c
+        inflate = model.link_radii_m[k] + r_corner
+
+        # (a) separating direction fixed at the centre's closest pair.
+        n, valid = _witness_directions(a_c, b_c, rect_center, rect_half)
+        pairs = []
+        for p_end, b_end in ((pa, ba), (pb, bb)):
+            for pv, bv in zip(point["vertices"], box["vertices"], strict=True):
+                p_jet = _dot(n, (p_end[0] - pv[0], p_end[1] - pv[1]))
+                b_jet = _dot(n, (b_end[0] - bv[0], b_end[1] - bv[1]))
+                pairs.append(lower_bound(p_jet, b_jet, radius))
+        bound_a = np.where(valid, np.min(pairs, axis=0), -np.inf) - inflate
+
+        # (b) the supporting line of the link.
+        pm, bm = point["normals"][k], box["normals"][k]
+        lows, highs = [], []
+        for pv, bv in zip(point["vertices"], box["vertices"], strict=True):
+            p_jet = pm[0] * (pv[0] - pa[0]) + pm[1] * (pv[1] - pa[1])
+            b_jet = bm[0] * (bv[0] - ba[0]) + bm[1] * (bv[1] - ba[1])
+            lows.append(lower_bound(p_jet, b_jet, radius))
+            highs.append(upper_bound(p_jet, b_jet, radius))
+        bound_b = np.maximum(np.min(lows, axis=0), -np.max(highs, axis=0)) - inflate
+
+        # (c) Lipschitz form around the centre's distance.
+        d_theta1 = np.sum(box["theta"][0].grad.mag() * radius, axis=1) + point["theta"][0].value.rad
+        d_phi2 = np.sum(box["theta"][1].grad.mag() * radius, axis=1) + point["theta"][1].value.rad
+        move = l1 * d_theta1 if k == 0 else l1 * d_theta1 + l2 * d_phi2
+        given = clearance_c if center_clearance_m is None else np.asarray(center_clearance_m)[:, k]
+        error = distance_error_m if center_clearance_m is not None else ANALYTIC_DISTANCE_ERROR_M
+        bound_c = given - move - hausdorff - error
+        link_lower[:, k] = np.maximum(np.maximum(bound_a, bound_b), bound_c) - FLOAT_SLACK_M
+        if k == 1:
+            g1, g2 = box["theta"][0].grad.mag(), box["theta"][1].grad.mag()
+            motion = l1 * g1 * radius + l2 * g2 * radius
+    lw_term = motion[:, 0] + motion[:, 1] + hausdorff
+    split_s = motion[:, 2] > lw_term
+    lower = np.where(np.isnan(link_lower), -np.inf, link_lower)
+    return BoxBounds(
+        lower_m=np.min(lower, axis=1),
+        link_lower_m=lower,
+        center_m=np.min(centre_values, axis=1),
+        split_s=split_s,
+    )

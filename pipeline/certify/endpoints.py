@@ -1,0 +1,231 @@
+"""Range certificates at the ends of the motion: an upper bound on the endpoint errors over
+(L, W) cells, and an infeasibility certificate for the margin at the endpoints.
+
+Endpoint errors
+===============
+
+e_start(L, W) = tip(theta(L, W, s = 0)) - P1(L, W) and e_end = tip(theta(L, W, s = 1)) - P5(L, W),
+tip by Eq. 2 (l1 (cos th1, sin th1) + l2 (cos(th1 + th2), sin(th1 + th2))),
+P1 = (L/2 + dx1, y1), P5 = (-(L/2 + dx1), y1). Each component is a smooth function of (L, W),
+enclosed over a cell by the mean-value form around the cell centre (interval jets of
+``pipeline.certify.range_model``, T(L, W) included through s = 1); |e| <= the norm of the
+largest corner of the enclosing box. The form is exact to first order, so the bound exceeds
+the cell's true maximum by O(h^2). For a family that pins the endpoints (exact-endpoints), the
+errors vanish algebraically wherever its A1 is not clamped over the cell
+(:meth:`pipeline.certify.range_model.RangeModel.endpoints_pinned`); the bound there is the
+rounding slack.
+
+Infeasibility at the margin
+===========================
+
+Let tol be the endpoint tolerance. Every trajectory of the family whose end pose q(T) puts the
+tip within tol of P5 (and on the family's elbow branch, sign(theta2) = elbow) has clearance
+at t = T at most
+
+    U = max { c(q, O(L, W)) : |tip(q) - P5(L, W)| <= tol, sign(th2) = elbow, (L, W) in the cell },
+
+and the same at P1. Where U < margin, no member of the family keeps both the endpoint
+tolerance and the margin anywhere in the cell: the cell is *infeasible*. An upper bound on U:
+
+* P5(L, W) lies within h_L / 2 of P5(centre), so the tips form a subset of the disc of radius
+  rho = tol + h_L / 2 about P5(centre), itself inside the polar box r in [|P| - rho, |P| + rho],
+  psi in [psi_P - asin(rho / |P|), psi_P + asin(rho / |P|)].
+* On a polar sub-box the inverse kinematics is monotone: th2 = elbow acos((r^2 - l1^2 - l2^2) /
+  (2 l1 l2)) is monotone in r; th1 = psi - beta(th2), beta = atan2(l2 sin th2, l1 + l2 cos th2),
+  d beta / d th2 = l2 (l2 + l1 cos th2) / r^2, so beta is monotone between the zeros of
+  l2 + l1 cos th2 (checked). So each sub-box maps into a box of (th1, th2).
+* Over a (th1, th2) box with half widths (D1, D2) around q_m, links move by at most
+  l1 D1 (link 1) and by the larger of the elbow's motion (l1 D1) and the tip's in Hausdorff
+  distance (link 2); the tip stays in the polar sub-box, whose points are within
+  (r_hi - r_lo) / 2 + r_hi (psi_hi - psi_lo) / 2 of its centre point (radial step then arc), so
+  the tip moves by at most that plus |tip(q_m) - centre point| (and never more than
+  l1 D1 + l2 (D1 + D2)); the obstacle moves
+  by at most sqrt((h_L / 2)^2 + h_W^2). Distance being 1-Lipschitz,
+  c(q, O) <= min_k (c_k(q_m, O_centre) + move_k) + obstacle motion + distance error.
+* Sub-boxes whose sector misses the disc are dropped. The others are bisected (branch and
+  bound for a maximum) until every bound is below the margin, or a sub-box centre, whose pose
+  has its tip within tol of P(L', W) for some L' of the cell, clears the margin (then
+  U >= margin: not infeasible; the pose with its tip exactly at P(centre) is tried first), or a
+  depth limit; U is the largest bound left.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pipeline.certify.clearance_bound import FLOAT_SLACK_M, obstacle_motion_m
+from pipeline.certify.interval import lower_bound, upper_bound
+from pipeline.certify.range_model import RangeModel
+from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, link_segments, segment_rectangle_distance
+
+#: Cap on the polar sub-boxes alive at once in :func:`endpoint_clearance_upper_bounds`.
+_MAX_SUB_BOXES = 400_000
+
+__all__ = ["endpoint_clearance_upper_bounds", "endpoint_error_bounds"]
+
+
+def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
+    """Upper bounds [m] on |tip(0) - P1| and |tip(T) - P5| over (L, W) cells, shape (N, 2).
+
+    Args:
+        model: The coefficients' range model.
+        center_m: Cell centres (N, 2): L, W [m].
+        radius_m: Half widths (N, 2) [m].
+    """
+    center2 = np.asarray(center_m, dtype=float)
+    radius2 = np.asarray(radius_m, dtype=float)
+    n = center2.shape[0]
+    out = np.empty((n, 2))
+    l1, l2 = model.link_lengths_m
+    for column, (s, side) in enumerate(((0.0, 1.0), (1.0, -1.0))):
+        center = np.column_stack([center2, np.full(n, s)])
+        radius = np.column_stack([radius2, np.zeros(n)])
+        comps = []
+        for r in (np.zeros_like(radius), radius):
+            theta1, theta2 = model.joint_jets(center, r)
+            phi2 = theta1 + theta2
+            L, _, _ = model.variables(center, r)
+            px = (L * 0.5 + model.scene.start_dx_m) * side
+            ex = theta1.cos() * l1 + phi2.cos() * l2 - px
+            ey = theta1.sin() * l1 + phi2.sin() * l2 - model.scene.y1_m
+            comps.append((ex, ey))
+        (px_, py_), (bx_, by_) = comps
+        mag_x = np.maximum(np.abs(lower_bound(px_, bx_, radius)), np.abs(upper_bound(px_, bx_, radius)))
+        mag_y = np.maximum(np.abs(lower_bound(py_, by_, radius)), np.abs(upper_bound(py_, by_, radius)))
+        out[:, column] = np.hypot(mag_x, mag_y) + FLOAT_SLACK_M
+    pinned = model.endpoints_pinned(center2, radius2)
+    out[pinned] = FLOAT_SLACK_M  # exact by construction (RangeModel.endpoints_pinned), up to rounding
+    return out
+
+
+def _beta(theta2: np.ndarray, l1: float, l2: float) -> np.ndarray:
+    return np.arctan2(l2 * np.sin(theta2), l1 + l2 * np.cos(theta2))
+
+
+def _beta_range(lo: np.ndarray, hi: np.ndarray, l1: float, l2: float) -> tuple[np.ndarray, np.ndarray]:
+    """Range of beta(th2) over [lo, hi] (module docstring): ends, plus the turning points inside."""
+    values = [_beta(lo, l1, l2), _beta(hi, l1, l2)]
+    if l2 <= l1:  # turning points where l2 + l1 cos th2 = 0
+        turn = math.acos(-l2 / l1)
+        for t in (turn, -turn):
+            inside = (lo <= t) & (t <= hi)
+            values.append(np.where(inside, _beta(np.full_like(lo, t), l1, l2), values[0]))
+    return np.minimum.reduce(values), np.maximum.reduce(values)
+
+
+def _pose_box_upper_bounds(
+    model: RangeModel,
+    r_lo: np.ndarray,
+    r_hi: np.ndarray,
+    psi_lo: np.ndarray,
+    psi_hi: np.ndarray,
+    cell_center: np.ndarray,
+    cell_radius: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Upper bound on the clearance over polar tip boxes, and the clearance and tip of each box's centre pose."""
+    l1, l2 = model.link_lengths_m
+    cos2 = lambda r: np.clip((r * r - l1 * l1 - l2 * l2) / (2 * l1 * l2), -1.0, 1.0)  # noqa: E731
+    t2a, t2b = model.elbow * np.arccos(cos2(r_lo)), model.elbow * np.arccos(cos2(r_hi))
+    t2_lo, t2_hi = np.minimum(t2a, t2b), np.maximum(t2a, t2b)
+    b_lo, b_hi = _beta_range(t2_lo, t2_hi, l1, l2)
+    t1_lo, t1_hi = psi_lo - b_hi, psi_hi - b_lo
+    q_mid = np.stack([(t1_lo + t1_hi) / 2, (t2_lo + t2_hi) / 2], -1)
+    d1, d2 = (t1_hi - t1_lo) / 2, (t2_hi - t2_lo) / 2
+    elbow, tip = link_segments(q_mid, model.link_lengths_m)
+    r_corner, d = model.scene.corner_radius_m, model.scene.top_y_m
+    rect_center = np.stack([np.zeros(len(r_lo)), d - cell_center[:, 1] / 2], -1)
+    rect_half = np.stack([cell_center[:, 0] / 2 - r_corner, cell_center[:, 1] / 2 - r_corner], -1)
+    c1 = segment_rectangle_distance(np.zeros_like(elbow), elbow, rect_center, rect_half) - model.link_radii_m[0]
+    c2 = segment_rectangle_distance(elbow, tip, rect_center, rect_half) - model.link_radii_m[1]
+    centre_clearance = np.minimum(c1, c2) - r_corner
+    move1 = l1 * d1
+    r_mid, p_mid = (r_lo + r_hi) / 2, (psi_lo + psi_hi) / 2
+    sector_center = np.stack([r_mid * np.cos(p_mid), r_mid * np.sin(p_mid)], -1)
+    tip_move = np.linalg.norm(tip - sector_center, axis=1) + (r_hi - r_lo) / 2 + r_hi * (psi_hi - psi_lo) / 2
+    move2 = np.minimum(np.maximum(move1, tip_move), l1 * d1 + l2 * (d1 + d2))
+    upper = np.minimum(c1 + move1, c2 + move2) - r_corner
+    upper = upper + obstacle_motion_m(cell_radius[:, 0], cell_radius[:, 1]) + ANALYTIC_DISTANCE_ERROR_M + FLOAT_SLACK_M
+    return upper, centre_clearance, tip
+
+
+def _sector_distance(
+    radius: np.ndarray, angle: np.ndarray, r_lo: np.ndarray, r_hi: np.ndarray, p_lo: np.ndarray, p_hi: np.ndarray
+) -> np.ndarray:
+    """Distance from the point (radius, angle) (polar) to the annular sectors [r_lo, r_hi] x [p_lo, p_hi]
+    (angles within pi/2 of each other)."""
+    inside = (p_lo <= angle) & (angle <= p_hi)
+    radial = np.maximum.reduce([r_lo - radius, radius - r_hi, np.zeros_like(radius)])
+    edge = np.where(angle < p_lo, p_lo, p_hi)
+    along = np.clip(radius * np.cos(angle - edge), r_lo, r_hi)
+    to_edge = np.sqrt(np.maximum(radius**2 + along**2 - 2 * radius * along * np.cos(angle - edge), 0.0))
+    return np.where(inside, radial, to_edge)
+
+
+def endpoint_clearance_upper_bounds(
+    model: RangeModel,
+    center_m: np.ndarray,
+    radius_m: np.ndarray,
+    tolerance_m: float,
+    margin_m: float,
+    *,
+    max_depth: int = 9,
+) -> np.ndarray:
+    """Upper bounds [m] on the clearance of every pose with its tip within ``tolerance_m`` of P1
+    (column 0) or P5 (column 1), on the family's elbow branch, over (L, W) cells: shape (N, 2).
+
+    The branch and bound stops proving once a bound is below ``margin_m`` or a pose is found
+    that clears it, so values at or above the margin only mean "not infeasible" (module docstring).
+    """
+    center2 = np.asarray(center_m, dtype=float)
+    radius2 = np.asarray(radius_m, dtype=float)
+    n = center2.shape[0]
+    out = np.empty((n, 2))
+    for column, side in enumerate((1.0, -1.0)):
+        px = side * (center2[:, 0] / 2 + model.scene.start_dx_m)
+        py = np.full(n, model.scene.y1_m)
+        dist = np.hypot(px, py)
+        rho = tolerance_m + radius2[:, 0] / 2
+        spread = np.arcsin(np.minimum(rho / dist, 1.0))
+        psi = np.arctan2(py, px)
+        # Active sub-boxes: owner cell, r and psi ranges.
+        owner = np.arange(n)
+        r_lo, r_hi = dist - rho, dist + rho
+        p_lo, p_hi = psi - spread, psi + spread
+        best = np.full(n, -np.inf)
+        # A witness: the pose with its tip exactly at P(centre) clears the margin there.
+        _, exact_c, _ = _pose_box_upper_bounds(model, dist, dist, psi, psi, center2, np.zeros_like(radius2))
+        witnessed = exact_c >= margin_m
+        for depth in range(max_depth + 1):
+            upper, centre_c, tip = _pose_box_upper_bounds(model, r_lo, r_hi, p_lo, p_hi, center2[owner], radius2[owner])
+            # Tip within the tolerance of P(L', W) for some L' of the cell (P moves along x by h_L / 2).
+            gap_x = np.maximum(np.abs(tip[:, 0] - px[owner]) - radius2[owner, 0] / 2, 0.0)
+            in_set = np.hypot(gap_x, tip[:, 1] - py[owner]) <= tolerance_m
+            hit = in_set & (centre_c >= margin_m)
+            np.logical_or.at(witnessed, owner[hit], True)
+            # Sub-boxes of the polar box that miss the disc hold no pose of the set.
+            meets = _sector_distance(dist[owner], psi[owner], r_lo, r_hi, p_lo, p_hi) <= rho[owner] * (1 + 1e-12)
+            upper = np.where(meets, upper, -np.inf)
+            open_ = (upper >= margin_m) & ~witnessed[owner]
+            closed = ~open_ | (depth == max_depth)
+            np.maximum.at(best, owner[closed], upper[closed])
+            keep = open_ & (depth < max_depth)
+            if np.count_nonzero(keep) > _MAX_SUB_BOXES:  # memory cap: close the rest with their (valid) bounds
+                np.maximum.at(best, owner[keep], upper[keep])
+                keep[:] = False
+            if not np.any(keep):
+                break
+            owner, r_lo, r_hi, p_lo, p_hi = owner[keep], r_lo[keep], r_hi[keep], p_lo[keep], p_hi[keep]
+            r_mid, p_mid = (r_lo + r_hi) / 2, (p_lo + p_hi) / 2
+            owner = np.repeat(owner, 4)
+            r_lo, r_hi = (
+                np.stack([r_lo, r_lo, r_mid, r_mid], 1).ravel(),
+                np.stack([r_mid, r_mid, r_hi, r_hi], 1).ravel(),
+            )
+            p_lo, p_hi = (
+                np.stack([p_lo, p_mid, p_lo, p_mid], 1).ravel(),
+                np.stack([p_mid, p_hi, p_mid, p_hi], 1).ravel(),
+            )
+        out[:, column] = np.where(witnessed, np.maximum(best, margin_m), best)
+    return out

@@ -1,0 +1,254 @@
+"""The range certificate of one coefficients file: branch and bound over (L, W) x s for the
+clearance, then per leaf of the (L, W) quadtree the endpoint-error bound and the
+infeasibility certificate, assembled into a :class:`pipeline.certify.region_map.RegionMap`.
+
+Soundness rests on the three bound modules (``clearance_bound``, ``endpoints``, ``duration``),
+whose docstrings carry the derivations; this module only combines them:
+
+* a leaf's clearance bound is the minimum of the bounds of every closed box whose (L, W) node
+  contains the leaf (the node itself or an ancestor, ``pipeline.certify.search``): those boxes
+  cover the leaf times all of s in [0, 1];
+* a leaf is cut further (its children inherit that clearance bound, still valid on them) while
+  its endpoint bound exceeds the tolerance (unless the family pins the endpoints by
+  construction), or while it is below the margin, not yet proven infeasible and close to being
+  so, down to the smallest cell.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from pipeline.certify.endpoints import endpoint_clearance_upper_bounds, endpoint_error_bounds
+from pipeline.certify.range_model import RangeModel
+from pipeline.certify.region_map import STATUSES, RegionMap
+from pipeline.certify.search import ClosedBoxes, SearchSettings, node_boxes, search
+from pipeline.exceptions import InvalidParameterError
+from pipeline.offline.coefficients import Coefficients
+from pipeline.validation import check_non_negative, check_positive, check_positive_int
+
+#: Default endpoint tolerance of the infeasibility certificate [m] (the build's regression's).
+DEFAULT_ENDPOINT_TOLERANCE_M = 0.002
+#: Default smallest cell, as a fraction of the fitted range's side.
+DEFAULT_MIN_CELL = 1.0 / 256
+#: Default cell size to which regions below the margin are resolved, fraction of the side.
+DEFAULT_BOUNDARY_CELL = 1.0 / 64
+#: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
+#: within this of the margin [m].
+_INFEASIBILITY_REFINE_M = 1e-3
+_KEY_BITS = 21
+
+
+@dataclass(frozen=True)
+class RangeCertificateConfig:
+    """Settings of :func:`certify_range`.
+
+    Attributes:
+        margin_m: Clearance to certify [m]; None takes the coefficients' scene margin.
+        endpoint_tolerance_m: Endpoint tolerance of the infeasibility certificate [m].
+        min_cell: Smallest cell, fraction of the fitted range's side (rounded down to 1 / 2^k).
+        boundary_cell: Cell size to which regions that miss the margin are resolved (fraction).
+        max_depth_s: Deepest cut of s = t / T (intervals of 1 / 2^depth).
+        jobs: Worker processes for the branch and bound.
+        max_boxes: Budget of box evaluations per worker task.
+    """
+
+    margin_m: float | None = None
+    endpoint_tolerance_m: float = DEFAULT_ENDPOINT_TOLERANCE_M
+    min_cell: float = DEFAULT_MIN_CELL
+    boundary_cell: float = DEFAULT_BOUNDARY_CELL
+    max_depth_s: int = 16
+    jobs: int = 1
+    max_boxes: int = 5_000_000
+
+    def __post_init__(self) -> None:
+        if self.margin_m is not None:
+            check_non_negative("margin_m", self.margin_m)
+        check_non_negative("endpoint_tolerance_m", self.endpoint_tolerance_m)
+        for name in ("min_cell", "boundary_cell"):
+            value = check_positive(name, getattr(self, name))
+            if value > 1.0 or value < 2.0**-20:
+                raise InvalidParameterError(name, value, "a fraction of the range's side in [2^-20, 1]")
+        check_positive_int("max_depth_s", self.max_depth_s, minimum=4)
+        check_positive_int("jobs", self.jobs)
+        check_positive_int("max_boxes", self.max_boxes)
+
+    @property
+    def max_depth_lw(self) -> int:
+        """Quadtree depth of the smallest cell."""
+        return max(0, math.floor(math.log2(1.0 / self.min_cell) + 1e-9))
+
+    def search_settings(self, margin_m: float) -> SearchSettings:
+        """The branch and bound's settings."""
+        depth = self.max_depth_lw
+        boundary = min(depth, max(0, math.floor(math.log2(1.0 / self.boundary_cell) + 1e-9)))
+        return SearchSettings(
+            margin_m=margin_m,
+            max_depth_lw=depth,
+            boundary_depth_lw=boundary,
+            max_depth_s=self.max_depth_s,
+            initial_depth_lw=min(3, depth),
+            initial_depth_s=4,
+            max_boxes=self.max_boxes,
+        )
+
+
+def _search_task(model: RangeModel, settings: SearchSettings, roots: np.ndarray) -> ClosedBoxes:
+    return search(model, settings, roots)
+
+
+def run_search(model: RangeModel, settings: SearchSettings, jobs: int) -> ClosedBoxes:
+    """The branch and bound from the initial grid, spread over ``jobs`` processes."""
+    n = 2**settings.initial_depth_lw
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    roots = np.column_stack([np.full(n * n, settings.initial_depth_lw), i.ravel(), j.ravel()])
+    if jobs <= 1 or roots.shape[0] == 1:
+        return search(model, settings, roots)
+    tasks = min(roots.shape[0], jobs)  # one task per worker: each round is vectorised, rounds cost overhead
+    groups = [roots[k::tasks] for k in range(tasks)]
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        parts = list(pool.map(_search_task, [model] * tasks, [settings] * tasks, groups))
+    fields = ("depth_lw", "index_l", "index_w", "depth_s", "index_s", "bound_m", "center_clearance_m")
+    merged = {f: np.concatenate([getattr(p, f) for p in parts]) for f in fields}
+    return ClosedBoxes(**merged, evaluations=sum(p.evaluations for p in parts))
+
+
+def _keys(depth: np.ndarray, i_l: np.ndarray, i_w: np.ndarray) -> np.ndarray:
+    return (depth.astype(np.int64) << (2 * _KEY_BITS)) | (i_l.astype(np.int64) << _KEY_BITS) | i_w.astype(np.int64)
+
+
+def leaves_from_boxes(boxes: ClosedBoxes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Leaves (depth, i_L, i_W) of the closed boxes' quadtree, each with the minimum clearance bound
+    and the minimum centre clearance over the boxes of the leaf and of its ancestors."""
+    keys = _keys(boxes.depth_lw, boxes.index_l, boxes.index_w)
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    unique, starts = np.unique(sorted_keys, return_index=True)
+    node_bound = np.minimum.reduceat(boxes.bound_m[order], starts)
+    node_centre = np.minimum.reduceat(boxes.center_clearance_m[order], starts)
+    depth = unique >> (2 * _KEY_BITS)
+    i_l = (unique >> _KEY_BITS) & ((1 << _KEY_BITS) - 1)
+    i_w = unique & ((1 << _KEY_BITS) - 1)
+    ancestors = []
+    for up in range(1, int(depth.max()) + 1):
+        ok = depth >= up
+        ancestors.append(_keys(depth[ok] - up, i_l[ok] >> up, i_w[ok] >> up))
+    is_parent = np.isin(unique, np.concatenate(ancestors)) if ancestors else np.zeros(unique.size, dtype=bool)
+    leaf = ~is_parent
+    d, il, iw = depth[leaf], i_l[leaf], i_w[leaf]
+    bound, centre = node_bound[leaf].copy(), node_centre[leaf].copy()
+    for up in range(1, int(d.max()) + 1):
+        ok = d >= up
+        k = _keys(d[ok] - up, il[ok] >> up, iw[ok] >> up)
+        pos = np.clip(np.searchsorted(unique, k), 0, unique.size - 1)
+        present = unique[pos] == k
+        rows = np.flatnonzero(ok)[present]
+        bound[rows] = np.minimum(bound[rows], node_bound[pos[present]])
+        centre[rows] = np.minimum(centre[rows], node_centre[pos[present]])
+    return d, il, iw, bound, centre
+
+
+def _split(arrays: list[np.ndarray], rows: np.ndarray) -> list[np.ndarray]:
+    """Replace the leaves ``rows`` (mask) by their four children; other columns are inherited."""
+    depth, i_l, i_w, *rest = arrays
+    kids = (
+        np.repeat(depth[rows] + 1, 4),
+        (2 * i_l[rows][:, None] + np.array([0, 0, 1, 1])).ravel(),
+        (2 * i_w[rows][:, None] + np.array([0, 1, 0, 1])).ravel(),
+        *(np.repeat(column[rows], 4) for column in rest),
+    )
+    return [np.concatenate([column[~rows], kid]) for column, kid in zip(arrays, kids, strict=True)]
+
+
+def refine_leaves(
+    model: RangeModel, leaves: list[np.ndarray], margin_m: float, tolerance_m: float, max_depth: int
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """Endpoint bounds and infeasibility upper bounds per leaf, cutting leaves as the module
+    docstring says. ``leaves`` = [depth, i_L, i_W, clearance bound]; returns the final leaves,
+    their endpoint bounds (n,) and their endpoint clearance upper bounds (n,) (inf where not needed)."""
+    endpoint = np.full(leaves[0].size, np.nan)
+    upper = np.full(leaves[0].size, np.nan)
+    arrays = [*leaves, endpoint, upper]
+    while True:
+        depth, i_l, i_w, bound, endpoint, upper = arrays
+        todo = np.isnan(endpoint)
+        if np.any(todo):
+            c, r = node_boxes(model, depth[todo], i_l[todo], i_w[todo])
+            endpoint[todo] = np.max(endpoint_error_bounds(model, c, r), axis=1)
+            need = bound[todo] < margin_m
+            values = np.full(c.shape[0], np.inf)
+            if np.any(need):
+                values[need] = np.min(
+                    endpoint_clearance_upper_bounds(model, c[need], r[need], tolerance_m, margin_m), axis=1
+                )
+            upper[todo] = values
+        deep = depth < max_depth
+        close = (bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M)
+        # A family that pins the endpoints has errors of rounding size: its bound is reported, not refined.
+        loose = (endpoint > tolerance_m) & (not model.family.pins_endpoints)
+        rows = deep & (loose | close)
+        if not np.any(rows):
+            return [depth, i_l, i_w, bound], endpoint, upper
+        arrays = _split([depth, i_l, i_w, bound, endpoint, upper], rows)
+        arrays[4][-4 * np.count_nonzero(rows) :] = np.nan  # children get their own endpoint bounds
+        arrays[5][-4 * np.count_nonzero(rows) :] = np.nan
+
+
+def statuses(bound: np.ndarray, upper: np.ndarray, margin_m: float) -> np.ndarray:
+    """Status index (into :data:`STATUSES`) per leaf."""
+    status = np.full(bound.size, STATUSES.index("undecided"))
+    status[bound > 0.0] = STATUSES.index("collision_free")
+    status[(upper < margin_m)] = STATUSES.index("infeasible")
+    status[bound >= margin_m] = STATUSES.index("margin")
+    return status
+
+
+def certify_range(coefficients: Coefficients, config: RangeCertificateConfig | None = None) -> RegionMap:
+    """Certify the whole fitted range of ``coefficients``: the region map (module docstring).
+
+    Args:
+        coefficients: Loaded coefficients (any family with jets; "paper" for Eq. 9 too).
+        config: Settings; default :class:`RangeCertificateConfig`.
+
+    Returns:
+        The :class:`RegionMap`, linked to the coefficients by their sha256.
+    """
+    config = config or RangeCertificateConfig()
+    start = time.perf_counter()
+    margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
+    model = RangeModel.from_coefficients(coefficients)
+    settings = config.search_settings(margin)
+    boxes = run_search(model, settings, config.jobs)
+    searched = time.perf_counter()
+    d, il, iw, bound, _ = leaves_from_boxes(boxes)
+    (d, il, iw, bound), endpoint, upper = refine_leaves(
+        model, [d, il, iw, bound], margin, config.endpoint_tolerance_m, config.max_depth_lw
+    )
+    seconds = time.perf_counter() - start
+    return RegionMap(
+        family=coefficients.family.name,
+        coefficients_source=str(coefficients.source),
+        coefficients_sha256=coefficients.source_sha256,
+        length_range_m=tuple(coefficients.fitted_range_m["L"]),
+        width_range_m=tuple(coefficients.fitted_range_m["W"]),
+        margin_m=float(margin),
+        endpoint_tolerance_m=float(config.endpoint_tolerance_m),
+        depth=d,
+        index_l=il,
+        index_w=iw,
+        clearance_bound_m=bound,
+        endpoint_bound_m=endpoint,
+        endpoint_clearance_upper_m=upper,
+        status=statuses(bound, upper, margin),
+        seconds=seconds,
+        details={
+            "config": asdict(config),
+            "boxes_evaluated": boxes.evaluations,
+            "boxes_closed": int(boxes.bound_m.size),
+            "search_seconds": searched - start,
+        },
+    )

@@ -1,0 +1,239 @@
+"""What the range certificate knows about one coefficients file: the family's parameter map
+(L, W) -> the 8 sinusoid parameters, the duration T(L, W), the arm and the scene, and the
+interval jets of the joint angles over boxes of (L, W, s), s = t / T(L, W) in [0, 1].
+
+theta_i(L, W, s) = A_i(L, W) sin(w_i(L, W) s T(L, W) + phi_i(L, W)) + gamma_i(L, W).
+
+* ``paper`` family: all 8 parameters are the regression's quadratics
+  p(L, W) = b0 + b1 L + b2 W + b3 L^2 + b4 L W + b5 W^2.
+* ``exact-endpoints`` family: (w1, phi1, A2, w2) are quadratics; A1, gamma1, phi2, gamma2
+  follow from the inverse kinematics of P1, P5 and from T (``pipeline.motion.families.exact_endpoints``):
+  A1 = (th1_e - th1_s) / (sin(w1 T + phi1) - sin(phi1)), gamma1 = th1_s - A1 sin(phi1),
+  phi2 = (pi - w2 T) / 2, gamma2 = th2_s - A2 sin(phi2), with th2 = elbow * acos(c),
+  c = (|P|^2 - l1^2 - l2^2) / (2 l1 l2), th1 = atan2(P) - atan2(l2 sin th2, l1 + l2 cos th2).
+  The jets follow the same formulas; a box whose A1 denominator interval reaches below the
+  family's clamp (1e-3 in absolute value) is not certified (its jets are unbounded).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipeline.certify.duration import DurationModel
+from pipeline.certify.interval import Interval, Jet
+from pipeline.exceptions import InvalidParameterError
+from pipeline.model.scene import Scene
+from pipeline.motion.families import TrajectoryFamily
+from pipeline.motion.families.exact_endpoints import MIN_DENOMINATOR, ExactEndpointsFamily
+from pipeline.motion.families.paper import PaperFamily
+from pipeline.offline.coefficients import Coefficients
+
+#: Names of the jet variables, in order.
+VARIABLES = ("L", "W", "s")
+
+
+@dataclass(frozen=True, eq=False)
+class RangeModel:
+    """The closed-form map (L, W, s) -> joint angles of one coefficients file.
+
+    Attributes:
+        family: The trajectory family (``pipeline.motion.families``); its parameter map is
+            followed by the jets of :data:`JET_EXPANSIONS`.
+        coefficients: Free parameter -> (b0..b5), in the family's order, shape (k, 6).
+        scene: The scene.
+        link_lengths_m: (l1, l2) [m].
+        link_radii_m: (r1, r2) capsule radii [m].
+        elbow: Elbow branch (+1 / -1).
+        length_range_m, width_range_m: The fitted range [m].
+        source_sha256: sha256 of the coefficients file.
+        duration: Enclosures of T over the range.
+    """
+
+    family: TrajectoryFamily
+    coefficients: np.ndarray
+    scene: Scene
+    link_lengths_m: tuple[float, float]
+    link_radii_m: tuple[float, float]
+    elbow: int
+    length_range_m: tuple[float, float]
+    width_range_m: tuple[float, float]
+    source_sha256: str = ""
+    duration: DurationModel = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if type(self.family) not in JET_EXPANSIONS:
+            raise InvalidParameterError("family", self.family, f"a family with jets, one of {list(JET_EXPANSIONS)}")
+        coefficients = np.array(self.coefficients, dtype=float)
+        if coefficients.shape != (self.family.free_count, 6) or not np.all(np.isfinite(coefficients)):
+            raise InvalidParameterError("coefficients", coefficients.shape, "finite, one row of 6 per free parameter")
+        coefficients.setflags(write=False)
+        object.__setattr__(self, "coefficients", coefficients)
+        if self.elbow not in (1, -1):
+            raise InvalidParameterError("elbow", self.elbow, "+1 or -1")
+        if min(self.link_lengths_m) <= 0 or min(self.link_radii_m) < 0:
+            raise InvalidParameterError("link_lengths_m", self.link_lengths_m, "positive lengths, radii >= 0")
+        object.__setattr__(
+            self, "duration", DurationModel(self.scene, tuple(self.length_range_m), tuple(self.width_range_m))
+        )
+
+    @classmethod
+    def from_coefficients(cls, coefficients: Coefficients) -> RangeModel:
+        """The model of a loaded coefficients file."""
+        names = coefficients.family.free_parameter_names
+        return cls(
+            family=coefficients.family,
+            coefficients=np.array([coefficients.parameters[n] for n in names]),
+            scene=coefficients.scene,
+            link_lengths_m=tuple(coefficients.link_lengths_m),
+            link_radii_m=tuple(coefficients.link_radii_m),
+            elbow=coefficients.elbow,
+            length_range_m=tuple(coefficients.fitted_range_m["L"]),
+            width_range_m=tuple(coefficients.fitted_range_m["W"]),
+            source_sha256=coefficients.source_sha256,
+        )
+
+    @property
+    def range_lo(self) -> np.ndarray:
+        """(L_lo, W_lo) [m]."""
+        return np.array([self.length_range_m[0], self.width_range_m[0]])
+
+    @property
+    def range_size(self) -> np.ndarray:
+        """(L_hi - L_lo, W_hi - W_lo) [m]."""
+        return np.array([self.length_range_m[1], self.width_range_m[1]]) - self.range_lo
+
+    def variables(self, center: np.ndarray, radius: np.ndarray) -> tuple[Jet, Jet, Jet]:
+        """Jets of L, W, s over boxes (centres and half widths (N, 3))."""
+        return tuple(Jet.variable(center[:, i], radius[:, i], i, 3) for i in range(3))  # type: ignore[return-value]
+
+    def free_jets(self, L: Jet, W: Jet) -> list[Jet]:
+        """Jets of the family's free parameters (quadratics in L, W)."""
+        basis = (L, W, L.square(), L * W, W.square())
+        out = []
+        for row in self.coefficients:
+            jet = basis[0] * row[1] + row[0]
+            for term, b in zip(basis[1:], row[2:], strict=True):
+                jet = jet + term * b
+            out.append(jet)
+        return out
+
+    def parameter_jets(self, L: Jet, W: Jet, T: Jet) -> list[Jet]:
+        """Jets of the 8 parameters (A1, w1, phi1, gamma1, A2, w2, phi2, gamma2)."""
+        return JET_EXPANSIONS[type(self.family)](self, self.free_jets(L, W), L, W, T)
+
+    def _exact_endpoints_jets(self, free: list[Jet], L: Jet, W: Jet, T: Jet) -> list[Jet]:
+        """Jets of ``ExactEndpointsFamily.expand`` (module docstring)."""
+        w1, phi1, a2, w2 = free
+        start, end = self._ik_jets(L, W, 1.0), self._ik_jets(L, W, -1.0)
+        denominator = (w1 * T + phi1).sin() - phi1.sin()
+        small = (denominator.value.lo <= MIN_DENOMINATOR) & (denominator.value.hi >= -MIN_DENOMINATOR)
+        a1 = (end[0] - start[0]) / _unbounded_where(denominator, small)
+        gamma1 = start[0] - a1 * phi1.sin()
+        phi2 = (w2 * T) * (-0.5) + math.pi / 2
+        gamma2 = start[1] - a2 * phi2.sin()
+        return [a1, w1, phi1, gamma1, a2, w2, phi2, gamma2]
+
+    def endpoints_pinned(self, center: np.ndarray, radius: np.ndarray) -> np.ndarray:
+        """True per (L, W) box (centres, half widths (N, >= 2)) where the family pins the tip to
+        P1 and P5 exactly for every (L, W) of the box.
+
+        For exact-endpoints, theta(0) = theta_s and theta(T) = theta_e hold algebraically
+        (gamma1 + A1 sin(phi1) = th1_s, A1 D = th1_e - th1_s, sin(w2 T + phi2) = sin(phi2) and
+        th2_s = th2_e) wherever A1 = (th1_e - th1_s) / D is not clamped, i.e. where the interval
+        of D over the box excludes [-1e-3, 1e-3]; the tip is then FK(IK(P)) = P up to rounding.
+        """
+        n = center.shape[0]
+        if not self.family.pins_endpoints:
+            return np.zeros(n, dtype=bool)
+        c3 = np.column_stack([center[:, :2], np.zeros(n)])
+        r3 = np.column_stack([radius[:, :2], np.zeros(n)])
+        L, W, _ = self.variables(c3, r3)
+        w1, phi1 = self.free_jets(L, W)[:2]
+        T = self.duration.jet(c3, r3)
+        d = ((w1 * T + phi1).sin() - phi1.sin()).value
+        return (d.lo > MIN_DENOMINATOR) | (d.hi < -MIN_DENOMINATOR)
+
+    def _ik_jets(self, L: Jet, W: Jet, side: float) -> tuple[Jet, Jet]:
+        """Joint angles (th1, th2) of P1 (side +1) or P5 (side -1) on the elbow branch, as jets."""
+        l1, l2 = self.link_lengths_m
+        x = (L * 0.5 + self.scene.start_dx_m) * side
+        y = self.scene.y1_m
+        r2 = x.square() + y * y
+        c = (r2 - (l1 * l1 + l2 * l2)) / (2 * l1 * l2)
+        th2 = _acos(c) * float(self.elbow)
+        base = _atan2_const_y(y, x)
+        sin2, cos2 = th2.sin(), th2.cos()
+        th1 = base - _atan2(sin2 * l2, cos2 * l2 + l1)
+        return th1, th2
+
+    def joint_jets(self, center: np.ndarray, radius: np.ndarray) -> tuple[Jet, Jet]:
+        """Jets of (theta1, theta2) [rad] over boxes of (L, W, s) with centres/half widths (N, 3)."""
+        L, W, s = self.variables(center, radius)
+        T = self.duration.jet(center, radius)
+        p = self.parameter_jets(L, W, T)
+        sT = s * T
+        theta1 = (p[1] * sT + p[2]).sin() * p[0] + p[3]
+        theta2 = (p[5] * sT + p[6]).sin() * p[4] + p[7]
+        return theta1, theta2
+
+
+def _paper_jets(model: RangeModel, free: list[Jet], L: Jet, W: Jet, T: Jet) -> list[Jet]:
+    """The paper family: the 8 parameters are the free ones."""
+    return free
+
+
+#: Jet version of each family's ``expand``: (model, free jets, L, W, T) -> 8 parameter jets.
+JET_EXPANSIONS = {
+    PaperFamily: _paper_jets,
+    ExactEndpointsFamily: lambda model, free, L, W, T: model._exact_endpoints_jets(free, L, W, T),
+}
+
+
+def _unbounded_where(jet: Jet, mask: np.ndarray) -> Jet:
+    """The jet with value and gradient replaced by (-inf, inf) where ``mask`` (never certified there)."""
+    if not np.any(mask):
+        return jet
+    inf = np.where(mask, np.inf, 0.0)
+    value = Interval(np.where(mask, -np.inf, jet.value.lo), np.where(mask, np.inf, jet.value.hi))
+    grad = Interval(jet.grad.lo - inf[..., None], jet.grad.hi + inf[..., None])
+    return Jet(value, grad)
+
+
+def _acos(c: Jet) -> Jet:
+    """acos of a jet whose value lies in (-1, 1)."""
+    lo, hi = np.clip(c.value.lo, -1.0, 1.0), np.clip(c.value.hi, -1.0, 1.0)
+    value = Interval(np.arccos(hi), np.arccos(lo))
+    one_minus = 1.0 - c.value.square()
+    inside = Interval(np.maximum(one_minus.lo, 0.0), np.maximum(one_minus.hi, 0.0))
+    derivative = -inside.sqrt().reciprocal()
+    return Jet(value, Interval(derivative.lo[..., None], derivative.hi[..., None]) * c.grad)
+
+
+def _atan_ratio(num: Jet, den: Jet) -> Jet:
+    """atan(num / den) for den > 0 over the box, with derivative (den num' - num den') / (num^2 + den^2)."""
+    ratio = num.value / den.value
+    value = Interval(np.arctan(ratio.lo), np.arctan(ratio.hi))
+    inv = (num.value.square() + den.value.square()).reciprocal()
+    grad = (num.grad * Interval(den.value.lo[..., None], den.value.hi[..., None])) - (
+        den.grad * Interval(num.value.lo[..., None], num.value.hi[..., None])
+    )
+    return Jet(value, grad * Interval(inv.lo[..., None], inv.hi[..., None]))
+
+
+def _atan2(y: Jet, x: Jet) -> Jet:
+    """atan2(y, x) for x > 0 over the box (else unbounded)."""
+    bad = x.value.lo <= 0.0
+    return _unbounded_where(_atan_ratio(y, x), bad)
+
+
+def _atan2_const_y(y: float, x: Jet) -> Jet:
+    """atan2(y, x) for a constant y > 0 and x of one sign over the box."""
+    k = x.k
+    y_jet = Jet.constant(np.full(x.value.shape, y), k)
+    # atan2(y, x) = pi/2 - atan(x / y) for y > 0 (any sign of x).
+    if y <= 0:
+        raise InvalidParameterError("y1_m", y, "> 0 (start and goal above the base)")
+    return _atan_ratio(x, y_jet) * (-1.0) + math.pi / 2

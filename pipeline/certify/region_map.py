@@ -1,0 +1,338 @@
+"""The region map: a quadtree over the fitted (L, W) range whose leaves carry the range
+certificate's bounds and a status, stored as JSON beside the coefficients it certifies.
+
+A leaf is the node (depth, i_L, i_W): L in L_lo + [i_L, i_L + 1] (L_hi - L_lo) / 2^depth, the
+same for W. Its area fraction is 4^-depth. Statuses:
+
+* ``margin``: clearance certified >= the margin over the whole cell and all of [0, T];
+* ``collision_free``: clearance certified > 0, not >= the margin, and not proven infeasible;
+* ``infeasible``: no trajectory of the family can keep both the endpoint tolerance and the
+  margin in this cell (``pipeline.certify.endpoints``); its clearance bound is still stored
+  (and is > 0 where the coefficients are collision-free there);
+* ``undecided``: not even collision-free was certified at the smallest cell.
+
+Lookups (:meth:`RegionMap.cell_at`, :meth:`RegionMap.cells_at`) go through a dense index of the
+deepest level, so they cost one multiplication and one array read per query.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.certify.clearance_bound import FLOAT_SLACK_M
+from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
+from pipeline.io.jsonio import json_safe, read_json, write_text_atomic
+from pipeline.validation import check_non_negative
+
+FORMAT = "twolink-region-map/1"
+STATUSES: tuple[str, ...] = ("margin", "collision_free", "infeasible", "undecided")
+_COLUMNS = (
+    "depth",
+    "index_L",
+    "index_W",
+    "clearance_bound_m",
+    "endpoint_bound_m",
+    "endpoint_clearance_upper_m",
+    "status",
+)
+
+
+@dataclass(frozen=True)
+class RegionCell:
+    """One leaf of the map.
+
+    Attributes:
+        length_range_m, width_range_m: The cell's (lo, hi) in L and W [m].
+        clearance_bound_m: Lower bound on the clearance of both links over the cell and all of [0, T] [m].
+        endpoint_bound_m: Upper bound on max(|tip(0) - P1|, |tip(T) - P5|) over the cell [m].
+        endpoint_clearance_upper_m: Upper bound on the clearance of poses within the endpoint
+            tolerance of P1 or P5 (the smaller of the two) [m]; below the margin: infeasible.
+        status: One of :data:`STATUSES`.
+        depth: Quadtree depth (the cell spans 1 / 2^depth of the range per side).
+    """
+
+    length_range_m: tuple[float, float]
+    width_range_m: tuple[float, float]
+    clearance_bound_m: float
+    endpoint_bound_m: float
+    endpoint_clearance_upper_m: float
+    status: str
+    depth: int
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise InvalidParameterError("status", self.status, f"one of {STATUSES}")
+
+
+@dataclass(frozen=True, eq=False)
+class RegionMap:
+    """The certified map of one coefficients file.
+
+    Attributes:
+        family: Trajectory family of the coefficients.
+        coefficients_source: Path (or "paper") of the coefficients.
+        coefficients_sha256: sha256 of the coefficients file: the link between map and coefficients.
+        length_range_m, width_range_m: The fitted range [m].
+        margin_m: The margin the statuses refer to [m].
+        endpoint_tolerance_m: The endpoint tolerance of the infeasibility certificate [m].
+        depth, index_l, index_w: Leaf nodes, int arrays (n,).
+        clearance_bound_m, endpoint_bound_m, endpoint_clearance_upper_m: Per leaf [m], (n,).
+        status: Per leaf, index into :data:`STATUSES`, (n,).
+        seconds: Wall time of the certificate [s].
+        details: Settings and counters (plain JSON).
+    """
+
+    family: str
+    coefficients_source: str
+    coefficients_sha256: str
+    length_range_m: tuple[float, float]
+    width_range_m: tuple[float, float]
+    margin_m: float
+    endpoint_tolerance_m: float
+    depth: np.ndarray
+    index_l: np.ndarray
+    index_w: np.ndarray
+    clearance_bound_m: np.ndarray
+    endpoint_bound_m: np.ndarray
+    endpoint_clearance_upper_m: np.ndarray
+    status: np.ndarray
+    seconds: float = 0.0
+    details: dict = field(default_factory=dict)
+    _index: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        check_non_negative("margin_m", self.margin_m)
+        check_non_negative("endpoint_tolerance_m", self.endpoint_tolerance_m)
+        for name in ("length_range_m", "width_range_m"):
+            lo, hi = getattr(self, name)
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise InvalidParameterError(name, getattr(self, name), "finite lo < hi")
+        arrays = {
+            "depth": np.asarray(self.depth, dtype=np.int64),
+            "index_l": np.asarray(self.index_l, dtype=np.int64),
+            "index_w": np.asarray(self.index_w, dtype=np.int64),
+            "clearance_bound_m": np.asarray(self.clearance_bound_m, dtype=float),
+            "endpoint_bound_m": np.asarray(self.endpoint_bound_m, dtype=float),
+            "endpoint_clearance_upper_m": np.asarray(self.endpoint_clearance_upper_m, dtype=float),
+            "status": np.asarray(self.status, dtype=np.int64),
+        }
+        n = arrays["depth"].size
+        if n == 0 or any(a.shape != (n,) for a in arrays.values()):
+            raise InvalidParameterError("cells", {k: a.shape for k, a in arrays.items()}, "equal non-empty 1-D arrays")
+        if np.any(arrays["status"] < 0) or np.any(arrays["status"] >= len(STATUSES)):
+            raise InvalidParameterError("status", "out of range", f"indices into {STATUSES}")
+        depth = arrays["depth"]
+        if np.any(depth < 0) or np.any(depth > 20):
+            raise InvalidParameterError("depth", int(depth.max()), "0..20")
+        side = 2**depth
+        for key in ("index_l", "index_w"):
+            if np.any(arrays[key] < 0) or np.any(arrays[key] >= side):
+                raise InvalidParameterError(key, "out of range", "0 <= index < 2^depth")
+        if not math.isclose(float(np.sum(4.0 ** (-depth.astype(float)))), 1.0, rel_tol=1e-9):
+            raise InvalidParameterError(
+                "cells", float(np.sum(4.0 ** (-depth.astype(float)))), "leaves tiling the range"
+            )
+        for key, value in arrays.items():
+            value.setflags(write=False)
+            object.__setattr__(self, key, value)
+        top = int(depth.max())
+        index = np.full((2**top, 2**top), -1, dtype=np.int64)
+        for leaf in range(n):
+            scale = 2 ** (top - int(depth[leaf]))
+            i0, j0 = int(arrays["index_l"][leaf]) * scale, int(arrays["index_w"][leaf]) * scale
+            index[i0 : i0 + scale, j0 : j0 + scale] = leaf
+        if np.any(index < 0):
+            raise InvalidParameterError("cells", "gaps", "leaves tiling the range")
+        index.setflags(write=False)
+        object.__setattr__(self, "_index", index)
+
+    # ------------------------------------------------------------------ lookup
+
+    def leaf_indices(self, length_m, width_m) -> np.ndarray:
+        """Leaf index of each (L, W) [m] (vectorised); -1 outside the fitted range."""
+        L = np.asarray(length_m, dtype=float)
+        W = np.asarray(width_m, dtype=float)
+        (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
+        n = self._index.shape[0]
+        u = (L - l_lo) / (l_hi - l_lo) * n
+        v = (W - w_lo) / (w_hi - w_lo) * n
+        inside = (L >= l_lo) & (L <= l_hi) & (W >= w_lo) & (W <= w_hi)
+        i = np.clip(np.floor(np.where(inside, u, 0.0)).astype(np.int64), 0, n - 1)
+        j = np.clip(np.floor(np.where(inside, v, 0.0)).astype(np.int64), 0, n - 1)
+        return np.where(inside, self._index[i, j], -1)
+
+    def cells_at(self, length_m, width_m) -> dict[str, np.ndarray]:
+        """Batch lookup: per (L, W), the leaf's clearance bound, endpoint bound and status index
+        (NaN / -1 outside the fitted range)."""
+        leaf = self.leaf_indices(length_m, width_m)
+        inside = leaf >= 0
+        safe = np.where(inside, leaf, 0)
+        return {
+            "leaf": leaf,
+            "clearance_bound_m": np.where(inside, self.clearance_bound_m[safe], np.nan),
+            "endpoint_bound_m": np.where(inside, self.endpoint_bound_m[safe], np.nan),
+            "status": np.where(inside, self.status[safe], -1),
+        }
+
+    def cell(self, leaf: int) -> RegionCell:
+        """The leaf number ``leaf`` as a :class:`RegionCell`."""
+        d = int(self.depth[leaf])
+        (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
+        dl, dw = (l_hi - l_lo) / 2**d, (w_hi - w_lo) / 2**d
+        il, iw = int(self.index_l[leaf]), int(self.index_w[leaf])
+        return RegionCell(
+            length_range_m=(l_lo + il * dl, l_lo + (il + 1) * dl),
+            width_range_m=(w_lo + iw * dw, w_lo + (iw + 1) * dw),
+            clearance_bound_m=float(self.clearance_bound_m[leaf]),
+            endpoint_bound_m=float(self.endpoint_bound_m[leaf]),
+            endpoint_clearance_upper_m=float(self.endpoint_clearance_upper_m[leaf]),
+            status=STATUSES[int(self.status[leaf])],
+            depth=d,
+        )
+
+    def cell_at(self, length_m: float, width_m: float) -> RegionCell:
+        """The leaf containing (L, W) [m].
+
+        Raises:
+            OutOfFittedRangeError: (L, W) outside the fitted range.
+        """
+        (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
+        if not l_lo <= length_m <= l_hi:
+            raise OutOfFittedRangeError("L", length_m, self.length_range_m)
+        if not w_lo <= width_m <= w_hi:
+            raise OutOfFittedRangeError("W", width_m, self.width_range_m)
+        n = self._index.shape[0]
+        i = min(int((length_m - l_lo) / (l_hi - l_lo) * n), n - 1)
+        j = min(int((width_m - w_lo) / (w_hi - w_lo) * n), n - 1)
+        return self.cell(int(self._index[i, j]))
+
+    # ------------------------------------------------------------------ summary
+
+    @property
+    def area(self) -> np.ndarray:
+        """Area fraction of each leaf, (n,)."""
+        return 4.0 ** (-self.depth.astype(float))
+
+    def summary(self) -> dict:
+        """Area fractions per status, extreme bounds and time (plain JSON)."""
+        area = self.area
+        fractions = {name: float(np.sum(area[self.status == k])) for k, name in enumerate(STATUSES)}
+        feasible = 1.0 - fractions["infeasible"]
+        worst = int(np.argmin(self.clearance_bound_m))
+        worst_cell = self.cell(worst)
+        return {
+            "area_fraction": fractions,
+            "certified_collision_free_fraction": float(np.sum(area[self.clearance_bound_m > 0.0])),
+            "margin_fraction_of_feasible": fractions["margin"] / feasible if feasible > 0 else None,
+            # Bounds carry the rounding slack, so a tolerance of 0 (pinned endpoints) is met up to it.
+            "endpoint_within_tolerance_fraction": float(
+                np.sum(area[self.endpoint_bound_m <= self.endpoint_tolerance_m + FLOAT_SLACK_M])
+            ),
+            "clearance_bound_min_m": float(self.clearance_bound_m[worst]),
+            "worst_cell": {"L_m": list(worst_cell.length_range_m), "W_m": list(worst_cell.width_range_m)},
+            "endpoint_bound_max_m": float(np.max(self.endpoint_bound_m)),
+            "margin_m": self.margin_m,
+            "endpoint_tolerance_m": self.endpoint_tolerance_m,
+            "cells": int(self.depth.size),
+            "seconds": self.seconds,
+        }
+
+    def belongs_to(self, coefficients) -> bool:
+        """True if this map was made from exactly these coefficients (same sha256)."""
+        return bool(self.coefficients_sha256) and self.coefficients_sha256 == coefficients.source_sha256
+
+    # ------------------------------------------------------------------ JSON
+
+    def to_json(self) -> dict:
+        """The plain-JSON document (columnar cells)."""
+        return {
+            "format": FORMAT,
+            "coefficients": {
+                "source": self.coefficients_source,
+                "sha256": self.coefficients_sha256,
+                "family": self.family,
+            },
+            "fitted_range": {"L": list(self.length_range_m), "W": list(self.width_range_m)},
+            "margin_m": self.margin_m,
+            "endpoint_tolerance_m": self.endpoint_tolerance_m,
+            "summary": self.summary(),
+            "details": self.details,
+            "statuses": list(STATUSES),
+            "cells": {
+                "depth": self.depth.tolist(),
+                "index_L": self.index_l.tolist(),
+                "index_W": self.index_w.tolist(),
+                "clearance_bound_m": self.clearance_bound_m.tolist(),
+                "endpoint_bound_m": self.endpoint_bound_m.tolist(),
+                "endpoint_clearance_upper_m": self.endpoint_clearance_upper_m.tolist(),
+                "status": [STATUSES[k] for k in self.status],
+            },
+        }
+
+    @classmethod
+    def from_json(cls, document: dict, source: object = "<memory>") -> RegionMap:
+        """Validate a parsed map document.
+
+        Raises:
+            DataFileError: a field is missing or malformed.
+        """
+        if document.get("format") != FORMAT:
+            raise DataFileError(source, f"format is {document.get('format')!r}, expected {FORMAT!r}")
+        try:
+            link, fitted, cells = document["coefficients"], document["fitted_range"], document["cells"]
+            missing = [c for c in _COLUMNS if c not in cells]
+            if missing:
+                raise DataFileError(source, f"cells lack {missing}")
+            status = [STATUSES.index(s) for s in cells["status"]]
+            return cls(
+                family=str(link["family"]),
+                coefficients_source=str(link["source"]),
+                coefficients_sha256=str(link["sha256"]),
+                length_range_m=(float(fitted["L"][0]), float(fitted["L"][1])),
+                width_range_m=(float(fitted["W"][0]), float(fitted["W"][1])),
+                margin_m=float(document["margin_m"]),
+                endpoint_tolerance_m=float(document["endpoint_tolerance_m"]),
+                depth=np.array(cells["depth"], dtype=np.int64),
+                index_l=np.array(cells["index_L"], dtype=np.int64),
+                index_w=np.array(cells["index_W"], dtype=np.int64),
+                clearance_bound_m=np.array([_number(v, -math.inf) for v in cells["clearance_bound_m"]]),
+                endpoint_bound_m=np.array([_number(v, math.inf) for v in cells["endpoint_bound_m"]]),
+                endpoint_clearance_upper_m=np.array(
+                    [_number(v, math.inf) for v in cells["endpoint_clearance_upper_m"]]
+                ),
+                status=np.array(status, dtype=np.int64),
+                seconds=float(document.get("summary", {}).get("seconds", 0.0)),
+                details=dict(document.get("details", {})),
+            )
+        except DataFileError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError, InvalidParameterError) as exc:
+            raise DataFileError(source, f"malformed region map ({exc.__class__.__name__}: {exc})") from None
+
+
+def _number(value, infinite: float) -> float:
+    """A JSON number; null stands for the column's infinite value (json_safe writes non-finite
+    values as null): -inf for lower bounds, +inf for upper bounds."""
+    return infinite if value is None else float(value)
+
+
+def save_region_map(region_map: RegionMap, path: str | Path, overwrite: bool = True) -> str:
+    """Write the map atomically as compact JSON; returns the sha256 of the bytes written."""
+    text = json.dumps(json_safe(region_map.to_json()), separators=(",", ":"), allow_nan=False) + "\n"
+    write_text_atomic(path, text, overwrite)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def load_region_map(path: str | Path) -> RegionMap:
+    """Read a map written by :func:`save_region_map`.
+
+    Raises:
+        DataFileError: missing, unreadable or malformed.
+    """
+    return RegionMap.from_json(read_json(path), path)

@@ -1,0 +1,271 @@
+"""The range certificate (pipeline.certify) against independent references: the online
+generator (its own T by the path module's quadrature), the analytic clearance route shown
+equal to Coal through Pinocchio here, Pinocchio's forward kinematics for the endpoints, and a
+direct sampling of the poses near P1 and P5 for the infeasibility certificate."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pipeline.certify.clearance_bound import box_clearance_bounds
+from pipeline.certify.endpoints import endpoint_clearance_upper_bounds, endpoint_error_bounds
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.range_model import RangeModel
+from pipeline.certify.region_map import STATUSES
+from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
+from pipeline.model.arm import PlanarArm
+from pipeline.model.kinematics import inverse_kinematics
+from pipeline.model.obstacle import Obstacle
+from pipeline.motion.families import family_from_name
+from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.online.generator import generate
+
+#: Coarse cells keep the module fast; soundness does not depend on the cell size.
+FAST = RangeCertificateConfig(min_cell=1 / 32, boundary_cell=1 / 16)
+
+
+@pytest.fixture(scope="module")
+def eq9() -> Coefficients:
+    return load_coefficients("paper")
+
+
+@pytest.fixture(scope="module")
+def eq9_map(eq9: Coefficients):
+    return certify_range(eq9, FAST)
+
+
+def damaged(coefficients: Coefficients, shift_rad: float) -> Coefficients:
+    """The coefficients with gamma2 shifted by ``shift_rad`` everywhere (link 2 swung into the box)."""
+    parameters = dict(coefficients.parameters)
+    gamma2 = list(parameters["gamma2"])
+    gamma2[0] += shift_rad
+    parameters["gamma2"] = tuple(gamma2)
+    return dataclasses.replace(coefficients, parameters=parameters, source_sha256="damaged")
+
+
+def exact_endpoints_from(coefficients: Coefficients) -> Coefficients:
+    """An exact-endpoints coefficient set: the paper family's regressions of w1, phi1, A2, w2."""
+    family = family_from_name("exact-endpoints")
+    parameters = {name: coefficients.parameters[name] for name in family.free_parameter_names}
+    return dataclasses.replace(coefficients, family=family, parameters=parameters, source_sha256="exact")
+
+
+def random_points(coefficients: Coefficients, n: int, seed: int) -> np.ndarray:
+    """n random (L, W, s) in the fitted range x [0, 1]."""
+    rng = np.random.default_rng(seed)
+    (l_lo, l_hi), (w_lo, w_hi) = coefficients.fitted_range_m["L"], coefficients.fitted_range_m["W"]
+    return np.column_stack([rng.uniform(l_lo, l_hi, n), rng.uniform(w_lo, w_hi, n), rng.uniform(0.0, 1.0, n)])
+
+
+def true_clearance(coefficients: Coefficients, arm: PlanarArm, points: np.ndarray, coal: bool = False) -> np.ndarray:
+    """Clearance of both links at (L, W, s) from the online generator: analytic route, or Coal."""
+    out = np.empty(points.shape[0])
+    for k, (L, W, s) in enumerate(points):
+        answer = generate(coefficients, L, W, out_of_range="ignore")
+        q = answer.q(s * answer.duration_s)
+        if coal:
+            out[k] = CoalClearance(arm, answer.obstacle).link_clearance(q).min()
+        else:
+            out[k] = analytic_link_clearance(q, arm, answer.obstacle).min()
+    return out
+
+
+def test_analytic_route_equals_coal_along_certified_motions(eq9: Coefficients, arm: PlanarArm) -> None:
+    """The bulk checks below use the analytic route; here it equals Coal through Pinocchio."""
+    points = random_points(eq9, 300, seed=1)
+    analytic = true_clearance(eq9, arm, points)
+    coal = true_clearance(eq9, arm, points, coal=True)
+    assert np.max(np.abs(analytic - coal)) < 2e-6
+    assert np.min(analytic) > 0.0  # these motions are all clear: the comparison is of distances
+
+
+def test_map_bound_is_sound_at_ten_thousand_points(eq9: Coefficients, eq9_map, arm: PlanarArm) -> None:
+    points = random_points(eq9, 10_000, seed=2)
+    values = true_clearance(eq9, arm, points)
+    bounds = eq9_map.cells_at(points[:, 0], points[:, 1])["clearance_bound_m"]
+    assert np.all(np.isfinite(bounds))
+    assert np.all(values >= bounds - 1e-12)
+    assert np.all(bounds > 0.0)  # Eq. 9 is certified collision-free everywhere
+
+
+def test_map_bound_is_sound_against_coal(eq9: Coefficients, eq9_map, arm: PlanarArm) -> None:
+    points = random_points(eq9, 400, seed=3)
+    values = true_clearance(eq9, arm, points, coal=True)
+    bounds = eq9_map.cells_at(points[:, 0], points[:, 1])["clearance_bound_m"]
+    assert np.all(values >= bounds - COAL_DISTANCE_ERROR_M)
+
+
+def test_map_minimum_is_below_every_sampled_motion(eq9: Coefficients, eq9_map, arm: PlanarArm) -> None:
+    """Dense in t at a few obstacles: each motion's minimum lies above its cell's bound, and the
+    cells whose motion dips below the margin are not marked "margin"."""
+    rng = np.random.default_rng(4)
+    certified = []
+    for L, W in zip(rng.uniform(0.2, 0.3, 25), rng.uniform(0.08, 0.12, 25), strict=True):
+        answer = generate(eq9, L, W)
+        lowest = analytic_link_clearance(answer.q(np.linspace(0.0, answer.duration_s, 2001)), arm, answer.obstacle)
+        cell = eq9_map.cell_at(L, W)
+        assert lowest.min() >= cell.clearance_bound_m - 1e-12
+        if lowest.min() < eq9_map.margin_m:
+            assert cell.status != "margin"
+        if lowest.min() > eq9_map.margin_m + 0.003:
+            certified.append(cell.status == "margin")
+    # Not vacuous: the search stops at the margin, yet motions clearly above it are certified so.
+    assert np.mean(certified) > 0.8
+
+
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), exact=st.booleans())
+def test_box_bounds_hold_at_points_of_random_boxes(eq9: Coefficients, arm: PlanarArm, seed: int, exact: bool) -> None:
+    """Any box, any family: every sampled point of a box clears at least the box's bound."""
+    coefficients = exact_endpoints_from(eq9) if exact else eq9
+    model = RangeModel.from_coefficients(coefficients)
+    rng = np.random.default_rng(seed)
+    radius = np.column_stack([rng.uniform(1e-5, 5e-3, 6), rng.uniform(1e-5, 2e-3, 6), rng.uniform(1e-5, 0.05, 6)])
+    lo = np.array([0.2, 0.08, 0.0]) + radius
+    hi = np.array([0.3, 0.12, 1.0]) - radius
+    center = lo + (hi - lo) * rng.uniform(size=(6, 3))
+    bounds = box_clearance_bounds(model, center, radius).lower_m
+    for k in range(6):
+        points = center[k] + radius[k] * rng.uniform(-1.0, 1.0, (8, 3))
+        points = np.vstack([points, center[k] + radius[k] * np.array([[1, 1, 1], [-1, -1, -1], [1, -1, 1]])])
+        assert np.all(true_clearance(coefficients, arm, points) >= bounds[k] - 1e-12)
+
+
+def test_exact_endpoints_parameter_jets_contain_the_family_expansion(eq9: Coefficients) -> None:
+    coefficients = exact_endpoints_from(eq9)
+    model = RangeModel.from_coefficients(coefficients)
+    radius = np.array([[2e-3, 1e-3, 0.0]] * 30)
+    points = random_points(coefficients, 30, seed=5)
+    points[:, :2] = np.clip(points[:, :2], [0.2 + 2e-3, 0.08 + 1e-3], [0.3 - 2e-3, 0.12 - 1e-3])
+    L, W, _ = model.variables(points, radius)
+    jets = model.parameter_jets(L, W, model.duration.jet(points, radius))
+    rng = np.random.default_rng(6)
+    for k in range(30):
+        for u, v in points[k, :2] + radius[k, :2] * rng.uniform(-1, 1, (5, 2)):
+            expected = generate(coefficients, u, v).trajectory.parameters
+            for p, jet in zip(expected, jets, strict=True):
+                assert jet.value.lo[k] - 1e-9 <= p <= jet.value.hi[k] + 1e-9
+
+
+def test_exact_endpoints_are_certified_pinned_where_a1_is_not_clamped(eq9: Coefficients, arm: PlanarArm) -> None:
+    coefficients = exact_endpoints_from(eq9)
+    model = RangeModel.from_coefficients(coefficients)
+    centers = random_points(coefficients, 40, seed=9)[:, :2]
+    radius = np.full((40, 2), 1e-3)
+    centers = np.clip(centers, [0.2 + 1e-3, 0.08 + 1e-3], [0.3 - 1e-3, 0.12 - 1e-3])
+    bounds = endpoint_error_bounds(model, centers, radius)
+    pinned = model.endpoints_pinned(centers, radius)
+    assert np.mean(pinned) > 0.5
+    for (L, W), bound in zip(centers[pinned], bounds[pinned], strict=True):
+        answer = generate(coefficients, L, W)
+        start = np.linalg.norm(arm.end_effector_position(answer.q(0.0))[:2] - answer.path.points_m[0])
+        end = np.linalg.norm(arm.end_effector_position(answer.q(answer.duration_s))[:2] - answer.path.points_m[-1])
+        assert max(start, end) <= bound.max() <= 1e-8
+
+
+def test_bound_gap_shrinks_quadratically(eq9: Coefficients, arm: PlanarArm) -> None:
+    """Near the obstacle (link 2 passing a corner at the end of the motion): halving the box divides
+    the gap between the sampled minimum over the box and the bound by about 4."""
+    model = RangeModel.from_coefficients(eq9)
+    center = np.array([0.21, 0.118, 0.9])
+    gaps = []
+    for h in (2e-3, 1e-3, 5e-4, 2.5e-4):
+        radius = np.array([h, 0.4 * h, 2 * h])
+        grid = [np.linspace(c - r, c + r, 7) for c, r in zip(center, radius, strict=True)]
+        points = np.array(np.meshgrid(*grid, indexing="ij")).reshape(3, -1).T
+        lowest = true_clearance(eq9, arm, points).min()
+        bound = box_clearance_bounds(model, center[None], radius[None]).lower_m[0]
+        assert bound <= lowest
+        gaps.append(lowest - bound)
+    ratios = np.array(gaps[:-1]) / np.array(gaps[1:])
+    assert np.all(ratios > 3.0), ratios
+
+
+def test_damaged_coefficients_are_not_certified_where_they_collide(eq9: Coefficients, arm: PlanarArm) -> None:
+    broken = damaged(eq9, -0.05)
+    region_map = certify_range(broken, FAST)
+    points = random_points(broken, 3000, seed=7)
+    values = true_clearance(broken, arm, points)
+    cells = region_map.cells_at(points[:, 0], points[:, 1])
+    hits = values <= 0.0
+    assert 0.01 < np.mean(hits) < 0.95  # the damage collides in part of the range only
+    assert np.all(cells["clearance_bound_m"][hits] <= 0.0)
+    assert np.all(cells["status"][hits] == STATUSES.index("undecided"))
+    assert np.all(values >= cells["clearance_bound_m"] - 1e-12)
+    assert region_map.summary()["certified_collision_free_fraction"] > 0.3
+
+
+def test_paper_eq9_gets_an_honest_map(eq9_map) -> None:
+    """Collision-free everywhere (as the sweep finds), the margin missed near W = 0.12 m, and the
+    endpoint errors of Eq. 9 (up to 7.8 mm on a grid) not hidden."""
+    summary = eq9_map.summary()
+    assert summary["certified_collision_free_fraction"] == 1.0
+    assert 0.5 < summary["area_fraction"]["margin"] < 0.95
+    near = eq9_map.cells_at(np.linspace(0.2, 0.3, 50), np.full(50, 0.1195))
+    assert np.all(near["status"] != STATUSES.index("margin"))
+    assert summary["endpoint_bound_max_m"] > 0.0078
+    assert summary["endpoint_within_tolerance_fraction"] == 0.0
+
+
+def test_endpoint_bound_holds_against_pinocchio(eq9: Coefficients, eq9_map, arm: PlanarArm) -> None:
+    rng = np.random.default_rng(8)
+    for L, W in zip(rng.uniform(0.2, 0.3, 300), rng.uniform(0.08, 0.12, 300), strict=True):
+        answer = generate(eq9, L, W)
+        start = np.linalg.norm(arm.end_effector_position(answer.q(0.0))[:2] - answer.path.points_m[0])
+        end = np.linalg.norm(arm.end_effector_position(answer.q(answer.duration_s))[:2] - answer.path.points_m[-1])
+        assert max(start, end) <= eq9_map.cell_at(L, W).endpoint_bound_m
+
+
+def test_endpoint_bound_is_tight_on_small_cells(eq9: Coefficients, arm: PlanarArm) -> None:
+    model = RangeModel.from_coefficients(eq9)
+    center = np.array([[0.23, 0.11]])
+    bound = endpoint_error_bounds(model, center, np.array([[1e-4, 1e-4]]))[0]
+    answer = generate(eq9, 0.23, 0.11)
+    end = np.linalg.norm(arm.end_effector_position(answer.q(answer.duration_s))[:2] - answer.path.points_m[-1])
+    assert end <= bound[1] < end + 2e-4
+
+
+def _best_clearance_near(point: np.ndarray, tolerance_m: float, obstacle: Obstacle, arm: PlanarArm) -> float:
+    """Largest Coal clearance over IK poses (elbow +1) whose tip is within the tolerance of ``point``."""
+    best = -np.inf
+    coal = CoalClearance(arm, obstacle)
+    for radius in np.linspace(0.0, tolerance_m, 6):
+        for angle in np.linspace(0.0, 2 * np.pi, 48, endpoint=False):
+            q = inverse_kinematics(point + radius * np.array([np.cos(angle), np.sin(angle)]), arm.link_lengths_m, 1)
+            best = max(best, float(coal.link_clearance(q).min()))
+    return best
+
+
+def test_infeasibility_certificate_near_w_012(eq9: Coefficients, arm: PlanarArm) -> None:
+    """At (0.20, 0.12) m the pose at P5 leaves about 8 mm: with a 2 mm tolerance no pose within it
+    reaches the 1 cm margin (certified, and every sampled pose agrees), with 3 mm one does."""
+    model = RangeModel.from_coefficients(eq9)
+    center, radius = np.array([[0.2 + 5e-5, 0.12 - 5e-5]]), np.array([[5e-5, 5e-5]])
+    upper2 = endpoint_clearance_upper_bounds(model, center, radius, 0.002, 0.01)[0]
+    upper3 = endpoint_clearance_upper_bounds(model, center, radius, 0.003, 0.01)[0]
+    assert upper2[1] < 0.01 <= upper3[1]
+    assert upper2[0] > 0.05  # at P1 the arm is far from the box
+    obstacle = Obstacle.in_scene(0.2, 0.12, eq9.scene)
+    p5 = np.array([-(0.1 + eq9.scene.start_dx_m), eq9.scene.y1_m])
+    sampled = _best_clearance_near(p5, 0.002, obstacle, arm)
+    assert sampled <= upper2[1]
+    assert _best_clearance_near(p5, 0.003, obstacle, arm) >= 0.01
+
+
+def test_infeasible_cells_of_a_fine_map_hold_no_feasible_pose(eq9: Coefficients, arm: PlanarArm) -> None:
+    """A fine map over the top strip: each infeasible cell's poses near P5 all miss the margin."""
+    strip = dataclasses.replace(eq9, fitted_range_m={"L": (0.2, 0.21), "W": (0.118, 0.12)})
+    region_map = certify_range(strip, RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8))
+    infeasible = np.flatnonzero(region_map.status == STATUSES.index("infeasible"))
+    assert infeasible.size > 0
+    for leaf in infeasible[:: max(1, infeasible.size // 6)]:
+        cell = region_map.cell(int(leaf))
+        L, W = np.mean(cell.length_range_m), np.mean(cell.width_range_m)
+        obstacle = Obstacle.in_scene(L, W, eq9.scene)
+        p5 = np.array([-(L / 2 + eq9.scene.start_dx_m), eq9.scene.y1_m])
+        assert _best_clearance_near(p5, region_map.endpoint_tolerance_m, obstacle, arm) < region_map.margin_m

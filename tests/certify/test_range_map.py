@@ -1,0 +1,113 @@
+"""The region map (pipeline.certify.region_map): lookups, JSON round trip, validation, the link to
+the coefficients by sha256, and the CLI ``python -m pipeline.certify_range``."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+
+import numpy as np
+import pytest
+
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.region_map import STATUSES, RegionMap, load_region_map, save_region_map
+from pipeline.certify_range import main
+from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
+from pipeline.offline.coefficients import load_coefficients
+
+
+@pytest.fixture(scope="module")
+def small_map() -> RegionMap:
+    return certify_range(load_coefficients("paper"), RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8))
+
+
+def test_cell_at_and_batch_lookup_agree(small_map: RegionMap) -> None:
+    rng = np.random.default_rng(0)
+    L, W = rng.uniform(0.2, 0.3, 500), rng.uniform(0.08, 0.12, 500)
+    batch = small_map.cells_at(L, W)
+    for k in range(500):
+        cell = small_map.cell_at(L[k], W[k])
+        assert cell.length_range_m[0] <= L[k] <= cell.length_range_m[1]
+        assert cell.width_range_m[0] <= W[k] <= cell.width_range_m[1]
+        assert cell.clearance_bound_m == batch["clearance_bound_m"][k]
+        assert STATUSES[batch["status"][k]] == cell.status
+    corners = small_map.cells_at(np.array([0.2, 0.3, 0.31]), np.array([0.08, 0.12, 0.1]))
+    assert list(corners["leaf"][:2] >= 0) == [True, True] and corners["leaf"][2] == -1
+    assert np.isnan(corners["clearance_bound_m"][2])
+    with pytest.raises(OutOfFittedRangeError):
+        small_map.cell_at(0.31, 0.1)
+
+
+def test_lookup_costs_microseconds(small_map: RegionMap) -> None:
+    start = time.perf_counter()
+    for _ in range(2000):
+        small_map.cell_at(0.25, 0.1)
+    per_call = (time.perf_counter() - start) / 2000
+    assert per_call < 1e-4
+    L = np.full(100_000, 0.25)
+    start = time.perf_counter()
+    small_map.cells_at(L, L * 0.4)
+    assert (time.perf_counter() - start) / L.size < 1e-6
+
+
+def test_json_round_trip_and_hash_link(small_map: RegionMap, tmp_path) -> None:
+    path = tmp_path / "map.json"
+    digest = save_region_map(small_map, path)
+    assert len(digest) == 64
+    again = load_region_map(path)
+    for name in ("depth", "index_l", "index_w", "clearance_bound_m", "endpoint_bound_m", "status"):
+        assert np.array_equal(getattr(again, name), getattr(small_map, name))
+    assert again.summary()["area_fraction"] == small_map.summary()["area_fraction"]
+    coefficients = load_coefficients("paper")
+    assert again.belongs_to(coefficients)
+    assert not again.belongs_to(dataclasses.replace(coefficients, source_sha256="0" * 64))
+
+
+def test_summary_fractions_add_up(small_map: RegionMap) -> None:
+    summary = small_map.summary()
+    assert sum(summary["area_fraction"].values()) == pytest.approx(1.0)
+    assert set(summary["area_fraction"]) == set(STATUSES)
+    assert summary["clearance_bound_min_m"] == pytest.approx(float(np.min(small_map.clearance_bound_m)))
+
+
+def test_malformed_maps_are_refused(small_map: RegionMap, tmp_path) -> None:
+    document = small_map.to_json()
+    document["cells"]["depth"][0] += 1  # the leaves no longer tile the range
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(document))
+    with pytest.raises(DataFileError):
+        load_region_map(path)
+    path.write_text(json.dumps({"format": "something else"}))
+    with pytest.raises(DataFileError):
+        load_region_map(path)
+    with pytest.raises(InvalidParameterError):
+        dataclasses.replace(small_map, status=np.full(small_map.status.size, 7))
+
+
+def test_cli_writes_map_and_summary(tmp_path, capsys) -> None:
+    out, summary = tmp_path / "map.json", tmp_path / "summary.json"
+    code = main(["paper", "-o", str(out), "--json", str(summary), "--min-cell", "0.0625", "--boundary-cell", "0.125"])
+    assert code == 0
+    document = json.loads(summary.read_text())
+    assert set(document["area_fraction"]) == {"margin", "collision_free", "infeasible", "undecided"}
+    for key in ("clearance_bound_min_m", "endpoint_bound_max_m", "seconds"):
+        assert isinstance(document[key], float)
+    assert load_region_map(out).coefficients_sha256 == load_coefficients("paper").source_sha256
+    printed = capsys.readouterr().out
+    assert "range certificate: margin" in printed and " s\n" in printed
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["paper", "--margin", "-0.01"],
+        ["paper", "--min-cell", "2"],
+        ["paper", "--jobs", "-1"],
+        ["/nonexistent/coefficients.json"],
+    ],
+)
+def test_cli_errors_are_one_line_and_exit_2(argv, capsys) -> None:
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error" in err
