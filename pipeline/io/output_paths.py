@@ -34,12 +34,14 @@ def _check_creatable_under(location: Path, option: str, value: str) -> None:
         ) from None
 
 
-def check_output_folder(folder: str | Path, option: str) -> Path:
+def check_output_folder(folder: str | Path | None, option: str) -> Path | None:
     """Check, before any work and creating nothing, that ``folder`` is or can become a writable folder.
 
     Raises:
         InvalidParameterError: the path is a file, under a file, or not writable.
     """
+    if folder is None:
+        return None
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise InvalidParameterError(option, str(folder), "a folder, not an existing file")
@@ -47,13 +49,15 @@ def check_output_folder(folder: str | Path, option: str) -> Path:
     return folder
 
 
-def check_output_file(path: str | Path, option: str) -> Path:
+def check_output_file(path: str | Path | None, option: str) -> Path | None:
     """Check, before any work and creating nothing, that ``path`` can be written as a file
-    (replacing an existing file; missing folders are created when it is written).
+    (replacing an existing file; missing folders are created when it is written). None passes.
 
     Raises:
         InvalidParameterError: the path is a folder, under a file, or not writable.
     """
+    if path is None:
+        return None
     path = Path(path)
     if path.is_dir():
         raise InvalidParameterError(option, str(path), "a file name, not a folder")
