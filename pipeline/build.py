@@ -3,7 +3,9 @@
 A thin command line on :func:`pipeline.offline.build.run_build` (call that from Python, with a
 :class:`pipeline.offline.build.BuildConfig`). Writes ``DIR/doe.json`` and
 ``DIR/coefficients.json`` atomically (deterministic for a seed: no timestamps, independent of
---jobs) and ``DIR/build_timing.json``; prints our Table 2 and Eq. 9 beside the paper's.
+--jobs), ``DIR/region_map.json`` (the range certificate of the coefficients, linked by their
+sha256; ``--no-range-map`` skips it) and ``DIR/build_timing.json``; prints our Table 2 and Eq. 9
+beside the paper's, and the range certificate's area fractions.
 
 Exit status: 0 written; 1 the build did not converge (nothing written, the failing experiments
 named; ``--allow-unconverged`` writes anyway, marked); 2 bad input (one line, before any work);
@@ -19,8 +21,10 @@ from typing import TextIO
 
 from tqdm import tqdm
 
+from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, certify_and_save, default_config, summary_lines
 from pipeline.cli import EXIT_FAILED, EXIT_OK, Parser, jobs_count, run_cli
 from pipeline.exceptions import BuildNotConvergedError
+from pipeline.io.jsonio import write_json_atomic
 from pipeline.model.arm import DEFAULT_URDF
 from pipeline.model.scene import SCENE_FIELDS, Scene
 from pipeline.motion.families import FAMILY_NAMES, PAPER, PAPER_SOURCE
@@ -146,6 +150,12 @@ def parser() -> Parser:
     )
     add_regression_arguments(p, default_tolerance_m=EndpointConstraint.tolerance_m)
     _convergence_arguments(p)
+    p.add_argument(
+        "--no-range-map",
+        action="store_true",
+        help=f"do not certify the coefficients over their fitted range (by default {DEFAULT_MAP_NAME} is written "
+        "beside them, linked by their sha256; see python -m pipeline.certify_range)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar or tables")
     return p
 
@@ -241,7 +251,34 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
             + _problem_lines(result.problems),
             file=sys.stderr,
         )
+    if not args.no_range_map:
+        _certify_range(result, args, out)
     return EXIT_OK
+
+
+def _certify_range(result: BuildResult, args: argparse.Namespace, out: TextIO) -> None:
+    """Certify the written coefficients over their fitted range, write the region map beside
+    them, and add its time to build_timing.json."""
+    coefficients_path, timing_path = result.written[1][0], result.written[2][0]
+    coefficients = load_coefficients(coefficients_path)  # as written: the map links to the file's sha256
+    config = default_config(
+        coefficients,
+        endpoint_tolerance_m=None if args.plain or coefficients.family.pins_endpoints else args.endpoint_tolerance,
+        jobs=args.jobs,
+    )
+    region_map, digest = certify_and_save(coefficients, config, coefficients_path.with_name(DEFAULT_MAP_NAME))
+    timing = {
+        **result.timing,
+        "range_certificate_s": region_map.seconds,
+        "total_with_range_certificate_s": result.timing["total_s"] + region_map.seconds,
+    }
+    write_json_atomic(timing_path, timing)
+    print("\n".join(summary_lines(region_map)), file=out)
+    print(
+        f"wrote {coefficients_path.with_name(DEFAULT_MAP_NAME)} (sha256 {digest[:12]}); build and range "
+        f"certificate {timing['total_with_range_certificate_s']:.1f} s",
+        file=out,
+    )
 
 
 def build(args: argparse.Namespace, out: TextIO | None = None) -> int:
@@ -250,7 +287,7 @@ def build(args: argparse.Namespace, out: TextIO | None = None) -> int:
     PSO). It writes the files even if the build did not converge, marked ``"converged": false``
     as with ``--allow-unconverged``, as it did before the convergence check. Call ``run_build``.
     """
-    return run(argparse.Namespace(**{**vars(args), "allow_unconverged": True}), out)
+    return run(argparse.Namespace(**{**vars(args), "allow_unconverged": True, "no_range_map": True}), out)
 
 
 def main(argv: list[str] | None = None) -> int:

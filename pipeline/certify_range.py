@@ -12,14 +12,8 @@ import argparse
 from collections.abc import Sequence
 from pathlib import Path
 
-from pipeline.certify.range_certificate import (
-    DEFAULT_BOUNDARY_CELL,
-    DEFAULT_ENDPOINT_TOLERANCE_M,
-    DEFAULT_MIN_CELL,
-    RangeCertificateConfig,
-    certify_range,
-)
-from pipeline.certify.region_map import STATUSES, save_region_map
+from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, certify_and_save, default_config, summary_lines
+from pipeline.certify.range_certificate import DEFAULT_BOUNDARY_CELL, DEFAULT_ENDPOINT_TOLERANCE_M, DEFAULT_MIN_CELL
 from pipeline.cli import (
     EXIT_OK,
     Parser,
@@ -31,9 +25,6 @@ from pipeline.cli import (
 )
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.motion.families import PAPER_SOURCE
-
-#: File name of the map written beside a coefficients file when -o is not given.
-DEFAULT_MAP_NAME = "region_map.json"
 
 
 def _fraction(text: str) -> float:
@@ -86,14 +77,16 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--min-cell",
         type=_fraction,
-        default=DEFAULT_MIN_CELL,
-        help="smallest (L, W) cell, as a fraction of the fitted range's side [-]",
+        default=None,
+        help=f"smallest (L, W) cell, as a fraction of the fitted range's side [-] "
+        f"(default: {DEFAULT_MIN_CELL}; 1/32 for a family that pins the endpoints)",
     )
     p.add_argument(
         "--boundary-cell",
         type=_fraction,
-        default=DEFAULT_BOUNDARY_CELL,
-        help="cell size to which regions that miss the margin are resolved, fraction of the side [-]",
+        default=None,
+        help="cell size to which regions that miss the margin are resolved, fraction of the side [-] "
+        f"(default: {DEFAULT_BOUNDARY_CELL}; 1/16 for a family that pins the endpoints)",
     )
     return p
 
@@ -104,35 +97,19 @@ def _work(args: argparse.Namespace) -> int:
     coefficients = load_coefficients_for_cli(args.coefficients)
     if output is None and args.coefficients != PAPER_SOURCE:
         output = Path(args.coefficients).with_name(DEFAULT_MAP_NAME)
-    tolerance = args.endpoint_tolerance
-    if tolerance is None:
-        tolerance = 0.0 if coefficients.family.pins_endpoints else DEFAULT_ENDPOINT_TOLERANCE_M
-    config = RangeCertificateConfig(
+    config = default_config(
+        coefficients,
         margin_m=args.margin,
-        endpoint_tolerance_m=tolerance,
+        endpoint_tolerance_m=args.endpoint_tolerance,
         min_cell=args.min_cell,
-        boundary_cell=min(args.boundary_cell, 1.0),
+        boundary_cell=args.boundary_cell,
         jobs=args.jobs,
     )
     print(describe_coefficients(coefficients))
-    region_map = certify_range(coefficients, config)
+    region_map, digest = certify_and_save(coefficients, config, output)
+    print("\n".join(summary_lines(region_map)))
     summary = region_map.summary()
-    fractions = summary["area_fraction"]
-    print(
-        "range certificate: "
-        + ", ".join(f"{name} {100 * fractions[name]:.2f} %" for name in STATUSES)
-        + f" of the area (margin {1e3 * region_map.margin_m:.2f} mm, endpoint tolerance "
-        f"{1e3 * region_map.endpoint_tolerance_m:.2f} mm)"
-    )
-    print(
-        f"certified collision-free {100 * summary['certified_collision_free_fraction']:.2f} %; clearance bound min "
-        f"{1e3 * summary['clearance_bound_min_m']:.3f} mm; endpoint bound max "
-        f"{1e3 * summary['endpoint_bound_max_m']:.3f} mm, <= tolerance on "
-        f"{100 * summary['endpoint_within_tolerance_fraction']:.2f} %; "
-        f"{summary['cells']} cells in {region_map.seconds:.1f} s"
-    )
     if output is not None:
-        digest = save_region_map(region_map, output)
         print(f"wrote {output} (sha256 {digest[:12]}, for coefficients sha256 {coefficients.source_sha256[:12]})")
     if summary_path is not None:
         write_json_atomic(summary_path, summary)
