@@ -250,3 +250,20 @@ class InfeasibleSceneError(PipelineError):
             "trajectory ending there is collision-free: narrow --L-range/--W-range or move the obstacle "
             "(--top-y, --scene)"
         )
+
+
+class RegionMapMismatchError(PipelineError):
+    """A region map was used with coefficients other than those it certifies.
+
+    Attributes:
+        map_coefficients_sha256: The sha256 of the coefficients the map was made for.
+        coefficients_sha256: The sha256 of the coefficients in use.
+    """
+
+    def __init__(self, map_coefficients_sha256: str, coefficients_sha256: str) -> None:
+        self.map_coefficients_sha256 = map_coefficients_sha256
+        self.coefficients_sha256 = coefficients_sha256
+        super().__init__(
+            f"the region map certifies coefficients sha256 {map_coefficients_sha256[:12]}, "
+            f"not these (sha256 {coefficients_sha256[:12]}); run python -m pipeline.certify_range on them"
+        )

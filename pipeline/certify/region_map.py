@@ -21,6 +21,7 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -211,6 +212,29 @@ class RegionMap:
         i = min(int((length_m - l_lo) / (l_hi - l_lo) * n), n - 1)
         j = min(int((width_m - w_lo) / (w_hi - w_lo) * n), n - 1)
         return self.cell(int(self._index[i, j]))
+
+    def bounds_at(self, length_m: float, width_m: float) -> tuple[float, float, str] | None:
+        """(clearance bound [m], endpoint-error bound [m], status) of the leaf holding (L, W), or
+        None outside the fitted range: the online generator's lookup (no cell object built)."""
+        (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
+        if not (l_lo <= length_m <= l_hi and w_lo <= width_m <= w_hi):
+            return None
+        n = self._index.shape[0]
+        leaf = self._lookup[min(int((length_m - l_lo) / (l_hi - l_lo) * n), n - 1)][
+            min(int((width_m - w_lo) / (w_hi - w_lo) * n), n - 1)
+        ]
+        return self._leaf_bounds[leaf]
+
+    @cached_property
+    def _lookup(self) -> list[list[int]]:
+        return self._index.tolist()
+
+    @cached_property
+    def _leaf_bounds(self) -> list[tuple[float, float, str]]:
+        return [
+            (float(c), float(e), STATUSES[int(k)])
+            for c, e, k in zip(self.clearance_bound_m, self.endpoint_bound_m, self.status, strict=True)
+        ]
 
     # ------------------------------------------------------------------ summary
 

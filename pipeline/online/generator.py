@@ -22,22 +22,26 @@ import warnings
 import weakref
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
+from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME
+from pipeline.certify.region_map import RegionMap, load_region_map
 from pipeline.exceptions import (
     InexactEndpointsWarning,
     InvalidParameterError,
     ObstacleSizeError,
     OutOfFittedRangeError,
     OutOfFittedRangeWarning,
+    RegionMapMismatchError,
     UnreachableObstacleError,
 )
 from pipeline.model.kinematics import inverse_kinematics, reach_annulus_m
 from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
-from pipeline.motion.families import EndpointContext, TrajectoryFamily
+from pipeline.motion.families import PAPER_SOURCE, EndpointContext, TrajectoryFamily
 from pipeline.motion.path import QuarticPath, desired_path, symmetric_quartic, symmetric_quartic_length_m
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
@@ -56,6 +60,12 @@ class GeneratedTrajectory:
         trajectory: The joint trajectory; ``trajectory.q(t)`` gives joint angles [rad].
         extrapolated: True if (L, W) lies outside the fitted range.
         reach_m: The reach annulus (min, max) [m] the constraint points were checked against.
+        certified_clearance_m: Certified lower bound on the clearance of both links over all of
+            [0, T] [m], from the region map of the coefficients (None without a map, or outside it).
+        endpoint_error_bound_m: Certified upper bound on |tip(0) - P1| and |tip(T) - P5| [m] (same source).
+        certificate_source: "range" if the two bounds come from the range certificate, else None.
+        range_status: The map cell's status ("margin", "collision_free", "infeasible",
+            "undecided"), or None.
         obstacle: The obstacle (built on first access).
         path: The desired path (P1..P5, T; built on first access).
     """
@@ -67,6 +77,10 @@ class GeneratedTrajectory:
     trajectory: JointTrajectory
     extrapolated: bool
     reach_m: tuple[float, float] | None = field(default=None, repr=False)
+    certified_clearance_m: float | None = None
+    endpoint_error_bound_m: float | None = None
+    certificate_source: str | None = None
+    range_status: str | None = None
 
     @classmethod
     def trusted(
@@ -78,6 +92,7 @@ class GeneratedTrajectory:
         trajectory: JointTrajectory,
         extrapolated: bool,
         reach_m: tuple[float, float] | None,
+        bounds: tuple[float, float, str] | None = None,
     ) -> GeneratedTrajectory:
         """Build without the dataclass machinery, for :func:`generate`, which has checked everything."""
         answer = object.__new__(cls)
@@ -89,6 +104,10 @@ class GeneratedTrajectory:
             trajectory=trajectory,
             extrapolated=extrapolated,
             reach_m=reach_m,
+            certified_clearance_m=None if bounds is None else bounds[0],
+            endpoint_error_bound_m=None if bounds is None else bounds[1],
+            certificate_source=None if bounds is None else RANGE_SOURCE,
+            range_status=None if bounds is None else bounds[2],
         )
         return answer
 
@@ -195,7 +214,12 @@ def _check_range(plan: _Plan, length_m: float, width_m: float, policy: str) -> b
 
 
 def generate(
-    coefficients: Coefficients, length_m: float, width_m: float, *, out_of_range: str = "warn"
+    coefficients: Coefficients,
+    length_m: float,
+    width_m: float,
+    *,
+    out_of_range: str = "warn",
+    region_map: RegionMap | None = None,
 ) -> GeneratedTrajectory:
     """The trajectory for the obstacle L x W [m] from regression coefficients.
 
@@ -204,6 +228,9 @@ def generate(
         length_m, width_m: Obstacle size [m] (int or float; not strings).
         out_of_range: What to do outside the fitted range: "warn" (an
             OutOfFittedRangeWarning), "error" (OutOfFittedRangeError) or "ignore".
+        region_map: The range certificate of these coefficients (:func:`load_region_map_beside`);
+            inside the fitted range the answer then carries its certified clearance and endpoint
+            bounds (``certificate_source == "range"``), found in microseconds.
 
     Raises:
         ObstacleSizeError (an InvalidParameterError): L or W not a number, not finite and positive,
@@ -211,7 +238,10 @@ def generate(
         UnreachableObstacleError: the path around this obstacle leaves the arm's reach.
         OutOfFittedRangeError: outside the fitted range with ``out_of_range="error"``.
         InvalidParameterError: an unknown ``out_of_range`` policy.
+        RegionMapMismatchError: ``region_map`` was made for other coefficients.
     """
+    if region_map is not None and not region_map.belongs_to(coefficients):
+        raise RegionMapMismatchError(region_map.coefficients_sha256, coefficients.source_sha256)
     if out_of_range not in OUT_OF_RANGE_POLICIES:
         raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
     L, W = length_m, width_m
@@ -260,8 +290,9 @@ def generate(
     parameters = tuple(full.tolist())
     if not all(map(math.isfinite, parameters)):
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
+    bounds = None if region_map is None or extrapolated else region_map.bounds_at(L, W)
     return GeneratedTrajectory.trusted(
-        L, W, family, coefficients.scene, JointTrajectory.trusted(parameters, duration), extrapolated, reach
+        L, W, family, coefficients.scene, JointTrajectory.trusted(parameters, duration), extrapolated, reach, bounds
     )
 
 
@@ -297,3 +328,19 @@ def generate_parameters(coefficients: Coefficients, lengths_m: np.ndarray, width
     return np.array(
         [generate(coefficients, float(L), float(W), out_of_range="ignore").trajectory.parameters for L, W in pairs]
     )
+
+
+#: ``certificate_source`` of an answer whose bounds come from the range certificate.
+RANGE_SOURCE = "range"
+
+
+def load_region_map_beside(coefficients: Coefficients) -> RegionMap | None:
+    """The region map written beside the coefficients file by the build (``region_map.json``),
+    or None if there is none or it was made for other coefficients (an older build)."""
+    if not coefficients.source or coefficients.source == PAPER_SOURCE:
+        return None
+    path = Path(coefficients.source).with_name(DEFAULT_MAP_NAME)
+    if not path.is_file():
+        return None
+    region_map = load_region_map(path)
+    return region_map if region_map.belongs_to(coefficients) else None

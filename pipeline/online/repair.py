@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import NoCertifiedTrajectoryError
 from pipeline.geometry.clearance import COAL, ClearanceRoute, CoalClearance
 from pipeline.geometry.motion_certificate import Certificate
@@ -77,18 +78,19 @@ class CertifiedTrajectory:
     Attributes:
         generated: The generator's output (obstacle, path, trajectory); after a repair its
             ``trajectory`` holds the repaired parameters.
-        certificate: The certificate of ``generated.trajectory``.
+        certificate: The per-query certificate of ``generated.trajectory``, or None where the
+            range certificate already proves the margin (``certificate_source == "range"``).
         margin_m: The margin that was required [m].
         repaired: True if the regression's answer failed and a repair succeeded.
-        regression_certificate: The certificate of the regression's own answer.
+        regression_certificate: The per-query certificate of the regression's own answer (None as above).
         repair_seconds: Wall time spent repairing [s] (0 if none).
     """
 
     generated: GeneratedTrajectory
-    certificate: Certificate
+    certificate: Certificate | None
     margin_m: float
     repaired: bool
-    regression_certificate: Certificate
+    regression_certificate: Certificate | None
     repair_seconds: float
 
     @property
@@ -99,7 +101,14 @@ class CertifiedTrajectory:
     @property
     def certified_clearance_m(self) -> float:
         """Certified lower bound on the clearance over [0, T] [m]."""
+        if self.certificate is None:
+            return float(self.generated.certified_clearance_m)
         return self.certificate.certified_clearance_m
+
+    @property
+    def certificate_source(self) -> str:
+        """Where the certified clearance comes from: "range" (the region map) or "query"."""
+        return "query" if self.certificate is not None else str(self.generated.certificate_source)
 
 
 _DEFAULT_CONFIG = RepairConfig()
@@ -185,6 +194,7 @@ def generate_certified(
     *,
     out_of_range: str = "warn",
     config: RepairConfig | None = None,
+    region_map: RegionMap | None = None,
 ) -> CertifiedTrajectory:
     """Generate, certify and if needed repair the trajectory for the obstacle L x W [m].
 
@@ -194,6 +204,9 @@ def generate_certified(
         arm: The arm; it must be the one the coefficients were fitted for.
         out_of_range: As :func:`pipeline.online.generator.generate`.
         config: Margin, route, repair budget, certificate mode.
+        region_map: The range certificate of the coefficients: inside a cell certified to keep at
+            least the margin the answer is returned at once, its bound taken from the map; elsewhere
+            the per-query certify-or-repair runs.
 
     Raises:
         ArmMismatchError: the arm's link lengths or radii differ from the coefficients'.
@@ -205,7 +218,13 @@ def generate_certified(
     check_arm_matches(coefficients, arm)
     config = _DEFAULT_CONFIG if config is None else config
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
-    generated = generate(coefficients, length_m, width_m, out_of_range=out_of_range)
+    generated = generate(coefficients, length_m, width_m, out_of_range=out_of_range, region_map=region_map)
+    if (
+        generated.certificate_source is not None
+        and generated.range_status == "margin"
+        and generated.certified_clearance_m >= margin
+    ):
+        return CertifiedTrajectory(generated, None, margin, False, None, 0.0)
 
     def certify(trajectory: JointTrajectory) -> Certificate:
         if config.certificate_tolerance_m is None:
