@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.exceptions import InvalidParameterError, PipelineError
+from pipeline.certify.region_map import RegionMap
+from pipeline.exceptions import InvalidParameterError, PipelineError, RegionMapMismatchError
 from pipeline.geometry.clearance import COAL, ClearanceRoute
 from pipeline.geometry.motion_certificate import DEFAULT_TOLERANCE_M
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
@@ -40,6 +41,10 @@ class GeneratedBatch:
         durations_s: T [s], shape (n,) (NaN where ``error`` is set).
         extrapolated: (n,) True outside the fitted range.
         error: (n,) None, or why :func:`generate` would refuse this obstacle.
+        certified_clearance_m: (n,) the range certificate's clearance bound [m] (NaN without a
+            region map, outside its range, or where ``error`` is set).
+        endpoint_error_bound_m: (n,) its endpoint-error bound [m] (NaN likewise).
+        range_status: (n,) index into :data:`pipeline.certify.STATUSES` (-1 likewise).
     """
 
     lengths_m: np.ndarray
@@ -48,6 +53,9 @@ class GeneratedBatch:
     durations_s: np.ndarray
     extrapolated: np.ndarray
     error: tuple[str | None, ...]
+    certified_clearance_m: np.ndarray | None = None
+    endpoint_error_bound_m: np.ndarray | None = None
+    range_status: np.ndarray | None = None
 
     def trajectory(self, i: int) -> JointTrajectory:
         """Obstacle ``i``'s joint trajectory."""
@@ -56,16 +64,22 @@ class GeneratedBatch:
         return JointTrajectory.trusted(tuple(self.parameters[i].tolist()), float(self.durations_s[i]))
 
 
-def generate_batch(coefficients: Coefficients, lengths_m: np.ndarray, widths_m: np.ndarray) -> GeneratedBatch:
+def generate_batch(
+    coefficients: Coefficients, lengths_m: np.ndarray, widths_m: np.ndarray, *, region_map: RegionMap | None = None
+) -> GeneratedBatch:
     """:func:`pipeline.online.generator.generate` for n obstacles at once (range checks off: see ``extrapolated``).
 
     Args:
         coefficients: The regression coefficients.
         lengths_m, widths_m: Obstacle sizes L, W [m], equal shapes (n,).
+        region_map: The coefficients' range certificate: the answers then carry its bounds.
 
     Raises:
         InvalidParameterError: the arrays are not numbers of equal one-dimensional shape.
+        RegionMapMismatchError: ``region_map`` was made for other coefficients.
     """
+    if region_map is not None and not region_map.belongs_to(coefficients):
+        raise RegionMapMismatchError(region_map.coefficients_sha256, coefficients.source_sha256)
     try:
         L = np.asarray(lengths_m, dtype=float).ravel()
         W = np.asarray(widths_m, dtype=float).ravel()
@@ -115,7 +129,16 @@ def generate_batch(coefficients: Coefficients, lengths_m: np.ndarray, widths_m: 
         parameters = coefficients.family.expand(free, None)
     (l_lo, l_hi), (w_lo, w_hi) = plan.l_range, plan.w_range
     extrapolated = ~((L >= l_lo) & (L <= l_hi) & (W >= w_lo) & (W <= w_hi))
-    return GeneratedBatch(L, W, np.asarray(parameters, dtype=float), durations, extrapolated, tuple(errors))
+    bounds: tuple[np.ndarray | None, ...] = (None, None, None)
+    if region_map is not None:
+        cells = region_map.cells_at(L, W)
+        bad = np.array([e is not None for e in errors], dtype=bool) | extrapolated
+        bounds = (
+            np.where(bad, np.nan, cells["clearance_bound_m"]),
+            np.where(bad, np.nan, cells["endpoint_bound_m"]),
+            np.where(bad, -1, cells["status"]),
+        )
+    return GeneratedBatch(L, W, np.asarray(parameters, dtype=float), durations, extrapolated, tuple(errors), *bounds)
 
 
 @dataclass(frozen=True, eq=False)

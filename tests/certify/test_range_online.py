@@ -16,6 +16,7 @@ from pipeline.exceptions import RegionMapMismatchError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance
 from pipeline.model.arm import PlanarArm
 from pipeline.offline.coefficients import load_coefficients
+from pipeline.online.batch import generate_batch
 from pipeline.online.generator import RANGE_SOURCE, generate, load_region_map_beside
 from pipeline.online.repair import generate_certified
 
@@ -95,3 +96,17 @@ def test_generate_certified_skips_the_query_certificate_only_in_margin_cells(
 
 def test_the_shipped_paper_coefficients_have_no_map_beside_them(paper) -> None:
     assert load_region_map_beside(paper) is None
+
+
+def test_batched_answers_carry_the_same_bounds(paper, paper_map: RegionMap) -> None:
+    rng = np.random.default_rng(11)
+    L, W = rng.uniform(0.19, 0.31, 300), rng.uniform(0.075, 0.125, 300)
+    batch = generate_batch(paper, L, W, region_map=paper_map)
+    for i in range(L.size):
+        one = generate(paper, float(L[i]), float(W[i]), region_map=paper_map, out_of_range="ignore")
+        if one.certificate_source is None:
+            assert np.isnan(batch.certified_clearance_m[i]) and batch.range_status[i] == -1
+        else:
+            assert batch.certified_clearance_m[i] == one.certified_clearance_m
+            assert batch.endpoint_error_bound_m[i] == one.endpoint_error_bound_m
+    assert generate_batch(paper, L, W).certified_clearance_m is None
