@@ -211,7 +211,7 @@ def certify_range(coefficients: Coefficients, config: RangeCertificateConfig | N
     """Certify the whole fitted range of ``coefficients``: the region map (module docstring).
 
     Args:
-        coefficients: Loaded coefficients (any family with jets; "paper" for Eq. 9 too).
+        coefficients: Loaded coefficients (any family with jets; the paper's Eq. 9 too).
         config: Settings; default :class:`RangeCertificateConfig`.
 
     Returns:

@@ -77,7 +77,7 @@ class RegionMap:
 
     Attributes:
         family: Trajectory family of the coefficients.
-        coefficients_source: Path (or "paper") of the coefficients.
+        coefficients_source: Path (or PAPER_SOURCE) of the coefficients.
         coefficients_sha256: sha256 of the coefficients file: the link between map and coefficients.
         length_range_m, width_range_m: The fitted range [m].
         margin_m: The margin the statuses refer to [m].

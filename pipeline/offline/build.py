@@ -127,7 +127,7 @@ class BuildConfig:
             and coefficients.json whatever ``jobs``.
         levels: K, levels per factor of the K x K design (>= 3).
         length_range_m, width_range_m: (min, max) of L and W [m].
-        family: Trajectory family (object or name, e.g. "paper", "exact-endpoints").
+        family: Trajectory family (object, or its name as on the command line).
         jobs: Worker processes (>= 1; does not change the result).
         urdf_path: URDF of the arm (None: the paper's arm shipped with the package).
         scene: The scene (obstacle placement, path, speed, margin); see :func:`scene_from_options`.

@@ -2,7 +2,7 @@
 
 ``coefficients.json`` holds, per free parameter of the trajectory family, the six
 coefficients of :data:`pipeline.offline.regression.BASIS`, the (L, W) range they were fitted on,
-and the scene and arm they assume. ``"paper"`` names the paper's own Eq. 9, shipped with
+and the scene and arm they assume. ``PAPER_SOURCE`` names the paper's own Eq. 9, shipped with
 the package (``pipeline/data/paper_eq9_coefficients.json``).
 """
 
@@ -50,7 +50,7 @@ class Coefficients:
         link_radii_m: (r1, r2) link capsule radii [m].
         elbow: Elbow branch (+1 / -1) of the exact-endpoints inverse kinematics.
         extra: Everything else in the file (fit quality, provenance), kept as read.
-        source: Where the coefficients came from (a path or "paper").
+        source: Where the coefficients came from (a path or PAPER_SOURCE).
         source_sha256: SHA-256 of the file's bytes.
     """
 
@@ -200,7 +200,7 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
 
 
 def load_coefficients(source: str | Path) -> Coefficients:
-    """Load a coefficients file, or the paper's Eq. 9 for ``"paper"``.
+    """Load a coefficients file, or the paper's Eq. 9 for :data:`PAPER_SOURCE`.
 
     Warns:
         UnconvergedCoefficientsWarning: the file is marked ``"converged": false`` (a build
