@@ -12,12 +12,12 @@ import warnings
 from pathlib import Path
 
 import pytest
+from verify.bench import EXIT_OK, EXIT_USAGE, build_parser, main
+from verify.cli import HelpFormatter
 
 from pipeline.exceptions import EndpointConstraintWarning
 from pipeline.io.jsonio import write_json_atomic
 from verify import bench, bench_results, planner
-from verify.bench import EXIT_OK, EXIT_USAGE, build_parser, main
-from verify.cli import HelpFormatter
 
 #: Tiny settings: 3 obstacles, a 4-particle 2-iteration PSO without polish on one of them.
 TINY = [

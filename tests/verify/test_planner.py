@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 import pytest
+from verify.planner import PlannerConfig, ompl_available, plan_rrt_connect, start_goal_configurations
 
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import (
@@ -40,7 +41,6 @@ from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.offline.coefficients import load_coefficients
 from pipeline.online.generator import generate
-from verify.planner import PlannerConfig, ompl_available, plan_rrt_connect, start_goal_configurations
 
 L1, L2, R_LINK = 0.30, 0.35, 0.005
 CORNER = 0.01

@@ -15,7 +15,7 @@ import pytest
 
 from pipeline.exceptions import InvalidParameterError
 from verify import sweep
-from verify.metrics import MeasureSettings
+from verify.acceptance.metrics import MeasureSettings
 from verify.sweep import (
     EXIT_FAILED,
     EXIT_OK,
@@ -86,7 +86,9 @@ def test_help_lists_every_option_with_units_and_defaults(capsys: pytest.CaptureF
         (["--n", "ten"], "--n"),
         (["--bogus"], "unrecognized"),
         (["--coefficients", "/nonexistent/coefficients.json"], "not found"),
-        (["--json", "/nonexistent/dir/out.json"], "--json"),
+        (["--json", "/proc/x"], "--json"),
+        (["--plots", "/proc/x"], "--plots"),
+        (["--html", "/proc/x/view.html"], "--html"),
         (["--resolution", "0"], "--resolution"),
         (["--tolerance", "-1e-5"], "--tolerance"),
         (["--max-endpoint-error", "-1"], "--max-endpoint-error"),
@@ -123,7 +125,7 @@ def test_malformed_coefficients_file(capsys: pytest.CaptureFixture[str], tmp_pat
 def test_bad_input_in_a_real_process_has_no_traceback() -> None:
     done = subprocess.run(
         [sys.executable, "-m", "verify.sweep", "--range", "0.3", "0.2", "0.08", "0.12"],
-        cwd=Path(__file__).resolve().parents[1],
+        cwd=Path(__file__).resolve().parents[2],
         capture_output=True,
         text=True,
         timeout=120,
@@ -179,7 +181,7 @@ def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: 
 
 def test_coefficients_for_another_arm_are_refused(capsys: pytest.CaptureFixture[str], double_pendulum_urdf) -> None:
     status, _, err = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST, "--urdf", str(double_pendulum_urdf))
-    assert status == EXIT_USAGE and "link_lengths_m" in err and "Traceback" not in err
+    assert status == EXIT_USAGE and "link lengths" in err and "(0.1, 0.2)" in err and "Traceback" not in err
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,35 +1,35 @@
-"""``python -m verify.online_sweep``: certify-or-repair over many obstacles.
+"""Certify-or-repair over many obstacles (the library of ``python -m verify.online_sweep``).
 
 For each sampled (L, W) the online generator runs with certification on
 (:func:`pipeline.online.repair.generate_certified`). Every answer must either carry a certified
-clearance of at least the margin or be a refusal that says why; this sweep checks that
-invariant on every case and reports how many answers came straight from the regression,
-how many were repaired, and how many were refused. ``--beyond 0.2`` widens the fitted range
-by 20 % of its width on each side, to exercise extrapolation.
+clearance of at least the margin or be a refusal that says why; :func:`summarize_online` checks
+that invariant on every case and counts how many answers came straight from the regression,
+how many were repaired, and how many were refused.
 """
 
 from __future__ import annotations
 
-import argparse
+import functools
 import sys
 import time
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
-from pipeline.exceptions import NoCertifiedTrajectoryError, PipelineError, UnreachableObstacleError
-from pipeline.geometry.clearance import ROUTES, route_from_name
-from pipeline.io.jsonio import write_json_atomic
-from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
+from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError, UnreachableObstacleError
+from pipeline.io.parallel import process_map
+from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.offline.coefficients import Coefficients, load_coefficients
 from pipeline.online.repair import RepairConfig, generate_certified
+from pipeline.validation import check_non_negative, check_positive
 
-from .cli import DEFAULT_COEFFICIENTS, load_coefficients_for_cli
-from .sweep import SweepRange, sample_cases
+#: The outcomes of one query.
+STATUSES = ("certified", "repaired", "refused")
 
 
 @dataclass(frozen=True)
@@ -37,21 +37,44 @@ class OnlineCase:
     """Outcome of one certify-or-repair query.
 
     Attributes:
-        L, W: Obstacle size [m].
-        status: "certified" (regression answer certified), "repaired", or "refused".
+        L_m, W_m: Obstacle size [m].
+        status: "certified" (the regression's answer certified as is), "repaired", or "refused".
         certified_clearance_m: Certified clearance of the returned trajectory [m] (None if refused).
-        regression_certified_clearance_m: Certified clearance of the regression's answer [m].
+        regression_certified_clearance_m: Certified clearance of the regression's answer [m] (None if unknown).
         reason: Why it was refused ("" otherwise).
         seconds: Wall time of the query [s].
     """
 
-    L: float
-    W: float
+    L_m: float
+    W_m: float
     status: str
     certified_clearance_m: float | None
     regression_certified_clearance_m: float | None
     reason: str
     seconds: float
+
+    def __post_init__(self) -> None:
+        check_positive("L_m", self.L_m)
+        check_positive("W_m", self.W_m)
+        check_non_negative("seconds", self.seconds)
+        if self.status not in STATUSES:
+            raise InvalidParameterError("status", self.status, f"one of {STATUSES}")
+        if (self.status == "refused") != (self.certified_clearance_m is None):
+            raise InvalidParameterError(
+                "certified_clearance_m", self.certified_clearance_m, "a clearance exactly when the query was answered"
+            )
+
+    def to_json(self) -> dict[str, Any]:
+        """{"L", "W", "status", "certified_clearance_m", "regression_certified_clearance_m", "reason", "seconds"}."""
+        return {
+            "L": self.L_m,
+            "W": self.W_m,
+            "status": self.status,
+            "certified_clearance_m": self.certified_clearance_m,
+            "regression_certified_clearance_m": self.regression_certified_clearance_m,
+            "reason": self.reason,
+            "seconds": self.seconds,
+        }
 
 
 def query(
@@ -78,35 +101,107 @@ def query(
     )
 
 
-def _run_chunk(task: tuple) -> list[OnlineCase]:
-    source, urdf, cases, config = task
-    coefficients, arm = load_coefficients(source), load_planar_arm(urdf)
-    return [query(coefficients, arm, float(L), float(W), config) for L, W in cases]
+@functools.lru_cache(maxsize=4)
+def _loaded(source: str, urdf: str | None) -> tuple[Coefficients, PlanarArm]:
+    return load_coefficients(source), load_planar_arm(urdf)
 
 
-def run(
-    source: str, cases: np.ndarray, config: RepairConfig, urdf: Path, jobs: int = 1, progress: bool = True
+def _query_in_worker(source: str, urdf: str | None, config: RepairConfig, case: tuple[float, float]) -> OnlineCase:
+    coefficients, arm = _loaded(source, urdf)
+    return query(coefficients, arm, case[0], case[1], config)
+
+
+def run_online_cases(
+    source: str,
+    cases_m: np.ndarray,
+    config: RepairConfig,
+    urdf: str | Path | None = None,
+    jobs: int = 1,
+    progress: bool = True,
+    coefficients: Coefficients | None = None,
+    arm: PlanarArm | None = None,
 ) -> list[OnlineCase]:
-    """Run every case; results in case order whatever ``jobs``."""
-    chunks = np.array_split(cases, max(1, min(len(cases), 8 * jobs)))
-    tasks = [(source, urdf, chunk, config) for chunk in chunks if len(chunk)]
-    bar = tqdm(total=len(cases), desc="certify-or-repair", unit="case", disable=not progress, file=sys.stderr)
-    results: list[OnlineCase] = []
+    """Query every case (L, W) of ``cases_m`` (shape (n, 2) [m]); results in case order whatever ``jobs``.
+
+    Args:
+        source: Coefficients file or the paper's name (loaded by each worker process).
+        config: Certify-or-repair settings.
+        urdf: URDF of the arm (None: the project's).
+        jobs: Processes (1: in this one).
+        progress: tqdm progress bar on stderr.
+        coefficients, arm: Already loaded objects for the in-process path (optional).
+    """
+    cases = [(float(length), float(width)) for length, width in np.asarray(cases_m, dtype=float).reshape(-1, 2)]
+    urdf_text = None if urdf is None else str(urdf)
     if jobs == 1:
-        for task in tasks:
-            results.extend(_run_chunk(task))
-            bar.update(len(task[2]))
+        loaded = coefficients or load_coefficients(source)
+        arm = arm or load_planar_arm(urdf_text)
+
+        def function(case: tuple[float, float]) -> OnlineCase:
+            return query(loaded, arm, case[0], case[1], config)
+
     else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for chunk in pool.map(_run_chunk, tasks):
-                results.extend(chunk)
-                bar.update(len(chunk))
-    bar.close()
-    return results
+        function = functools.partial(_query_in_worker, source, urdf_text, config)
+    with tqdm(total=len(cases), desc="certify-or-repair", unit="case", disable=not progress, file=sys.stderr) as bar:
+        return process_map(function, cases, jobs=jobs, on_progress=bar.update)
 
 
-def summarize(cases: list[OnlineCase], margin_m: float) -> dict:
-    """Counts per status, refusal reasons, and the invariant check."""
+@dataclass(frozen=True)
+class OnlineSummary:
+    """Counts per status, refusal reasons, and the invariant check of a certify-or-repair sweep.
+
+    Attributes:
+        n_cases: Queries.
+        n_certified_from_regression, n_repaired, n_refused: Queries per outcome.
+        refusal_reasons: Reason (without its parenthesised detail) -> count.
+        answers_below_margin: Answers whose certified clearance is below the margin (must be 0).
+        min_returned_certified_clearance_m: Smallest certified clearance returned [m] (None: no answer).
+        median_query_s, max_query_s: Query wall times [s].
+        margin_m: The scene's margin [m].
+    """
+
+    n_cases: int
+    n_certified_from_regression: int
+    n_repaired: int
+    n_refused: int
+    refusal_reasons: tuple[tuple[str, int], ...]
+    answers_below_margin: int
+    min_returned_certified_clearance_m: float | None
+    median_query_s: float
+    max_query_s: float
+    margin_m: float
+
+    @property
+    def refused_fraction(self) -> float:
+        """Fraction of the queries refused."""
+        return self.n_refused / self.n_cases
+
+    @property
+    def invariant_holds(self) -> bool:
+        """Every answer is certified at least the margin (refusals aside)."""
+        return self.answers_below_margin == 0
+
+    def to_json(self) -> dict[str, Any]:
+        """The "summary" document of ``--json``."""
+        return {
+            "cases": self.n_cases,
+            "certified_from_regression": self.n_certified_from_regression,
+            "repaired": self.n_repaired,
+            "refused": self.n_refused,
+            "refused_fraction": self.refused_fraction,
+            "refusal_reasons": dict(self.refusal_reasons),
+            "answers_below_margin": self.answers_below_margin,
+            "min_returned_certified_clearance_m": self.min_returned_certified_clearance_m,
+            "median_query_s": self.median_query_s,
+            "max_query_s": self.max_query_s,
+            "margin_m": self.margin_m,
+        }
+
+
+def summarize_online(cases: Sequence[OnlineCase], margin_m: float) -> OnlineSummary:
+    """Counts per status, refusal reasons, and the invariant check (``cases`` not empty)."""
+    if not cases:
+        raise InvalidParameterError("cases", cases, "at least one query")
     status = Counter(case.status for case in cases)
     unsafe = [
         case for case in cases if case.status != "refused" and not (case.certified_clearance_m or -1.0) >= margin_m
@@ -114,89 +209,32 @@ def summarize(cases: list[OnlineCase], margin_m: float) -> dict:
     reasons = Counter(case.reason.split(" (")[0] if case.reason else "" for case in cases if case.status == "refused")
     times = np.array([case.seconds for case in cases])
     returned = [case.certified_clearance_m for case in cases if case.certified_clearance_m is not None]
-    return {
-        "cases": len(cases),
-        "certified_from_regression": status["certified"],
-        "repaired": status["repaired"],
-        "refused": status["refused"],
-        "refused_fraction": status["refused"] / len(cases),
-        "refusal_reasons": dict(reasons),
-        "answers_below_margin": len(unsafe),
-        "min_returned_certified_clearance_m": min(returned) if returned else None,
-        "median_query_s": float(np.median(times)),
-        "max_query_s": float(np.max(times)),
-        "margin_m": margin_m,
-    }
+    return OnlineSummary(
+        n_cases=len(cases),
+        n_certified_from_regression=status["certified"],
+        n_repaired=status["repaired"],
+        n_refused=status["refused"],
+        refusal_reasons=tuple(reasons.items()),
+        answers_below_margin=len(unsafe),
+        min_returned_certified_clearance_m=min(returned) if returned else None,
+        median_query_s=float(np.median(times)),
+        max_query_s=float(np.max(times)),
+        margin_m=margin_m,
+    )
 
 
-def parser() -> argparse.ArgumentParser:
-    defaults = RepairConfig()
-    p = argparse.ArgumentParser(
-        prog="python -m verify.online_sweep",
-        description="Certify-or-repair on random obstacles: each answer certified >= margin, or refused.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
-    p.add_argument("--coefficients", default=DEFAULT_COEFFICIENTS, help="coefficients file, or 'paper'")
-    p.add_argument("--n", type=int, default=1000, help="number of random obstacles")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the obstacle sizes")
-    p.add_argument(
-        "--beyond", type=float, default=0.0, help="widen the fitted range by this fraction of its width per side"
-    )
-    p.add_argument("--jobs", type=int, default=1, help="worker processes")
-    p.add_argument("--route", choices=tuple(ROUTES), default=defaults.route.name, help="certificate's distance route")
-    p.add_argument("--max-seconds", type=float, default=defaults.max_seconds, help="repair time budget per query [s]")
-    p.add_argument("--no-repair", action="store_true", help="refuse instead of repairing")
-    p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm")
-    p.add_argument("--json", type=Path, help="write cases and summary to this JSON file (atomically)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    return p
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Exit 0 if every answer is certified >= margin or refused; 1 if any answer breaks that; 2 on bad input."""
-    args = parser().parse_args(argv)
-    try:
-        if args.n < 1 or args.jobs < 1 or not 0 <= args.beyond < 10:
-            raise PipelineError(f"--n {args.n} and --jobs {args.jobs} must be >= 1, --beyond {args.beyond} in [0, 10)")
-        coefficients = load_coefficients_for_cli(args.coefficients)
-        fitted = SweepRange.from_fitted(coefficients.fitted_range_m)
-        grow_l = args.beyond * (fitted.L_m[1] - fitted.L_m[0])
-        grow_w = args.beyond * (fitted.W_m[1] - fitted.W_m[0])
-        sweep_range = SweepRange(
-            (max(1e-3, fitted.L_m[0] - grow_l), fitted.L_m[1] + grow_l),
-            (max(1e-3, fitted.W_m[0] - grow_w), fitted.W_m[1] + grow_w),
-        )
-        config = RepairConfig(
-            route=route_from_name(args.route), max_seconds=args.max_seconds, repair=not args.no_repair
-        )
-        cases = sample_cases(sweep_range, args.n, args.seed)
-        results = run(args.coefficients, cases, config, args.urdf, args.jobs, not args.no_progress)
-    except PipelineError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    summary = summarize(results, coefficients.scene.margin_m)
-    summary["range"] = {"L": list(sweep_range.L_m), "W": list(sweep_range.W_m)}
-    print(
-        f"certify-or-repair on {args.coefficients} ({coefficients.family.name}), {len(results)} cases, "
-        f"L in [{sweep_range.L_m[0]:.4f}, {sweep_range.L_m[1]:.4f}] m, "
-        f"W in [{sweep_range.W_m[0]:.4f}, {sweep_range.W_m[1]:.4f}] m"
-    )
-    print(
-        f"  certified from the regression {summary['certified_from_regression']}, repaired {summary['repaired']}, "
-        f"refused {summary['refused']} ({100 * summary['refused_fraction']:.1f} %)"
-    )
-    for reason, count in summary["refusal_reasons"].items():
-        print(f"    refused {count}: {reason}")
-    low = summary["min_returned_certified_clearance_m"]
-    print(
-        f"  answers below the {1e3 * summary['margin_m']:.1f} mm margin: {summary['answers_below_margin']}; "
+def format_online_report(summary: OnlineSummary, header: str) -> str:
+    """The lines printed on stdout, after ``header`` (what was run, on which range)."""
+    lines = [
+        header,
+        f"  certified from the regression {summary.n_certified_from_regression}, repaired {summary.n_repaired}, "
+        f"refused {summary.n_refused} ({100 * summary.refused_fraction:.1f} %)",
+    ]
+    lines += [f"    refused {count}: {reason}" for reason, count in summary.refusal_reasons]
+    low = summary.min_returned_certified_clearance_m
+    lines.append(
+        f"  answers below the {1e3 * summary.margin_m:.1f} mm margin: {summary.answers_below_margin}; "
         f"smallest certified clearance returned: {'n/a' if low is None else f'{1e3 * low:.3f} mm'}"
     )
-    print(f"  query time median {1e3 * summary['median_query_s']:.1f} ms, max {1e3 * summary['max_query_s']:.1f} ms")
-    if args.json:
-        write_json_atomic(args.json, {"summary": summary, "cases": [asdict(case) for case in results]})
-    return 0 if summary["answers_below_margin"] == 0 else 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    lines.append(f"  query time median {1e3 * summary.median_query_s:.1f} ms, max {1e3 * summary.max_query_s:.1f} ms")
+    return "\n".join(lines)

@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from verify.cli import DEFAULT_COEFFICIENTS, HelpFormatter, Parser, load_coefficients_for_cli
 
 from pipeline.exceptions import PipelineError
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
@@ -52,7 +53,6 @@ from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.experiment import SolverConfig
 from pipeline.offline.fitness import FitnessConfig
 from pipeline.offline.pso import PsoConfig
-from verify.cli import DEFAULT_COEFFICIENTS, HelpFormatter, Parser, load_coefficients_for_cli
 
 from . import planner
 from .bench_methods import (

@@ -1,0 +1,437 @@
+"""The acceptance verifier: ``python -m verify.sweep``.
+
+For ``n`` obstacle sizes (L, W) drawn uniformly (seeded) from the coefficients' fitted range
+(or ``--range``), the trajectory is generated from the coefficients exactly as an online user
+would and measured (:mod:`verify.acceptance`): sampled and certified clearance (Pinocchio + Coal,
+continuous-time certificate), endpoint errors, tracking errors, joint peaks against the URDF.
+
+Exit status: 0 if every case passes, 1 if any case fails (they are listed with their (L, W)),
+2 on bad input (one line on stderr, no traceback), 130 if interrupted.
+
+``--coefficients paper`` judges the paper's own Eq. 9 with the same verifier; ``--compare A B``
+runs both on the same sampled cases and prints them side by side.
+
+This module only parses the command line and calls the library.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from pipeline.cli import (
+    DEFAULT_COEFFICIENTS,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    Parser,
+    describe_coefficients,
+    jobs_count,
+    load_coefficients_for_cli,
+    run_cli,
+)
+from pipeline.exceptions import InvalidParameterError, PipelineError
+from pipeline.geometry.motion_certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M
+from pipeline.io.jsonio import write_json_atomic
+from pipeline.model.arm import load_planar_arm
+from pipeline.motion.families import PAPER_SOURCE
+from pipeline.offline.coefficients import Coefficients
+from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
+from verify.acceptance.cases import SweepRange, case_study_sizes, on_doe_grid, sample_cases
+from verify.acceptance.metrics import AcceptanceThresholds, MeasureSettings, check_arm_matches
+from verify.acceptance.report import format_comparison, format_summary
+from verify.acceptance.run import DEFAULT_CASES, DEFAULT_SEED, SweepRun, run_cases, run_sweep, source_label
+from verify.output_paths import check_output_file, check_output_folder
+
+PROG = "python -m verify.sweep"
+
+__all__ = [  # the library names tests and scripts have used from here
+    "EXIT_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "EXIT_USAGE",
+    "SweepRange",
+    "build_parser",
+    "case_study_sizes",
+    "main",
+    "on_doe_grid",
+    "run_cases",
+    "run_sweep",
+    "sample_cases",
+    "write_json_atomic",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# Options
+
+
+def _add_source_options(parser: argparse.ArgumentParser) -> None:
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument(
+        "--coefficients",
+        metavar="FILE",
+        default=DEFAULT_COEFFICIENTS,
+        help=f"coefficients file to judge, or '{PAPER_SOURCE}' for the paper's Eq. 9",
+    )
+    source.add_argument(
+        "--compare",
+        nargs=2,
+        metavar=("A", "B"),
+        default=None,
+        help=f"judge two coefficients sources (files or '{PAPER_SOURCE}') on the same cases and print them side "
+        "by side; the default range is the intersection of their fitted ranges",
+    )
+
+
+def _add_sampling_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--n", type=int, default=DEFAULT_CASES, help="number of sampled cases [cases] (>= 1)")
+    parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help="seed of the (L, W) sampler (>= 0)")
+    parser.add_argument(
+        "--range",
+        nargs=4,
+        type=float,
+        metavar=("LMIN", "LMAX", "WMIN", "WMAX"),
+        default=None,
+        help="sample L in [LMIN, LMAX] m and W in [WMIN, WMAX] m instead of the fitted range "
+        "(cases outside it are reported as extrapolation) (default: the coefficients' fitted range)",
+    )
+    parser.add_argument(
+        "--jobs",
+        type=jobs_count,
+        default=1,
+        metavar="J",
+        help="worker processes [processes] (0: every CPU); the results do not depend on it",
+    )
+    parser.add_argument(
+        "--samples",
+        type=int,
+        default=None,
+        help="time samples per case [samples] (>= 2) (default: enough that no link point moves more than "
+        "--resolution between samples)",
+    )
+    parser.add_argument(
+        "--resolution",
+        type=float,
+        default=DEFAULT_RESOLUTION_M,
+        metavar="M",
+        help="motion resolution of the default time sampling [m]",
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        default=DEFAULT_TOLERANCE_M,
+        metavar="M",
+        help="certificate refinement tolerance: bisect until the certified bound is within this of the "
+        "sampled minimum [m]",
+    )
+    parser.add_argument(
+        "--max-evaluations",
+        type=int,
+        default=DEFAULT_MAX_EVALUATIONS,
+        metavar="N",
+        help="certificate refinement budget per case [clearance evaluations]",
+    )
+
+
+def _add_threshold_options(parser: argparse.ArgumentParser) -> None:
+    defaults = AcceptanceThresholds()
+    parser.add_argument(
+        "--min-clearance",
+        type=float,
+        default=defaults.min_certified_clearance_m,
+        metavar="M",
+        help="a case passes only if its certified clearance is > this [m] (0: certified collision-free)",
+    )
+    parser.add_argument(
+        "--max-endpoint-error",
+        type=float,
+        default=defaults.max_endpoint_error_m,
+        metavar="M",
+        help="a case passes only if both endpoint errors are <= this [m]",
+    )
+    parser.add_argument(
+        "--margin",
+        type=float,
+        default=defaults.margin_m,
+        metavar="M",
+        help="safety margin [m]: the fraction of cases whose certified clearance keeps it is reported",
+    )
+    parser.add_argument("--require-margin", action="store_true", help="also fail the cases that do not keep --margin")
+    parser.add_argument(
+        "--max-tracking-error",
+        type=float,
+        default=None,
+        metavar="M",
+        help="fail the cases whose max tracking error exceeds this [m] (default: report only)",
+    )
+    parser.add_argument(
+        "--joint-limits",
+        action=argparse.BooleanOptionalAction,
+        default=defaults.check_joint_limits,
+        help="fail the cases whose joint speed or angle leaves the URDF's limits",
+    )
+    parser.add_argument(
+        "--max-acceleration",
+        nargs=2,
+        type=float,
+        default=None,
+        metavar=("A1", "A2"),
+        help="joint acceleration limits [rad/s^2] (the URDF has none) (default: report only)",
+    )
+
+
+def _add_output_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--urdf", metavar="FILE", default=None, help="URDF of the arm (default: the project's urdf/planar_2link.urdf)"
+    )
+    parser.add_argument(
+        "--json", metavar="FILE", type=Path, default=None, help="write cases, summary and provenance as JSON"
+    )
+    parser.add_argument(
+        "--plots",
+        metavar="DIR",
+        type=Path,
+        default=None,
+        help="write PNG plots (clearance and endpoint error over (L, W), the four case studies) into DIR",
+    )
+    parser.add_argument(
+        "--meshcat",
+        action="store_true",
+        help="after the sweep, serve the results in a Meshcat viewer on the loopback interface until Ctrl-C "
+        "(with --compare, the first run)",
+    )
+    parser.add_argument(
+        "--html",
+        metavar="FILE",
+        type=Path,
+        default=None,
+        help="write a self-contained HTML page (Meshcat) of the results; with --compare one file per run, "
+        "suffixed _1 and _2",
+    )
+    parser.add_argument(
+        "--list-failures",
+        type=int,
+        default=None,
+        metavar="K",
+        help="list at most K failing cases on stdout (default: all; --json has all)",
+    )
+    parser.add_argument(
+        "--progress", action=argparse.BooleanOptionalAction, default=True, help="progress bar on stderr"
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line interface of ``python -m verify.sweep``."""
+    parser = Parser(
+        prog=PROG,
+        description=(
+            "Acceptance verifier: judge a coefficients file (or the paper's Eq. 9) on random obstacle "
+            "sizes (L, W): certified clearance (Pinocchio + Coal, continuous time), endpoint accuracy, "
+            "tracking, joint limits. Exit status 0 if every case passes, 1 if any fails, 2 on bad input."
+        ),
+    )
+    _add_source_options(parser)
+    _add_sampling_options(parser)
+    _add_threshold_options(parser)
+    _add_output_options(parser)
+    return parser
+
+
+# --------------------------------------------------------------------------------------------
+# From options to library calls
+
+
+def _settings_from_args(args: argparse.Namespace) -> MeasureSettings:
+    thresholds = AcceptanceThresholds(
+        min_certified_clearance_m=args.min_clearance,
+        max_endpoint_error_m=args.max_endpoint_error,
+        margin_m=args.margin,
+        require_margin=args.require_margin,
+        max_tracking_error_m=args.max_tracking_error,
+        check_joint_limits=args.joint_limits,
+        acceleration_limits_rad_s2=tuple(args.max_acceleration) if args.max_acceleration else None,
+    )
+    return MeasureSettings(
+        resolution_m=args.resolution,
+        time_samples=args.samples,
+        tolerance_m=args.tolerance,
+        max_evaluations=args.max_evaluations,
+        thresholds=thresholds,
+    )
+
+
+def _validate_args(args: argparse.Namespace) -> None:
+    """Raise InvalidParameterError, named after the option, on bad values before any work starts."""
+    check_positive_int("--n", args.n, minimum=1)
+    check_positive_int("--seed", args.seed, minimum=0)
+    if args.samples is not None:
+        check_positive_int("--samples", args.samples, minimum=2)
+    check_positive("--resolution [m]", args.resolution)
+    check_positive("--tolerance [m]", args.tolerance)
+    check_positive_int("--max-evaluations", args.max_evaluations, minimum=0)
+    check_non_negative("--max-endpoint-error [m]", args.max_endpoint_error)
+    check_non_negative("--margin [m]", args.margin)
+    check_finite("--min-clearance [m]", args.min_clearance)
+    if args.max_tracking_error is not None:
+        check_non_negative("--max-tracking-error [m]", args.max_tracking_error)
+    for value in args.max_acceleration or ():
+        check_positive("--max-acceleration [rad/s^2]", value)
+    if args.list_failures is not None:
+        check_positive_int("--list-failures", args.list_failures, minimum=0)
+    if args.range is not None:
+        _check_range(args.range)
+    check_output_file(args.json, "--json")
+    check_output_file(args.html, "--html")
+    check_output_folder(args.plots, "--plots")
+
+
+def _check_range(values: Sequence[float]) -> None:
+    lmin, lmax, wmin, wmax = values
+    for name, value in (("LMIN", lmin), ("LMAX", lmax), ("WMIN", wmin), ("WMAX", wmax)):
+        check_positive(f"--range {name} [m]", value)
+    if lmin > lmax:
+        raise InvalidParameterError("--range", list(values), f"LMIN <= LMAX (got LMIN {lmin} > LMAX {lmax})")
+    if wmin > wmax:
+        raise InvalidParameterError("--range", list(values), f"WMIN <= WMAX (got WMIN {wmin} > WMAX {wmax})")
+
+
+def _viewer(args: argparse.Namespace) -> Any:
+    """The module verify.viewer.sweep_view if --meshcat or --html was given (imported only then)."""
+    if not (args.meshcat or args.html):
+        return None
+    flag = "--meshcat" if args.meshcat else "--html"
+    try:
+        module = importlib.import_module("verify.viewer.sweep_view")
+    except ImportError as exc:
+        raise PipelineError(
+            f"{flag} needs the viewer (verify.viewer.sweep_view), which is unavailable: {exc}"
+        ) from None
+    for wanted, name in ((args.meshcat, "show_sweep"), (args.html, "sweep_html")):
+        if wanted and not callable(getattr(module, name, None)):
+            raise PipelineError(f"{flag} needs verify.viewer.sweep_view.{name}, which does not exist")
+    return module
+
+
+def _show(
+    viewer: Any, runs: Sequence[SweepRun], coefficients: Sequence[Coefficients], args: argparse.Namespace
+) -> None:
+    """Write the HTML view (one file per run) and/or serve the Meshcat view (first run) of the sweep."""
+    from pipeline.online.generator import generate
+
+    arm = load_planar_arm(args.urdf)
+    for k, (run, coefficient_set) in enumerate(zip(runs, coefficients, strict=True)):
+
+        def regenerate(length_m: float, width_m: float, chosen: Coefficients = coefficient_set) -> Any:
+            return generate(chosen, length_m, width_m, out_of_range="ignore")
+
+        cases = [case.to_json() for case in run.cases]
+        if args.html is not None:
+            path = args.html if len(runs) == 1 else args.html.with_name(f"{args.html.stem}_{k + 1}{args.html.suffix}")
+            viewer.sweep_html(cases, regenerate, path, arm=arm)
+            print(f"wrote {path} ({run.label})")
+        if args.meshcat and k == 0:
+            if len(runs) > 1:
+                print(f"Meshcat shows the first run only ({run.label})")
+            try:
+                viewer.show_sweep(cases, regenerate, arm=arm)
+            except KeyboardInterrupt:
+                pass
+
+
+def _labels(sources: Sequence[str]) -> list[str]:
+    labels = [source_label(s) for s in sources]
+    if len(set(labels)) < len(labels):
+        labels = [f"{label} ({name})" for label, name in zip(labels, "AB", strict=False)]
+    return labels
+
+
+def _chosen_range(args: argparse.Namespace, sources: Sequence[str], coefficients: Sequence[Coefficients]):
+    """The --range, or the fitted ranges' intersection with --compare, or None (the fitted range)."""
+    if args.range is not None:
+        return SweepRange((args.range[0], args.range[1]), (args.range[2], args.range[3]))
+    if len(coefficients) > 1:
+        ranges = [SweepRange.from_fitted(c.fitted_range_m) for c in coefficients]
+        chosen = ranges[0].intersection(ranges[1])
+        if chosen is None:
+            raise InvalidParameterError(
+                "--compare", list(sources), "coefficients with overlapping fitted ranges, or --range"
+            )
+        return chosen
+    return None
+
+
+def _write_outputs(args: argparse.Namespace, runs: Sequence[SweepRun]) -> None:
+    if args.json is not None:
+        data = runs[0].to_json() if len(runs) == 1 else {"runs": [r.to_json() for r in runs]}
+        write_json_atomic(args.json, data)
+        print(f"wrote {args.json}")
+    if args.plots is not None:
+        from verify.acceptance.plots import write_plots  # matplotlib only when asked
+
+        for run in runs:
+            directory = args.plots if len(runs) == 1 else args.plots / run.label.replace(" ", "_")
+            for path in write_plots(run, directory, urdf_path=args.urdf):
+                print(f"wrote {path}")
+
+
+def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    _validate_args(args)
+    settings = _settings_from_args(args)
+    viewer = _viewer(args)
+    sources = list(args.compare) if args.compare else [args.coefficients]
+    coefficients = [load_coefficients_for_cli(s) for s in sources]
+    arm = load_planar_arm(args.urdf)
+    for coefficient_set in coefficients:
+        check_arm_matches(coefficient_set, arm)
+        print(describe_coefficients(coefficient_set), flush=True)
+    chosen = _chosen_range(args, sources, coefficients)
+    cases = sample_cases(chosen or SweepRange.from_fitted(coefficients[0].fitted_range_m), args.n, args.seed)
+    runs = [
+        run_sweep(
+            source,
+            n=args.n,
+            seed=args.seed,
+            sweep_range=chosen,
+            settings=settings,
+            jobs=args.jobs,
+            urdf_path=args.urdf,
+            progress=args.progress,
+            label=label,
+            cases_m=cases,
+            argv=["python", "-m", "verify.sweep", *argv],
+            coefficients=coefficient_set,
+        )
+        for source, label, coefficient_set in zip(sources, _labels(sources), coefficients, strict=True)
+    ]
+    for run in runs:
+        print(format_summary(run, args.list_failures))
+        print()
+    if len(runs) > 1:
+        print(format_comparison(runs))
+    _write_outputs(args, runs)
+    if viewer is not None:
+        _show(viewer, runs, coefficients, args)
+    return EXIT_OK if all(run.passed for run in runs) else EXIT_FAILED
+
+
+def _work_or_error(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    try:
+        return _work(args, argv)
+    except OSError as exc:  # a file that could not be read or written despite the checks
+        raise PipelineError(f"{exc.filename or ''}: {exc.strerror or exc}") from None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the verifier; returns the exit status (0 all pass, 1 some fail, 2 bad input, 130 interrupted)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    return run_cli(build_parser(), lambda args: _work_or_error(args, argv), argv)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
