@@ -24,11 +24,11 @@ from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory
 from pipeline.offline.experiment import SolverConfig, solve_experiment
 from pipeline.online.generator import generate, generate_parameters
 from pipeline.online.repair import generate_certified
+from verify.acceptance.metrics import MeasureSettings
+from verify.acceptance.run import run_cases
 
-from . import planner
-from .bench_results import WARMUP_CALLS, BenchSettings, MethodResult
-from .metrics import MeasureSettings
-from .sweep import run_cases
+from . import ompl_planner as planner
+from .results import WARMUP_CALLS, BenchSettings, MethodResult
 
 
 def certificate_counts(clearances: Sequence[float], margin_m: float) -> tuple[int, int]:
@@ -239,7 +239,7 @@ def bench_ompl(
 
 
 def bench_sweep(source: str, coefficients: Any, arm: PlanarArm, cases: np.ndarray) -> tuple[dict[str, Any], Any]:
-    """Sweep rate of ``verify.sweep.run_cases`` (one process) with and without the certificate.
+    """Sweep rate of :func:`verify.acceptance.run.run_cases` (one process) with and without the certificate.
 
     Returns:
         (rates, the certified sweep's case results).
@@ -315,7 +315,8 @@ def run_reduced_build(levels: int, config: SolverConfig, seed: int, urdf: Path |
             argv += ["--urdf", str(urdf)]
         build.build(build.parser().parse_args(argv), out=io.StringIO())
         summary = read_build_timing(Path(folder) / "build_timing.json")
-    assert summary is not None
+    if summary is None:
+        raise DataFileError(Path(folder) / "build_timing.json", "the build run by the benchmark wrote no timing file")
     pso = config.pso
     summary["source"] = (
         f"build run by the benchmark: {levels} x {levels} levels, PSO swarm {pso.swarm_size}, iterations "

@@ -7,7 +7,7 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .bench import BenchReport
+    from .results import BenchReport
 
 
 def _format_time(seconds: float) -> str:
@@ -70,7 +70,7 @@ def format_report(report: BenchReport) -> str:
     if report.sweep is not None:
         without, with_ = report.sweep["without_certificate"], report.sweep["with_certificate"]
         lines.append(
-            f"Sweep rate (verify.sweep.run_cases, {report.sweep['n_cases']} cases, 1 process): "
+            f"Sweep rate (verify.acceptance.run.run_cases, {report.sweep['n_cases']} cases, 1 process): "
             f"{without['cases_per_s']:.1f} cases/s without the certificate, "
             f"{with_['cases_per_s']:.1f} cases/s with it."
         )

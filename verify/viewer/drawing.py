@@ -231,6 +231,7 @@ class MinClearance:
         link: 1 or 2.
         point_on_link_m: Nearest point on the link, (x, y, z) [m].
         point_on_obstacle_m: Nearest point on the obstacle, (x, y, z) [m].
+        samples: Number of time samples the minimum is taken over (0: not recorded).
     """
 
     distance_m: float
@@ -238,11 +239,13 @@ class MinClearance:
     link: int
     point_on_link_m: np.ndarray
     point_on_obstacle_m: np.ndarray
+    samples: int = 0
 
     @property
     def label(self) -> str:
-        """One-line description, distance in mm."""
-        return f"min clearance {self.distance_m * 1e3:.2f} mm (link {self.link}, t = {self.time_s:.2f} s)"
+        """One-line description, distance in mm; says that the minimum is over samples, not certified."""
+        over = f" over {self.samples} sampled times" if self.samples else ""
+        return f"min clearance {self.distance_m * 1e3:.2f} mm{over} (link {self.link}, t = {self.time_s:.2f} s)"
 
     @property
     def node_name(self) -> str:
@@ -461,13 +464,15 @@ def min_clearance(case: TrajectoryCase, times_s: np.ndarray) -> MinClearance:
         )
         if best is None or result.min_distance < best[0]:
             best = (result.min_distance, result.getNearestPoint1().copy(), result.getNearestPoint2().copy())
-    assert best is not None
+    if best is None:
+        raise InvalidParameterError("arm", str(arm.urdf_path), f"collision geometry for link {int(link) + 1}")
     return MinClearance(
         distance_m=float(distances[row, link]),
         time_s=float(times_s[row]),
         link=int(link) + 1,
         point_on_link_m=best[1],
         point_on_obstacle_m=best[2],
+        samples=len(times_s),
     )
 
 

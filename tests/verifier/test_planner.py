@@ -18,7 +18,6 @@ import math
 
 import numpy as np
 import pytest
-from verify.planner import PlannerConfig, ompl_available, plan_rrt_connect, start_goal_configurations
 
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import (
@@ -41,6 +40,7 @@ from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.offline.coefficients import load_coefficients
 from pipeline.online.generator import generate
+from verify.benchmark.ompl_planner import PlannerConfig, ompl_available, plan_rrt_connect, start_goal_configurations
 
 L1, L2, R_LINK = 0.30, 0.35, 0.005
 CORNER = 0.01
@@ -265,7 +265,7 @@ def test_planner_config_rejects_bad_input() -> None:
 
 @pytest.mark.skipif(not ompl_available(), reason="ompl is not installed (optional bench extra)")
 def test_rrt_connect_returns_a_path_whose_waypoints_keep_the_margin(arm: PlanarArm) -> None:
-    from verify.planner import seed_ompl
+    from verify.benchmark.ompl_planner import seed_ompl
 
     seed_ompl(0)
     scene = Scene()
