@@ -1,4 +1,5 @@
-"""verify.planner: the piecewise-linear path certificate is rigorous, and the OMPL comparison runs.
+"""verify.benchmark.ompl_planner and pipeline.geometry.polyline_certificate: the piecewise-linear path
+certificate is rigorous, and the OMPL comparison runs.
 
 * Segments built to graze the obstacle exactly between two samples (here: between the two
   waypoints of a segment, sampled only at its ends): a true collision is never certified,

@@ -257,28 +257,14 @@ def run_sweep(
             measure_case(coefficients, length, width, arm, settings, index=i, reach=reach)
             for i, (length, width) in enumerate(case_study_sizes(fitted))
         )
-    provenance = {
-        "coefficients": {
-            "source": source,
-            "path": None if source == PAPER_SOURCE else str(Path(source).resolve()),
-            "sha256": coefficients.source_sha256,
-            "family": coefficients.family.name,
-            "fitted_range_m": fitted.to_dict(),
-            "provenance": coefficients.provenance,
-        },
-        "seed": seed,
-        "cases_given_explicitly": cases_m is not None,
-        "n_cases": len(results),
-        "range_m": chosen.to_dict(),
-        "range_is_fitted_range": sweep_range is None,
-        "extrapolating": not fitted.contains(chosen),
-        "settings": settings.to_dict(),
-        "urdf": _urdf_provenance(urdf_path, arm),
-        "scene": coefficients.scene.to_dict(),
-        "packages": package_versions(),
-        "command": list(argv) if argv is not None else None,
-        "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-    }
+    provenance = _provenance(
+        source, coefficients, chosen, fitted, settings, seed=seed, n_cases=len(results), arm=arm, urdf_path=urdf_path
+    )
+    provenance.update(
+        cases_given_explicitly=cases_m is not None,
+        range_is_fitted_range=sweep_range is None,
+        command=list(argv) if argv is not None else None,
+    )
     return SweepRun(
         label=name,
         source=source,
@@ -294,6 +280,40 @@ def run_sweep(
     )
 
 
-def _urdf_provenance(urdf_path: str | None, arm: PlanarArm) -> dict[str, Any]:
+def _provenance(
+    source: str,
+    coefficients: Coefficients,
+    chosen: SweepRange,
+    fitted: SweepRange,
+    settings: MeasureSettings,
+    *,
+    seed: int,
+    n_cases: int,
+    arm: PlanarArm,
+    urdf_path: str | None,
+) -> dict[str, Any]:
+    """Where a sweep's numbers came from: coefficients (hash, family, range), seed, range, settings,
+    URDF (hash), scene, package versions and the time; the caller adds what only it knows."""
     urdf = Path(urdf_path) if urdf_path else arm.urdf_path
-    return {"path": str(urdf), "sha256": sha256_file(urdf)}
+    return {
+        "coefficients": {
+            "source": source,
+            "path": None if source == PAPER_SOURCE else str(Path(source).resolve()),
+            "sha256": coefficients.source_sha256,
+            "family": coefficients.family.name,
+            "fitted_range_m": fitted.to_dict(),
+            "provenance": coefficients.provenance,
+        },
+        "seed": seed,
+        "cases_given_explicitly": None,
+        "n_cases": n_cases,
+        "range_m": chosen.to_dict(),
+        "range_is_fitted_range": None,
+        "extrapolating": not fitted.contains(chosen),
+        "settings": settings.to_dict(),
+        "urdf": {"path": str(urdf), "sha256": sha256_file(urdf)},
+        "scene": coefficients.scene.to_dict(),
+        "packages": package_versions(),
+        "command": None,
+        "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+    }
