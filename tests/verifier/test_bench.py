@@ -191,6 +191,8 @@ def test_missing_ompl_skips_d_with_a_clear_line(
         (["--pso-swarm-size", "1"], "--pso-swarm-size"),
         (["--n", "three"], "--n"),
         (["--run-build", "2"], "--run-build"),
+        (["--json", "/proc/x"], "--json"),
+        (["--json", "/etc/passwd/x.json"], "--json"),
     ],
 )
 def test_bad_input_gives_one_line_and_status_2(

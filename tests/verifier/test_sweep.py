@@ -8,6 +8,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -313,3 +314,24 @@ def test_compare_prints_both_on_the_same_cases(capsys: pytest.CaptureFixture[str
     pngs = sorted(p.name for p in (tmp_path / "p").rglob("*.png"))
     assert pngs.count("clearance_map.png") == 2 and pngs.count("case_studies.png") == 2
     assert status in (EXIT_OK, EXIT_FAILED)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["--json", "/proc/x"], ["--plots", "/proc/x"], ["--html", "/proc/x"], ["--json", "/proc/x", "--n", "100000"]],
+)
+def test_output_paths_are_refused_before_any_work(capsys, tmp_path: Path, monkeypatch, argv: list[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    started = time.perf_counter()
+    status, out, err = run_main(capsys, "--coefficients", "paper", *argv, "--no-progress")
+    assert time.perf_counter() - started < 5.0
+    assert status == EXIT_USAGE and out == "" and "verdict" not in out
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and argv[0] in lines[0] and lines[0].startswith("python -m verify.sweep: error:")
+    assert ".tmp" not in err and "Traceback" not in err and list(tmp_path.iterdir()) == []
+
+
+def test_the_coefficients_in_use_are_named_first(capsys) -> None:
+    status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST)
+    assert status in (EXIT_OK, EXIT_FAILED)
+    assert out.splitlines()[0].startswith("coefficients: paper (paper, sha256 ")
