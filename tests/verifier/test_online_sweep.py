@@ -99,3 +99,15 @@ def test_online_summary_counts_and_refuses_an_empty_sweep():
         summarize_online([], 0.01)
     with pytest.raises(InvalidParameterError):
         OnlineCase(0.25, 0.1, "refused", 0.02, None, "", 0.01)
+
+
+def test_online_sweep_ctrl_c_is_one_line_and_status_130(capsys, monkeypatch):
+    from verify.acceptance import online
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(online, "query", interrupted)
+    assert online_sweep.main(["--coefficients", "paper", "--n", "3", "--no-progress"]) == 130
+    err = capsys.readouterr().err
+    assert err.strip() == "python -m verify.online_sweep: interrupted"
