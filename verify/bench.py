@@ -48,7 +48,9 @@ def _add_method_options(parser: argparse.ArgumentParser, defaults: BenchSettings
         help=f"coefficients file, or '{PAPER_SOURCE}' for the paper's Eq. 9",
     )
     parser.add_argument("--n", type=int, default=defaults.n, help="random obstacles (L, W) [cases] (>= 1)")
-    parser.add_argument("--seed", type=int, default=defaults.seed, help="seed of the obstacles, PSO and OMPL (>= 0)")
+    parser.add_argument(
+        "--seed", type=int, default=defaults.seed, help="seed of the obstacles, PSO and OMPL (>= 0) (default: 0)"
+    )
     parser.add_argument(
         "--repeats",
         type=int,

@@ -64,21 +64,30 @@ def parser() -> argparse.ArgumentParser:
         help=f"coefficients file, or '{PAPER_SOURCE}' for the paper's Eq. 9",
     )
     p.add_argument("--n", type=int, default=1000, help="number of random obstacles [cases] (>= 1)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the obstacle sizes (>= 0)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the obstacle sizes (>= 0) (default: 0)")
     p.add_argument(
         "--beyond",
         type=float,
         default=0.0,
         metavar="FRACTION",
-        help="widen the fitted range by this fraction of its width on each side (0 <= FRACTION < 10)",
+        help="widen the fitted range by this fraction of its width on each side (0 <= FRACTION < 10) "
+        "(default: 0, the fitted range)",
     )
     p.add_argument(
         "--jobs", type=jobs_count, default=1, metavar="J", help="worker processes [processes] (0: every CPU)"
     )
     p.add_argument("--route", choices=tuple(ROUTES), default=defaults.route.name, help="certificate's distance route")
-    p.add_argument("--max-seconds", type=float, default=defaults.max_seconds, help="repair time budget per query [s]")
+    p.add_argument(
+        "--max-seconds", type=float, default=defaults.max_seconds, metavar="S", help="repair time budget per query [s]"
+    )
     p.add_argument("--no-repair", action="store_true", help="refuse instead of repairing")
-    p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, metavar="FILE", help="URDF of the arm")
+    p.add_argument(
+        "--urdf",
+        type=Path,
+        default=DEFAULT_URDF,
+        metavar="FILE",
+        help="URDF of the arm (default: the project's urdf/planar_2link.urdf)",
+    )
     p.add_argument("--json", type=Path, metavar="FILE", help="write cases and summary to this JSON file")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p

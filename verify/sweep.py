@@ -91,7 +91,7 @@ def _add_source_options(parser: argparse.ArgumentParser) -> None:
 
 def _add_sampling_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n", type=int, default=DEFAULT_CASES, help="number of sampled cases [cases] (>= 1)")
-    parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help="seed of the (L, W) sampler (>= 0)")
+    parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help="seed of the (L, W) sampler (>= 0) (default: 0)")
     parser.add_argument(
         "--range",
         nargs=4,
@@ -146,7 +146,7 @@ def _add_threshold_options(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=defaults.min_certified_clearance_m,
         metavar="M",
-        help="a case passes only if its certified clearance is > this [m] (0: certified collision-free)",
+        help="a case passes only if its certified clearance is > this [m] (default: 0, certified collision-free)",
     )
     parser.add_argument(
         "--max-endpoint-error",

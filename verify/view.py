@@ -80,7 +80,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="show the paper's published Table 2 Test 1 trajectory (L = 0.30 m, W = 0.12 m) instead of a generated one",
     )
-    parser.add_argument("--urdf", type=Path, default=DEFAULT_URDF, metavar="FILE", help="arm URDF")
+    parser.add_argument(
+        "--urdf",
+        type=Path,
+        default=DEFAULT_URDF,
+        metavar="FILE",
+        help="URDF of the arm (default: the project's urdf/planar_2link.urdf)",
+    )
     output = parser.add_mutually_exclusive_group()
     output.add_argument(
         "--html",
@@ -94,7 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PNG",
         help="write a PNG screenshot of the exported page (headless Chromium) instead of serving it",
     )
-    parser.add_argument("--size", type=_size, default=(1200, 800), metavar="WxH", help="screenshot size [px]")
+    parser.add_argument(
+        "--size", type=_size, default=(1200, 800), metavar="WxH", help="screenshot size [px] (default: 1200x800)"
+    )
     parser.add_argument(
         "--flat",
         action="store_true",
