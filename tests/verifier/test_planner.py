@@ -177,7 +177,7 @@ def test_random_paths_never_exceed_a_dense_independent_check(arm: PlanarArm) -> 
 
 def test_speed_bounds_hold_against_brute_force(arm: PlanarArm) -> None:
     """Finite-difference speeds of points of each link's capsule never exceed the segment bound, and
-    the bound per unit parameter is at most the issue's |dq1|(l1 + r1), |dq1|(l1 + l2 + r2) + |dq2|(l2 + r2)."""
+    the bound per unit parameter is at most the closed form |dq1|(l1 + r1), |dq1|(l1 + l2 + r2) + |dq2|(l2 + r2)."""
     rng = np.random.default_rng(7)
     reach = LinkReach.from_arm(arm)
     waypoints = rng.uniform(-math.pi, math.pi, (8, 2))
