@@ -19,9 +19,7 @@ from pathlib import Path
 
 from pipeline.cli import (
     DEFAULT_COEFFICIENTS,
-    EXIT_INTERRUPTED,
     EXIT_OK,
-    EXIT_USAGE,
     Parser,
     describe_coefficients,
     load_coefficients_for_cli,
@@ -36,8 +34,6 @@ from verify.benchmark.run import run_bench
 from verify.output_paths import check_output_file
 
 PROG = "python -m verify.bench"
-
-__all__ = ["EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "PROG", "build_parser", "main", "settings_from_args"]
 
 
 def _add_method_options(parser: argparse.ArgumentParser, defaults: BenchSettings) -> None:

@@ -26,9 +26,7 @@ from typing import Any
 from pipeline.cli import (
     DEFAULT_COEFFICIENTS,
     EXIT_FAILED,
-    EXIT_INTERRUPTED,
     EXIT_OK,
-    EXIT_USAGE,
     Parser,
     describe_coefficients,
     jobs_count,
@@ -42,29 +40,13 @@ from pipeline.model.arm import load_planar_arm
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
-from verify.acceptance.cases import SweepRange, case_study_sizes, on_doe_grid, sample_cases
+from verify.acceptance.cases import SweepRange, sample_cases
 from verify.acceptance.metrics import AcceptanceThresholds, MeasureSettings, check_arm_matches
 from verify.acceptance.report import format_comparison, format_summary
-from verify.acceptance.run import DEFAULT_CASES, DEFAULT_SEED, SweepRun, run_cases, run_sweep, source_label
+from verify.acceptance.run import DEFAULT_CASES, DEFAULT_SEED, SweepRun, run_sweep, source_label
 from verify.output_paths import check_output_file, check_output_folder
 
 PROG = "python -m verify.sweep"
-
-__all__ = [  # the library names tests and scripts have used from here
-    "EXIT_FAILED",
-    "EXIT_INTERRUPTED",
-    "EXIT_OK",
-    "EXIT_USAGE",
-    "SweepRange",
-    "build_parser",
-    "case_study_sizes",
-    "main",
-    "on_doe_grid",
-    "run_cases",
-    "run_sweep",
-    "sample_cases",
-    "write_json_atomic",
-]
 
 
 # --------------------------------------------------------------------------------------------

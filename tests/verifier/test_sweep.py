@@ -1,4 +1,4 @@
-"""The acceptance verifier's command line and library (verify.sweep): bad input gives one clear
+"""The acceptance verifier's command line (verify.sweep) and library (verify.acceptance): bad input gives one clear
 line and exit status 2, the JSON schema, determinism under a seed, and results independent of
 --jobs."""
 
@@ -14,23 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pipeline.cli import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from pipeline.exceptions import InvalidParameterError
+from pipeline.io.jsonio import write_json_atomic
 from verify import sweep
+from verify.acceptance.cases import SweepRange, case_study_sizes, on_doe_grid, sample_cases
 from verify.acceptance.metrics import MeasureSettings
-from verify.sweep import (
-    EXIT_FAILED,
-    EXIT_OK,
-    EXIT_USAGE,
-    SweepRange,
-    build_parser,
-    case_study_sizes,
-    main,
-    on_doe_grid,
-    run_cases,
-    run_sweep,
-    sample_cases,
-    write_json_atomic,
-)
+from verify.acceptance.run import run_cases, run_sweep
+from verify.sweep import build_parser, main
 
 FAST = ["--samples", "200", "--no-progress"]
 CASE_KEYS = (
