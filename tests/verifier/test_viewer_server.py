@@ -180,3 +180,34 @@ def test_meshcat_is_imported_only_by_the_viewer_modules():
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120, env=env)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def test_sigterm_is_handled_before_the_url_is_announced():
+    """Whoever reads the URL may send SIGTERM at once: the handler must already be in place when
+    the line is written (it was not, and the live CLI died with -15 now and then)."""
+    from verify.viewer.server import serve_until_interrupted
+
+    class FakeServer:
+        web_url, pid, running = "http://127.0.0.1:7000/static/", 1, True
+
+    class Recorder:
+        def __init__(self) -> None:
+            self.handlers: list[object] = []
+
+        def write(self, text: str) -> int:
+            if text.startswith("Meshcat viewer"):
+                handler = signal.getsignal(signal.SIGTERM)
+                self.handlers.append(handler)
+                if handler in (signal.SIG_DFL, signal.SIG_IGN, None):
+                    raise AssertionError("the URL is announced before SIGTERM is handled")
+                os.kill(os.getpid(), signal.SIGTERM)  # as the test above does on reading the line
+            return len(text)
+
+        def flush(self) -> None:
+            pass
+
+    before = signal.getsignal(signal.SIGTERM)
+    out = Recorder()
+    serve_until_interrupted(FakeServer(), hold_s=30.0, out=out)  # returns at once: SIGTERM stops it cleanly
+    assert out.handlers and out.handlers[0] not in (signal.SIG_DFL, signal.SIG_IGN, None)
+    assert signal.getsignal(signal.SIGTERM) == before
