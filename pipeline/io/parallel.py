@@ -58,7 +58,7 @@ def process_map(
     *,
     jobs: int = 1,
     chunk_size: int | None = None,
-    on_progress: Callable[[int], None] | None = None,
+    on_done: Callable[[list[Result]], None] | None = None,
 ) -> list[Result]:
     """``[function(item) for item in items]``, in item order, on ``jobs`` processes.
 
@@ -68,7 +68,8 @@ def process_map(
         items: The work items (picklable when ``jobs > 1``).
         jobs: Number of processes, >= 1 (1: in this process, no pool).
         chunk_size: Items per worker call; default :func:`default_chunk_size`.
-        on_progress: Called with the number of items just finished, after each chunk.
+        on_done: Called in this process with the results of each finished chunk (in the order the
+            chunks finish; ``len`` of it counts progress).
 
     Raises:
         InvalidParameterError: ``jobs`` or ``chunk_size`` < 1.
@@ -79,12 +80,13 @@ def process_map(
     size = default_chunk_size(len(work), jobs) if chunk_size is None else chunk_size
     check_positive_int("chunk_size", size, minimum=1)
     chunks = [work[i : i + size] for i in range(0, len(work), size)]
-    report = on_progress if on_progress is not None else (lambda _count: None)
+    report = on_done if on_done is not None else (lambda _results: None)
     if jobs == 1 or len(chunks) <= 1:
         results: list[Result] = []
         for chunk in chunks:
-            results.extend(_run_chunk(function, chunk))
-            report(len(chunk))
+            done = _run_chunk(function, chunk)
+            results.extend(done)
+            report(done)
         return results
     return _pool_map(function, chunks, min(jobs, len(chunks)), report)
 
@@ -93,7 +95,7 @@ def _pool_map(
     function: Callable[[Item], Result],
     chunks: list[list[Item]],
     jobs: int,
-    report: Callable[[int], None],
+    report: Callable[[list[Result]], None],
 ) -> list[Result]:
     done: list[list[Result] | None] = [None] * len(chunks)
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
@@ -104,7 +106,7 @@ def _pool_map(
             for future in finished:
                 index = pending.pop(future)
                 done[index] = future.result()
-                report(len(chunks[index]))
+                report(done[index])
     except BaseException:
         pool.shutdown(wait=True, cancel_futures=True)
         raise

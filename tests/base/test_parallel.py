@@ -31,7 +31,7 @@ def test_results_are_in_item_order_whatever_the_processes_and_chunks():
     assert process_map(function, seeds, jobs=1, chunk_size=5) == serial
     assert process_map(function, item_seeds(8, 23), jobs=1) != serial
     seen: list[int] = []  # one pool only: worker processes are slow to start on a loaded machine
-    assert process_map(function, seeds, jobs=2, chunk_size=4, on_progress=seen.append) == serial
+    assert process_map(function, seeds, jobs=2, chunk_size=4, on_done=lambda done: seen.append(len(done))) == serial
     assert sorted(seen) == [3, 4, 4, 4, 4, 4]
 
 
@@ -42,10 +42,15 @@ def test_seeds_are_children_of_one_seed_in_item_order():
     assert len(set(first)) == 5
 
 
-def test_progress_counts_every_item_once():
+def test_each_finished_chunk_is_reported_once():
     seen: list[int] = []
-    assert process_map(abs, range(-10, 0), jobs=1, chunk_size=3, on_progress=seen.append) == list(range(10, 0, -1))
+    assert process_map(abs, range(-10, 0), jobs=1, chunk_size=3, on_done=lambda done: seen.append(len(done))) == list(
+        range(10, 0, -1)
+    )
     assert seen == [3, 3, 3, 1]
+    chunks: list[list[int]] = []
+    process_map(abs, range(-4, 0), jobs=1, chunk_size=2, on_done=chunks.append)
+    assert chunks == [[4, 3], [2, 1]]
 
 
 def test_a_failing_item_raises_its_error_in_the_caller():

@@ -143,7 +143,7 @@ def run_online_cases(
     else:
         function = functools.partial(_query_in_worker, source, urdf_text, config)
     with tqdm(total=len(cases), desc="certify-or-repair", unit="case", disable=not progress, file=sys.stderr) as bar:
-        return process_map(function, cases, jobs=jobs, on_progress=bar.update)
+        return process_map(function, cases, jobs=jobs, on_done=lambda done: bar.update(len(done)))
 
 
 @dataclass(frozen=True)

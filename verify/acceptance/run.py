@@ -126,7 +126,7 @@ def run_cases(
         context = _WorkerContext(source, coefficients.source_sha256, urdf_path, settings)
         function = functools.partial(_measure_in_worker, context)
     with tqdm(total=len(indexed), desc=label or "cases", unit="case", file=sys.stderr, disable=not progress) as bar:
-        results = process_map(function, indexed, jobs=jobs, on_progress=bar.update)
+        results = process_map(function, indexed, jobs=jobs, on_done=lambda done: bar.update(len(done)))
     return tuple(results)
 
 
