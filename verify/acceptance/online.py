@@ -26,7 +26,7 @@ from pipeline.io.parallel import process_map
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.offline.coefficients import Coefficients, load_coefficients
 from pipeline.online.repair import RepairConfig, generate_certified
-from pipeline.validation import check_non_negative, check_positive
+from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
 #: The outcomes of one query.
 STATUSES = ("certified", "repaired", "refused")
@@ -170,6 +170,13 @@ class OnlineSummary:
     median_query_s: float
     max_query_s: float
     margin_m: float
+
+    def __post_init__(self) -> None:
+        check_positive_int("n_cases", self.n_cases, minimum=1)
+        counts = (self.n_certified_from_regression, self.n_repaired, self.n_refused)
+        if min(counts) < 0 or sum(counts) != self.n_cases:
+            raise InvalidParameterError("counts", counts, f"non-negative counts adding up to n_cases = {self.n_cases}")
+        check_non_negative("margin_m", self.margin_m)
 
     @property
     def refused_fraction(self) -> float:
