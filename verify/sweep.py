@@ -312,7 +312,7 @@ def _show(
         def regenerate(length_m: float, width_m: float, chosen: Coefficients = coefficient_set) -> Any:
             return generate(chosen, length_m, width_m, out_of_range="ignore")
 
-        cases = [case.to_json() for case in run.cases]
+        cases = run.cases
         if args.html is not None:
             path = args.html if len(runs) == 1 else args.html.with_name(f"{args.html.stem}_{k + 1}{args.html.suffix}")
             viewer.sweep_html(cases, regenerate, path, arm=arm)

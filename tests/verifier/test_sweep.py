@@ -20,6 +20,7 @@ from pipeline.io.jsonio import write_json_atomic
 from verify import sweep
 from verify.acceptance.cases import SweepRange, case_study_sizes, on_doe_grid, sample_cases
 from verify.acceptance.metrics import MeasureSettings
+from verify.acceptance.results import CaseResult
 from verify.acceptance.run import run_cases, run_sweep
 from verify.sweep import build_parser, main
 
@@ -148,7 +149,7 @@ def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: 
     class FakeViewer:
         @staticmethod
         def sweep_html(cases, regenerate, path, *, arm=None):
-            generated = regenerate(cases[0]["L"], cases[0]["W"])
+            generated = regenerate(cases[0].L_m, cases[0].W_m)
             calls.append((cases, generated, path, arm))
 
         @staticmethod
@@ -166,8 +167,8 @@ def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: 
     assert status in (EXIT_OK, EXIT_FAILED) and len(calls) == 1
     cases, generated, path, arm = calls[0]
     assert path == page and arm is not None and len(cases) == 2
-    assert {"L", "W", "clearance_m", "certified_clearance_m", "passed"} <= set(cases[0])
-    assert generated.obstacle.length_m == cases[0]["L"]
+    assert isinstance(cases[0], CaseResult) and cases[0].certified_clearance_m is not None  # typed, not dicts
+    assert generated.obstacle.length_m == cases[0].L_m
     assert f"wrote {page}" in out
 
 
