@@ -250,13 +250,7 @@ def run_sweep(
         arm=arm,
     )
     elapsed = time.perf_counter() - start
-    studies: tuple[CaseResult, ...] = ()
-    if case_studies:
-        reach = LinkReach.from_arm(arm)
-        studies = tuple(
-            measure_case(coefficients, length, width, arm, settings, index=i, reach=reach)
-            for i, (length, width) in enumerate(case_study_sizes(fitted))
-        )
+    studies = measure_case_studies(coefficients, arm, settings, fitted) if case_studies else ()
     provenance = _provenance(
         source, coefficients, chosen, fitted, settings, seed=seed, n_cases=len(results), arm=arm, urdf_path=urdf_path
     )
@@ -277,6 +271,17 @@ def run_sweep(
         elapsed_s=elapsed,
         jobs=resolve_jobs(jobs),
         settings=settings,
+    )
+
+
+def measure_case_studies(
+    coefficients: Coefficients, arm: PlanarArm, settings: MeasureSettings, fitted: SweepRange
+) -> tuple[CaseResult, ...]:
+    """The four case studies of :func:`verify.acceptance.cases.case_study_sizes`, measured (index 0..3)."""
+    reach = LinkReach.from_arm(arm)
+    return tuple(
+        measure_case(coefficients, length, width, arm, settings, index=i, reach=reach)
+        for i, (length, width) in enumerate(case_study_sizes(fitted))
     )
 
 
