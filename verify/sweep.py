@@ -333,7 +333,9 @@ def _labels(sources: Sequence[str]) -> list[str]:
     return labels
 
 
-def _chosen_range(args: argparse.Namespace, sources: Sequence[str], coefficients: Sequence[Coefficients]):
+def _chosen_range(
+    args: argparse.Namespace, sources: Sequence[str], coefficients: Sequence[Coefficients]
+) -> SweepRange | None:
     """The --range, or the fitted ranges' intersection with --compare, or None (the fitted range)."""
     if args.range is not None:
         return SweepRange((args.range[0], args.range[1]), (args.range[2], args.range[3]))
