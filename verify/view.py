@@ -23,6 +23,7 @@ import argparse
 import math
 import signal
 import sys
+import threading
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -160,6 +161,9 @@ def _sigterm_stops() -> Iterator[None]:
     def _terminate(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
 
+    if threading.current_thread() is not threading.main_thread():  # signals reach the main thread only
+        yield
+        return
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         yield
