@@ -1,7 +1,7 @@
 """Show one generated trajectory in Meshcat: live, as a self-contained HTML page, or as a
 screenshot.
 
-    python -m verify.view --L 0.27 --W 0.09 [--coefficients FILE]
+    python -m verify.view --L 0.27 --W 0.09 [--coefficients FILE]   (default: results/coefficients.json)
     python -m verify.view --L 0.27 --W 0.09 --html view.html
     python -m verify.view --paper-test1 --screenshot docs/viewer.png
 
@@ -11,20 +11,38 @@ the arm from the URDF, the rounded obstacle at its true size and place, the desi
 the actual end-effector paths, the five constraint points, the point of minimum clearance
 with its distance, and the trajectory as an animation (Animations > default: play, pause,
 scrub the time).
+
+This module only parses the command line and calls :mod:`verify.viewer`. SIGTERM is turned
+into a clean stop (the server process is terminated) from the start of the command, before the
+server is announced.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
+import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
-from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning, PipelineError
-from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
-from verify.cli import Parser, load_coefficients_for_cli
+from pipeline.cli import (
+    DEFAULT_COEFFICIENTS,
+    EXIT_OK,
+    Parser,
+    describe_coefficients,
+    load_coefficients_for_cli,
+    run_cli,
+)
+from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning
+from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
+from pipeline.motion.families import PAPER_SOURCE
+from pipeline.offline.coefficients import load_coefficients
+from verify.acceptance.metrics import check_arm_matches
+from verify.output_paths import check_output_file
 
 PROG = "python -m verify.view"
 
@@ -54,18 +72,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--coefficients",
-        default="paper",
+        default=DEFAULT_COEFFICIENTS,
         metavar="FILE",
-        help="coefficients file of the generator, or 'paper' for the paper's Eq. 9 (default: paper)",
+        help=f"coefficients file of the generator, or '{PAPER_SOURCE}' for the paper's Eq. 9",
     )
     parser.add_argument(
         "--paper-test1",
         action="store_true",
-        help="show the paper's published Table 2 Test 1 trajectory (L = 0.30 m, W = 0.12 m) "
-        "instead of a generated one (default: off)",
+        help="show the paper's published Table 2 Test 1 trajectory (L = 0.30 m, W = 0.12 m) instead of a generated one",
     )
     parser.add_argument(
-        "--urdf", type=Path, default=DEFAULT_URDF, metavar="FILE", help="arm URDF (default: the project's)"
+        "--urdf",
+        type=Path,
+        default=DEFAULT_URDF,
+        metavar="FILE",
+        help="URDF of the arm (default: the project's urdf/planar_2link.urdf)",
     )
     output = parser.add_mutually_exclusive_group()
     output.add_argument(
@@ -86,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--flat",
         action="store_true",
-        help="flat unlit colours, no grid, axes or background (the pixel test's style; default: off)",
+        help="flat unlit colours, no grid, axes or background (the pixel test's style)",
     )
     parser.add_argument(
         "--hold",
@@ -95,12 +116,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS",
         help="live mode: stop the server after this many seconds [s] (default: run until Ctrl-C)",
     )
-    parser.add_argument("--fps", type=int, default=30, help="animation frame rate [1/s] (default: 30)")
+    parser.add_argument("--fps", type=int, default=30, help="animation frame rate [1/s]")
     parser.add_argument(
         "--samples",
         type=int,
         default=400,
-        help="points per path and configurations checked for clearance (default: 400)",
+        help="points per path, and time samples of the (sampled, not certified) minimum clearance [samples]",
     )
     parser.add_argument(
         "--no-play", action="store_true", help="do not start the animation on load (default: it plays once)"
@@ -109,81 +130,100 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _check_args(args: argparse.Namespace) -> None:
-    """Raise PipelineError on values argparse cannot check."""
+    """Raise InvalidParameterError, named after the option, on values argparse cannot check."""
     if args.paper_test1:
         for name in ("L", "W"):
             if getattr(args, name) is not None:
-                raise InvalidParameterError(name, getattr(args, name), "no value with --paper-test1 (it fixes L and W)")
+                raise InvalidParameterError(
+                    f"--{name}", getattr(args, name), "no value with --paper-test1 (it fixes L and W)"
+                )
     else:
         for name in ("L", "W"):
             value = getattr(args, name)
             if value is None:
-                raise InvalidParameterError(name, None, f"a length in metres: --{name} is required")
+                raise InvalidParameterError(f"--{name}", None, f"a length in metres: --{name} is required")
             if not math.isfinite(value) or value <= 0:
-                raise InvalidParameterError(name, value, "a positive finite length [m]")
+                raise InvalidParameterError(f"--{name}", value, "a positive finite length [m]")
     if args.hold is not None and not (math.isfinite(args.hold) and args.hold > 0):
         raise InvalidParameterError("--hold", args.hold, "a positive number of seconds")
     if args.fps < 1:
         raise InvalidParameterError("--fps", args.fps, "an integer >= 1")
     if args.samples < 16:
         raise InvalidParameterError("--samples", args.samples, "an integer >= 16")
+    check_output_file(args.html, "--html")
+    check_output_file(args.screenshot, "--screenshot")
+
+
+@contextmanager
+def _sigterm_stops() -> Iterator[None]:
+    """While inside, SIGTERM raises KeyboardInterrupt (a clean stop: the server is terminated)."""
+
+    def _terminate(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    if threading.current_thread() is not threading.main_thread():  # signals reach the main thread only
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 2 bad input or failure, 130 interrupted)."""
-    args = build_parser().parse_args(argv)
-    try:
-        _check_args(args)
+    return run_cli(build_parser(), _work, argv)
+
+
+def _work(args: argparse.Namespace) -> int:
+    _check_args(args)
+    with _sigterm_stops():
         return _run(args)
-    except PipelineError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
-        return 130
+
+
+def _case(args: argparse.Namespace, arm: PlanarArm):  # -> TrajectoryCase (the viewer's, imported lazily)
+    from verify.viewer.trajectory_view import case_from_generated, paper_test1_case
+
+    if args.paper_test1:
+        check_arm_matches(load_coefficients(PAPER_SOURCE), arm)  # Table 2 is for the paper's arm
+        return paper_test1_case(arm)
+    from pipeline.online.generator import generate
+
+    coefficients = load_coefficients_for_cli(args.coefficients)
+    check_arm_matches(coefficients, arm)
+    print(describe_coefficients(coefficients), flush=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", OutOfFittedRangeWarning)
+        generated = generate(coefficients, args.L, args.W)
+    for warning in caught:
+        print(f"{PROG}: warning: {warning.message}", file=sys.stderr)
+    return case_from_generated(generated, arm)
 
 
 def _run(args: argparse.Namespace) -> int:
     # Meshcat is imported here, by the viewer modules, only when a view is requested.
     from verify.viewer.browser import BrowserConfig
     from verify.viewer.drawing import ViewStyle
-    from verify.viewer.trajectory_view import (
-        case_from_generated,
-        paper_test1_case,
-        screenshot_trajectory,
-        show_trajectory,
-        trajectory_html,
-        write_html,
-    )
+    from verify.viewer.trajectory_view import screenshot_trajectory, show_trajectory, trajectory_html, write_html
 
-    arm = load_planar_arm(args.urdf)
-    if args.paper_test1:
-        case = paper_test1_case(arm)
-    else:
-        from pipeline.online.generator import generate
-
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", OutOfFittedRangeWarning)
-            generated = generate(load_coefficients_for_cli(args.coefficients), args.L, args.W)
-        for warning in caught:
-            print(f"{PROG}: warning: {warning.message}", file=sys.stderr)
-        case = case_from_generated(generated, arm)
+    case = _case(args, load_planar_arm(args.urdf))
     changes = {"fps": args.fps, "samples": args.samples, "play": not args.no_play}
     if args.screenshot is not None:
         width, height = args.size
         style = ViewStyle.for_pixels(**changes) if args.flat else ViewStyle(**changes)
         view = screenshot_trajectory(case, args.screenshot, BrowserConfig(width_px=width, height_px=height), style)
         print(f"wrote {args.screenshot} ({width}x{height} px; {view.cases[0].clearance.label})")
-        return 0
+        return EXIT_OK
     style = ViewStyle.for_pixels(aspect=1.6, **changes) if args.flat else ViewStyle(aspect=1.6, **changes)
     if args.html is not None:
         html, view = trajectory_html(case, style)
         write_html(args.html, html)
         print(f"wrote {args.html} ({len(html) / 1e6:.1f} MB, opens offline; {view.cases[0].clearance.label})")
-        return 0
+        return EXIT_OK
     view = show_trajectory(case, style, hold_s=args.hold)
     print(f"stopped the Meshcat server ({view.cases[0].clearance.label})")
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -1,1 +1,1 @@
-"""Files and processes: atomic JSON, provenance (versions, hashes)."""
+"""Files and processes: atomic JSON, provenance (versions, hashes), one process-pool map."""

@@ -231,6 +231,7 @@ class MinClearance:
         link: 1 or 2.
         point_on_link_m: Nearest point on the link, (x, y, z) [m].
         point_on_obstacle_m: Nearest point on the obstacle, (x, y, z) [m].
+        samples: Number of time samples the minimum is taken over (0: not recorded).
     """
 
     distance_m: float
@@ -238,11 +239,13 @@ class MinClearance:
     link: int
     point_on_link_m: np.ndarray
     point_on_obstacle_m: np.ndarray
+    samples: int = 0
 
     @property
     def label(self) -> str:
-        """One-line description, distance in mm."""
-        return f"min clearance {self.distance_m * 1e3:.2f} mm (link {self.link}, t = {self.time_s:.2f} s)"
+        """One-line description, distance in mm; says that the minimum is over samples, not certified."""
+        over = f" over {self.samples} sampled times" if self.samples else ""
+        return f"min clearance {self.distance_m * 1e3:.2f} mm{over} (link {self.link}, t = {self.time_s:.2f} s)"
 
     @property
     def node_name(self) -> str:
@@ -461,13 +464,15 @@ def min_clearance(case: TrajectoryCase, times_s: np.ndarray) -> MinClearance:
         )
         if best is None or result.min_distance < best[0]:
             best = (result.min_distance, result.getNearestPoint1().copy(), result.getNearestPoint2().copy())
-    assert best is not None
+    if best is None:
+        raise InvalidParameterError("arm", str(arm.urdf_path), f"collision geometry for link {int(link) + 1}")
     return MinClearance(
         distance_m=float(distances[row, link]),
         time_s=float(times_s[row]),
         link=int(link) + 1,
         point_on_link_m=best[1],
         point_on_obstacle_m=best[2],
+        samples=len(times_s),
     )
 
 
@@ -557,48 +562,10 @@ def draw_case(
     root["obstacle"].set_object(
         obstacle_mesh(case.obstacle), style.material(palette.obstacle, opacity=style.obstacle_opacity)
     )
-    # Paths lie just below the arm's plane, the actual one above the desired one: seen from
-    # above the arm hides them where it crosses them.
-    desired_3d = np.column_stack([desired, np.full(len(desired), -0.010)])
-    actual_3d = np.column_stack([tip[:, :2], np.full(len(tip), -0.008)])
-    root["desired_path"].set_object(
-        tube_mesh(desired_3d, style.desired_path_radius_m), style.material(palette.desired_path)
-    )
-    try:
-        root["actual_path"].set_object(
-            tube_mesh(actual_3d, style.actual_path_radius_m), style.material(palette.actual_path)
-        )
-    except InvalidParameterError:  # the end effector does not move: a dot
-        _sphere(root["actual_path"], actual_3d[0], 2 * style.actual_path_radius_m, style.material(palette.actual_path))
-    for name, point in zip(POINT_NAMES, case.path.points_m, strict=True):
-        _sphere(
-            root["constraint_points"][name],
-            [point[0], point[1], 0.008],
-            style.point_radius_m,
-            style.material(palette.constraint_points),
-        )
-
+    _draw_paths(root, case, style, desired, tip)
     clearance = min_clearance(case, times)
-    marker = root[clearance.node_name]
-    marker_material = style.material(palette.min_clearance)
-    _sphere(marker["on_link"], clearance.point_on_link_m + [0, 0, 0.012], 0.005, marker_material)
-    _sphere(marker["on_obstacle"], clearance.point_on_obstacle_m + [0, 0, 0.012], 0.003, marker_material)
-    gap = np.array([clearance.point_on_link_m, clearance.point_on_obstacle_m]) + [0, 0, 0.012]
-    if np.linalg.norm(gap[1] - gap[0]) > 1e-6:  # zero when the link touches the obstacle
-        marker["gap"].set_object(tube_mesh(gap, 0.0012, sides=6), marker_material)
-
-    bounds = case_bounds(case)
-    if style.show_labels:
-        # Labels go in strips below and above the content, so they never hide it.
-        center_x = (bounds[0] + bounds[1]) / 2
-        label = "\u25cf " + clearance.label
-        size = label_height_m(label)
-        draw_label(marker["label"], label, [center_x, bounds[2] - 0.01 - size / 2, 0.02], style)
-        bounds = (bounds[0], bounds[1], bounds[2] - 0.01 - size, bounds[3])
-        if case.title:
-            size = label_height_m(case.title)
-            draw_label(root["title"], case.title, [center_x, bounds[3] + 0.01 + size / 2, 0.02], style)
-            bounds = (bounds[0], bounds[1], bounds[2], bounds[3] + 0.01 + size)
+    marker = _draw_min_clearance(root, clearance, style)
+    bounds = _draw_labels(root, marker, case, clearance, style)
 
     viz = MeshcatVisualizer(case.arm.model, case.arm.collision_model, case.arm.visual_model)
     viz.initViewer(viewer=root)
@@ -627,6 +594,69 @@ def draw_case(
         initial_q=q[0],
         final_q=np.asarray(final_q),
     )
+
+
+def _draw_paths(
+    root: meshcat.Visualizer, case: TrajectoryCase, style: ViewStyle, desired: np.ndarray, tip: np.ndarray
+) -> None:
+    """The desired and actual end-effector paths and the constraint points P1..P5."""
+    palette = style.palette
+    # Paths lie just below the arm's plane, the actual one above the desired one: seen from
+    # above the arm hides them where it crosses them.
+    desired_3d = np.column_stack([desired, np.full(len(desired), -0.010)])
+    actual_3d = np.column_stack([tip[:, :2], np.full(len(tip), -0.008)])
+    root["desired_path"].set_object(
+        tube_mesh(desired_3d, style.desired_path_radius_m), style.material(palette.desired_path)
+    )
+    try:
+        root["actual_path"].set_object(
+            tube_mesh(actual_3d, style.actual_path_radius_m), style.material(palette.actual_path)
+        )
+    except InvalidParameterError:  # the end effector does not move: a dot
+        _sphere(root["actual_path"], actual_3d[0], 2 * style.actual_path_radius_m, style.material(palette.actual_path))
+    for name, point in zip(POINT_NAMES, case.path.points_m, strict=True):
+        _sphere(
+            root["constraint_points"][name],
+            [point[0], point[1], 0.008],
+            style.point_radius_m,
+            style.material(palette.constraint_points),
+        )
+
+
+def _draw_min_clearance(root: meshcat.Visualizer, clearance: MinClearance, style: ViewStyle) -> meshcat.Visualizer:
+    """The nearest points of the minimum clearance and the gap between them; returns the marker's node."""
+    palette = style.palette
+    marker = root[clearance.node_name]
+    marker_material = style.material(palette.min_clearance)
+    _sphere(marker["on_link"], clearance.point_on_link_m + [0, 0, 0.012], 0.005, marker_material)
+    _sphere(marker["on_obstacle"], clearance.point_on_obstacle_m + [0, 0, 0.012], 0.003, marker_material)
+    gap = np.array([clearance.point_on_link_m, clearance.point_on_obstacle_m]) + [0, 0, 0.012]
+    if np.linalg.norm(gap[1] - gap[0]) > 1e-6:  # zero when the link touches the obstacle
+        marker["gap"].set_object(tube_mesh(gap, 0.0012, sides=6), marker_material)
+    return marker
+
+
+def _draw_labels(
+    root: meshcat.Visualizer,
+    marker: meshcat.Visualizer,
+    case: TrajectoryCase,
+    clearance: MinClearance,
+    style: ViewStyle,
+) -> tuple[float, float, float, float]:
+    """The clearance label and the title, if the style shows labels; returns the content's bounds [m]."""
+    bounds = case_bounds(case)
+    if style.show_labels:
+        # Labels go in strips below and above the content, so they never hide it.
+        center_x = (bounds[0] + bounds[1]) / 2
+        label = "\u25cf " + clearance.label
+        size = label_height_m(label)
+        draw_label(marker["label"], label, [center_x, bounds[2] - 0.01 - size / 2, 0.02], style)
+        bounds = (bounds[0], bounds[1], bounds[2] - 0.01 - size, bounds[3])
+        if case.title:
+            size = label_height_m(case.title)
+            draw_label(root["title"], case.title, [center_x, bounds[3] + 0.01 + size / 2, 0.02], style)
+            bounds = (bounds[0], bounds[1], bounds[2], bounds[3] + 0.01 + size)
+    return bounds
 
 
 def _add_frames(

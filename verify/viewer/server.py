@@ -304,18 +304,19 @@ def serve_until_interrupted(server: MeshcatServer, hold_s: float | None = None, 
         ViewerError: the server process died while serving.
     """
     out = out if out is not None else sys.stdout
-    print(f"Meshcat viewer: {server.web_url} (server PID {server.pid}, loopback only)", file=out, flush=True)
-    if hold_s is None:
-        print("Press Ctrl-C to stop.", file=out, flush=True)
-    deadline = math.inf if hold_s is None else time.monotonic() + hold_s
 
     def _terminate(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
 
+    # The handler goes in before the URL is announced: whoever reads the URL may send SIGTERM at once.
     previous = (
         signal.signal(signal.SIGTERM, _terminate) if threading.current_thread() is threading.main_thread() else None
     )
     try:
+        print(f"Meshcat viewer: {server.web_url} (server PID {server.pid}, loopback only)", file=out, flush=True)
+        if hold_s is None:
+            print("Press Ctrl-C to stop.", file=out, flush=True)
+        deadline = math.inf if hold_s is None else time.monotonic() + hold_s
         while time.monotonic() < deadline:
             if not server.running:
                 raise ViewerError("the Meshcat server process exited while serving")

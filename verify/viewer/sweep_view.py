@@ -8,8 +8,10 @@ they coincide) is regenerated and drawn as in :mod:`verify.viewer.trajectory_vie
 obstacle, both paths, constraint points, minimum clearance, and the motion in the page's
 animation (all cases play together).
 
-A sweep case is a mapping with the keys of :data:`CASE_KEYS` (the sweep's per-case dicts):
-lengths in metres, ``passed`` a bool; a clearance may be None or NaN if unknown.
+A sweep case is a :class:`verify.acceptance.results.CaseResult` (what ``verify.sweep`` hands
+over), or a mapping with the keys of :data:`CASE_KEYS` (a case of the sweep's ``--json``, read
+back from a file): lengths in metres, ``passed`` a bool; a clearance may be None or NaN if
+unknown. Either becomes a :class:`SweepPoint`, checked once.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import numpy as np
 
 from pipeline.exceptions import InvalidParameterError, PipelineError
 from pipeline.model.arm import PlanarArm, load_planar_arm
+from verify.acceptance.results import CaseResult
 
 from ._meshcat import meshcat, mg, mtf
 from .browser import BrowserConfig
@@ -106,12 +109,54 @@ def _number(case: Mapping[str, Any], key: str) -> float:
         raise InvalidParameterError(key, value, "a number or None") from None
 
 
-def check_cases(cases: Sequence[Mapping[str, Any]]) -> None:
-    """Raise InvalidParameterError unless ``cases`` is non-empty, each with :data:`CASE_KEYS`
-    and a finite positive L and W."""
-    if len(cases) == 0:
-        raise InvalidParameterError("cases", list(cases), "at least one sweep case")
-    for index, case in enumerate(cases):
+def _or_nan(value: float | None) -> float:
+    return float("nan") if value is None else float(value)
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """What the sweep view shows of one case. Unknown numbers are NaN.
+
+    Attributes:
+        L_m, W_m: Obstacle size [m] (positive, finite).
+        clearance_m: Sampled minimum clearance [m].
+        certified_clearance_m: Certified clearance [m].
+        endpoint_error_m: The larger endpoint error [m].
+        passed: The case passed every check.
+    """
+
+    L_m: float
+    W_m: float
+    clearance_m: float
+    certified_clearance_m: float
+    endpoint_error_m: float
+    passed: bool
+
+    def __post_init__(self) -> None:
+        for name in ("L_m", "W_m"):
+            value = getattr(self, name)
+            if not math.isfinite(value) or value <= 0:
+                raise InvalidParameterError(name, value, "a positive finite length [m]")
+
+    @classmethod
+    def from_case(cls, case: CaseResult) -> SweepPoint:
+        """The point of a measured (or failed) case."""
+        return cls(
+            case.L_m,
+            case.W_m,
+            _or_nan(case.clearance_m),
+            _or_nan(case.certified_clearance_m),
+            _or_nan(case.endpoint_error_m),
+            case.passed,
+        )
+
+    @classmethod
+    def from_json(cls, case: Mapping[str, Any], index: int = 0) -> SweepPoint:
+        """The point of a case of the sweep's JSON (keys :data:`CASE_KEYS`).
+
+        Raises:
+            InvalidParameterError: a key is missing, a number is not one, or L or W is not a positive length.
+        """
         missing = [key for key in CASE_KEYS if key not in case]
         if missing:
             raise InvalidParameterError(f"cases[{index}]", dict(case), f"the keys {CASE_KEYS}; missing {missing}")
@@ -119,6 +164,40 @@ def check_cases(cases: Sequence[Mapping[str, Any]]) -> None:
             value = _number(case, key)
             if not math.isfinite(value) or value <= 0:
                 raise InvalidParameterError(f"cases[{index}][{key!r}]", case[key], "a positive finite length [m]")
+        return cls(
+            _number(case, "L"),
+            _number(case, "W"),
+            _number(case, "clearance_m"),
+            _number(case, "certified_clearance_m"),
+            float(np.fmax(_number(case, "endpoint_error_start_m"), _number(case, "endpoint_error_end_m"))),
+            bool(case["passed"]),
+        )
+
+
+SweepCase = CaseResult | Mapping[str, Any]  # or an already converted SweepPoint
+
+
+def sweep_points(cases: Sequence[SweepCase]) -> list[SweepPoint]:
+    """The cases as :class:`SweepPoint` (already converted points pass through).
+
+    Raises:
+        InvalidParameterError: no case, or a malformed JSON case.
+    """
+    if len(cases) == 0:
+        raise InvalidParameterError("cases", list(cases), "at least one sweep case")
+    return [
+        case
+        if isinstance(case, SweepPoint)
+        else SweepPoint.from_case(case)
+        if isinstance(case, CaseResult)
+        else SweepPoint.from_json(case, index)
+        for index, case in enumerate(cases)
+    ]
+
+
+def check_cases(cases: Sequence[SweepCase]) -> None:
+    """Raise InvalidParameterError unless ``cases`` is non-empty and every case is well formed."""
+    sweep_points(cases)
 
 
 def clearance_color(clearance_m: float, top_m: float) -> int:
@@ -133,25 +212,23 @@ def clearance_color(clearance_m: float, top_m: float) -> int:
     return (rgb[0] << 16) | (rgb[1] << 8) | rgb[2]
 
 
-def worst_cases(cases: Sequence[Mapping[str, Any]]) -> list[WorstCase]:
+def worst_cases(cases: Sequence[SweepCase]) -> list[WorstCase]:
     """A: the lowest certified clearance; B: the largest endpoint error (max of start and
     end). One entry tagged "A+B" if both are the same case; none for a criterion that no
     case has a value for."""
-    check_cases(cases)
+    points = sweep_points(cases)
     picks: list[tuple[str, str, int]] = []
-    certified = np.array([_number(c, "certified_clearance_m") for c in cases])
+    certified = np.array([p.certified_clearance_m for p in points])
     if np.isfinite(certified).any():
         i = int(np.nanargmin(certified))
         picks.append(("A", f"lowest certified clearance {certified[i] * 1e3:.2f} mm", i))
-    errors = np.array(
-        [np.fmax(_number(c, "endpoint_error_start_m"), _number(c, "endpoint_error_end_m")) for c in cases]
-    )
+    errors = np.array([p.endpoint_error_m for p in points])
     if np.isfinite(errors).any():
         i = int(np.nanargmax(errors))
         picks.append(("B", f"largest endpoint error {errors[i] * 1e3:.2f} mm", i))
     if len(picks) == 2 and picks[0][2] == picks[1][2]:
         picks = [("A+B", f"{picks[0][1]}\n{picks[1][1]}", picks[0][2])]
-    return [WorstCase(tag, reason, _number(cases[i], "L"), _number(cases[i], "W")) for tag, reason, i in picks]
+    return [WorstCase(tag, reason, points[i].L_m, points[i].W_m) for tag, reason, i in picks]
 
 
 def _regenerator(source: TrajectorySource) -> Callable[[float, float], GeneratedLike]:
@@ -171,7 +248,7 @@ def _cross(vis: meshcat.Visualizer, center_m: np.ndarray, size_m: float, materia
 
 def draw_map(
     vis: meshcat.Visualizer,
-    cases: Sequence[Mapping[str, Any]],
+    cases: Sequence[SweepCase],
     worst: Sequence[WorstCase],
     style: ViewStyle,
     layout: MapLayout,
@@ -179,13 +256,13 @@ def draw_map(
 ) -> tuple[float, float, float, float]:
     """Draw the (L, W) map with its lower-left plotting corner at ``origin_m`` [m]; return
     the bounds (x_min, x_max, y_min, y_max) [m] of what was drawn."""
-    check_cases(cases)
+    points = sweep_points(cases)
     root = vis["sweep_map"]
     root.set_transform(mtf.translation_matrix([origin_m[0], origin_m[1], 0.0]))
     size, dot = layout.size_m, layout.dot_radius_m
-    lengths = np.array([_number(c, "L") for c in cases])
-    widths = np.array([_number(c, "W") for c in cases])
-    clearances = np.array([_number(c, "clearance_m") for c in cases])
+    lengths = np.array([p.L_m for p in points])
+    widths = np.array([p.W_m for p in points])
+    clearances = np.array([p.clearance_m for p in points])
     top = float(np.nanmax(clearances)) if np.isfinite(clearances).any() else 0.0
 
     def span(values: np.ndarray) -> tuple[float, float]:
@@ -204,14 +281,14 @@ def draw_map(
     for k in range(4):
         root["frame"][str(k)].set_object(tube_mesh(frame[k : k + 2], 0.0015, sides=6), style.material(0x333333))
     failure = style.material(style.palette.failure)
-    for k, case in enumerate(cases):
+    for k, point in enumerate(points):
         node = root["cases"][f"{k:04d}_L{lengths[k]:.4f}_W{widths[k]:.4f}"]
         center = place(lengths[k], widths[k])
         node["dot"].set_object(mg.Sphere(dot), style.material(clearance_color(clearances[k], top)))
         node["dot"].set_transform(mtf.translation_matrix(center))
-        if not bool(case["passed"]):
+        if not point.passed:
             _cross(node["failed"], center + [0, 0, dot + 0.003], 2.6 * dot, failure)
-    failed = sum(not bool(c["passed"]) for c in cases)
+    failed = sum(not p.passed for p in points)
     bounds = [0.0, size, 0.0, size]
     if style.show_labels:
         for pick in worst:
@@ -232,7 +309,7 @@ def draw_map(
 
 def draw_sweep_view(
     vis: meshcat.Visualizer,
-    cases: Sequence[Mapping[str, Any]],
+    cases: Sequence[SweepCase],
     trajectory_for: TrajectorySource,
     style: ViewStyle,
     arm: PlanarArm | None = None,
@@ -243,12 +320,12 @@ def draw_sweep_view(
     A worst case whose trajectory cannot be regenerated (a PipelineError) is shown as a
     label with the error instead.
     """
-    check_cases(cases)
+    points = sweep_points(cases)  # checked and converted once
     arm = arm if arm is not None else load_planar_arm()
     layout = layout if layout is not None else MapLayout()
     regenerate = _regenerator(trajectory_for)
-    worst = worst_cases(cases)
-    map_bounds = draw_map(vis, cases, worst, style, layout)
+    worst = worst_cases(points)
+    map_bounds = draw_map(vis, points, worst, style, layout)
     cursor = map_bounds[1] + layout.gap_m
     y_min, y_max = map_bounds[2], map_bounds[3]
     x_max = map_bounds[1]
@@ -278,7 +355,7 @@ def draw_sweep_view(
 
 
 def sweep_page(
-    cases: Sequence[Mapping[str, Any]],
+    cases: Sequence[SweepCase],
     trajectory_for: TrajectorySource,
     *,
     arm: PlanarArm | None = None,
@@ -291,7 +368,7 @@ def sweep_page(
 
 
 def sweep_html(
-    cases: Sequence[Mapping[str, Any]],
+    cases: Sequence[SweepCase],
     trajectory_for: TrajectorySource,
     html_path: str | Path,
     *,
@@ -301,7 +378,7 @@ def sweep_html(
     """Write the sweep view as one self-contained HTML file (opens offline).
 
     Args:
-        cases: The sweep's per-case dicts (keys :data:`CASE_KEYS`).
+        cases: The sweep's cases (results, or their JSON form: keys :data:`CASE_KEYS`).
         trajectory_for: ``f(L_m, W_m)`` returning an object with ``.obstacle``, ``.path``
             and ``.trajectory`` (e.g. ``pipeline.online.generator.generate`` bound to
             coefficients), or a ``Coefficients`` object (then ``generate`` is used).
@@ -315,7 +392,7 @@ def sweep_html(
 
 
 def show_sweep(
-    cases: Sequence[Mapping[str, Any]],
+    cases: Sequence[SweepCase],
     trajectory_for: TrajectorySource,
     *,
     arm: PlanarArm | None = None,
@@ -336,7 +413,7 @@ def show_sweep(
 
 
 def screenshot_sweep(
-    cases: Sequence[Mapping[str, Any]],
+    cases: Sequence[SweepCase],
     trajectory_for: TrajectorySource,
     png_path: str | Path,
     *,

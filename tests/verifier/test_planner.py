@@ -1,4 +1,5 @@
-"""verify.planner: the piecewise-linear path certificate is rigorous, and the OMPL comparison runs.
+"""verify.benchmark.ompl_planner and pipeline.geometry.polyline_certificate: the piecewise-linear path
+certificate is rigorous, and the OMPL comparison runs.
 
 * Segments built to graze the obstacle exactly between two samples (here: between the two
   waypoints of a segment, sampled only at its ends): a true collision is never certified,
@@ -40,7 +41,7 @@ from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.offline.coefficients import load_coefficients
 from pipeline.online.generator import generate
-from verify.planner import PlannerConfig, ompl_available, plan_rrt_connect, start_goal_configurations
+from verify.benchmark.ompl_planner import PlannerConfig, ompl_available, plan_rrt_connect, start_goal_configurations
 
 L1, L2, R_LINK = 0.30, 0.35, 0.005
 CORNER = 0.01
@@ -176,7 +177,7 @@ def test_random_paths_never_exceed_a_dense_independent_check(arm: PlanarArm) -> 
 
 def test_speed_bounds_hold_against_brute_force(arm: PlanarArm) -> None:
     """Finite-difference speeds of points of each link's capsule never exceed the segment bound, and
-    the bound per unit parameter is at most the issue's |dq1|(l1 + r1), |dq1|(l1 + l2 + r2) + |dq2|(l2 + r2)."""
+    the bound per unit parameter is at most the closed form |dq1|(l1 + r1), |dq1|(l1 + l2 + r2) + |dq2|(l2 + r2)."""
     rng = np.random.default_rng(7)
     reach = LinkReach.from_arm(arm)
     waypoints = rng.uniform(-math.pi, math.pi, (8, 2))
@@ -265,7 +266,7 @@ def test_planner_config_rejects_bad_input() -> None:
 
 @pytest.mark.skipif(not ompl_available(), reason="ompl is not installed (optional bench extra)")
 def test_rrt_connect_returns_a_path_whose_waypoints_keep_the_margin(arm: PlanarArm) -> None:
-    from verify.planner import seed_ompl
+    from verify.benchmark.ompl_planner import seed_ompl
 
     seed_ompl(0)
     scene = Scene()

@@ -370,3 +370,23 @@ def test_coefficients_regenerate_the_worst_cases_with_the_generator():
     expected = generate(coefficients, 0.36, 0.09, out_of_range="ignore")
     assert_allclose(regenerated.trajectory.parameters, expected.trajectory.parameters, rtol=0, atol=0)
     assert regenerated.obstacle == expected.obstacle
+
+
+def test_a_case_result_and_its_json_form_are_the_same_point(arm):
+    from pipeline.offline.coefficients import load_coefficients
+    from verify.acceptance.metrics import MeasureSettings, measure_case
+    from verify.acceptance.results import failed_case
+    from verify.viewer.sweep_view import SweepPoint, sweep_points, worst_cases
+
+    measured = measure_case(load_coefficients("paper"), 0.27, 0.11, arm, MeasureSettings(time_samples=200))
+    failed = failed_case(1, 0.9, 0.5, True, "UnreachableObstacleError: out of reach")
+    for case in (measured, failed):
+        point = SweepPoint.from_case(case)
+        json_point = SweepPoint.from_json(case.to_json())
+        assert point.L_m == json_point.L_m and point.passed == json_point.passed
+        np.testing.assert_array_equal(
+            [point.clearance_m, point.certified_clearance_m, point.endpoint_error_m],
+            [json_point.clearance_m, json_point.certified_clearance_m, json_point.endpoint_error_m],
+        )
+    assert worst_cases([measured, failed]) == worst_cases([measured.to_json(), failed.to_json()])
+    assert sweep_points(sweep_points([measured])) == sweep_points([measured])

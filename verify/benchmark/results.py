@@ -11,10 +11,9 @@ import numpy as np
 from pipeline.exceptions import InvalidParameterError
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
-from . import planner
+from .ompl_planner import OMPL_DEFAULT_RESOLUTION
 
 FORMAT = "twolink-bench/1"
-PROG = "python -m verify.bench"
 DEFAULT_BUILD_TIMING = "results/build_timing.json"
 DEFAULT_N = 50
 DEFAULT_SEED = 0
@@ -22,7 +21,6 @@ DEFAULT_REPEATS = 200
 DEFAULT_SLOW_REPEATS = 3
 DEFAULT_PSO_CASES = 3
 DEFAULT_OMPL_TIME_S = 1.0
-EXIT_OK, EXIT_USAGE, EXIT_INTERRUPTED = 0, 2, 130
 
 #: Warm-up calls of the cheap methods before timing.
 WARMUP_CALLS = 20
@@ -136,7 +134,7 @@ class BenchSettings:
     ompl_time_s: float = DEFAULT_OMPL_TIME_S
     ompl_margin_m: float | None = None
     ompl_simplify: bool = True
-    ompl_resolution: float = planner.OMPL_DEFAULT_RESOLUTION
+    ompl_resolution: float = OMPL_DEFAULT_RESOLUTION
     run_ompl: bool = True
     build_timing: Path | None = Path(DEFAULT_BUILD_TIMING)
     run_build_levels: int | None = None

@@ -25,11 +25,14 @@ from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import QuarticPath
 from pipeline.motion.trajectory import JointTrajectory
+from pipeline.offline.coefficients import load_coefficients
+from pipeline.online.generator import generate
 
-from .metrics import CaseResult
+from .cases import DOE_L_M, DOE_W_M, SweepRange
+from .results import CaseResult
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .sweep import SweepRange, SweepRun
+    from .run import SweepRun
 
 _DPI = 120
 
@@ -214,11 +217,6 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
     The case studies' trajectories are regenerated from the run's coefficients (as an online
     user would); cases that cannot be generated are left out of the figure.
     """
-    from pipeline.offline.coefficients import load_coefficients
-    from pipeline.online.generator import generate
-
-    from .sweep import DOE_L_M, DOE_W_M
-
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     margin_mm = run.settings.thresholds.margin_m * 1e3

@@ -9,6 +9,7 @@ import math
 import tempfile
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -24,11 +25,11 @@ from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory
 from pipeline.offline.experiment import SolverConfig, solve_experiment
 from pipeline.online.generator import generate, generate_parameters
 from pipeline.online.repair import generate_certified
+from verify.acceptance.metrics import MeasureSettings
+from verify.acceptance.run import run_cases
 
-from . import planner
-from .bench_results import WARMUP_CALLS, BenchSettings, MethodResult
-from .metrics import MeasureSettings
-from .sweep import run_cases
+from . import ompl_planner as planner
+from .results import WARMUP_CALLS, BenchSettings, MethodResult
 
 
 def certificate_counts(clearances: Sequence[float], margin_m: float) -> tuple[int, int]:
@@ -140,6 +141,55 @@ def bench_pso(
     return times, clearances, details
 
 
+@dataclass
+class _OmplTally:
+    """What the (d) queries gave, gathered over every pass."""
+
+    plan_times: list[float] = field(default_factory=list)
+    total_times: list[float] = field(default_factory=list)
+    clearances: list[float] = field(default_factory=list)
+    answered_times: list[float] = field(default_factory=list)
+    waypoints: list[int] = field(default_factory=list)
+    checks: list[int] = field(default_factory=list)
+    coal_queries: list[int] = field(default_factory=list)
+    failures: dict[str, int] = field(default_factory=lambda: {"start_invalid": 0, "goal_invalid": 0, "not_solved": 0})
+
+
+def _ompl_queries(
+    coefficients: Any, cases: np.ndarray, arm: PlanarArm, settings: BenchSettings, config: planner.PlannerConfig
+) -> _OmplTally:
+    """Every (d) query, ``settings.slow_repeats`` passes, each followed by our certificate of its path."""
+    scene = coefficients.scene
+
+    def query(length: float, width: float) -> tuple[Obstacle, planner.PlanResult]:
+        obstacle = Obstacle.in_scene(length, width, scene)
+        start, goal = planner.start_goal_configurations(obstacle, scene, arm.link_lengths_m, coefficients.elbow)
+        return obstacle, planner.plan_rrt_connect(arm, obstacle, start, goal, config)
+
+    query(float(cases[0, 0]), float(cases[0, 1]))  # warm-up
+    tally = _OmplTally()
+    for _ in range(settings.slow_repeats):
+        for length, width in cases:
+            plan_s, (obstacle, result) = _timed(lambda length=length, width=width: query(float(length), float(width)))
+            certify_s = 0.0
+            if result.solved and result.path is not None:
+                certify_s, certificate = _timed(lambda r=result, o=obstacle: certify_path(r.path, arm, o))
+                tally.clearances.append(certificate.certified_clearance_m)
+                tally.waypoints.append(int(result.waypoints_rad.shape[0]))
+                tally.answered_times.append(plan_s)
+            elif not result.start_valid:
+                tally.failures["start_invalid"] += 1
+            elif not result.goal_valid:
+                tally.failures["goal_invalid"] += 1
+            else:
+                tally.failures["not_solved"] += 1
+            tally.checks.append(result.validity_checks)
+            tally.coal_queries.append(result.coal_queries)
+            tally.plan_times.append(plan_s)
+            tally.total_times.append(plan_s + certify_s)
+    return tally
+
+
 def bench_ompl(
     coefficients: Any,
     cases: np.ndarray,
@@ -162,76 +212,47 @@ def bench_ompl(
         resolution=settings.ompl_resolution,
         log_level="none",  # failures are counted below, with their reasons
     )
-    scene = coefficients.scene
-
-    def query(length: float, width: float) -> tuple[Obstacle, planner.PlanResult]:
-        obstacle = Obstacle.in_scene(length, width, scene)
-        start, goal = planner.start_goal_configurations(obstacle, scene, arm.link_lengths_m, coefficients.elbow)
-        return obstacle, planner.plan_rrt_connect(arm, obstacle, start, goal, config)
-
-    query(float(cases[0, 0]), float(cases[0, 1]))  # warm-up
-    plan_times, total_times, clearances = [], [], []
-    failures = {"start_invalid": 0, "goal_invalid": 0, "not_solved": 0}
-    checks, queries_coal, waypoints, answered_times = [], [], [], []
-    for _ in range(settings.slow_repeats):
-        for length, width in cases:
-            plan_s, (obstacle, result) = _timed(lambda length=length, width=width: query(float(length), float(width)))
-            certify_s = 0.0
-            if result.solved and result.path is not None:
-                certify_s, certificate = _timed(lambda r=result, o=obstacle: certify_path(r.path, arm, o))
-                clearances.append(certificate.certified_clearance_m)
-                waypoints.append(int(result.waypoints_rad.shape[0]))
-                answered_times.append(plan_s)
-            elif not result.start_valid:
-                failures["start_invalid"] += 1
-            elif not result.goal_valid:
-                failures["goal_invalid"] += 1
-            else:
-                failures["not_solved"] += 1
-            checks.append(result.validity_checks)
-            queries_coal.append(result.coal_queries)
-            plan_times.append(plan_s)
-            total_times.append(plan_s + certify_s)
+    tally = _ompl_queries(coefficients, cases, arm, settings, config)
+    clearances = tally.clearances
     certified, keeps = certificate_counts(clearances, margin_m)
-    n_queries = len(plan_times)
     limits = arm.position_limits_rad
     extent = math.hypot(limits[0][1] - limits[0][0], limits[1][1] - limits[1][0])
     extra = {
-        "planner_failures": sum(failures.values()),
-        "failure_reasons": failures,
-        "median_answered_s": float(np.median(answered_times)) if answered_times else None,
+        "planner_failures": sum(tally.failures.values()),
+        "failure_reasons": tally.failures,
+        "median_answered_s": float(np.median(tally.answered_times)) if tally.answered_times else None,
         "time_limit_s": settings.ompl_time_s,
         "simplify": settings.ompl_simplify,
         "validity": f"Coal clearance of both links >= {validity_margin_m} m",
         "validity_margin_m": validity_margin_m,
         "validity_resolution": settings.ompl_resolution,
         "validity_resolution_rad": settings.ompl_resolution * extent,
-        "validity_checks_median": float(np.median(checks)),
-        "coal_queries_median": float(np.median(queries_coal)),
-        "waypoints_median": float(np.median(waypoints)) if waypoints else None,
+        "validity_checks_median": float(np.median(tally.checks)),
+        "coal_queries_median": float(np.median(tally.coal_queries)),
+        "waypoints_median": float(np.median(tally.waypoints)) if tally.waypoints else None,
         "certified_clearance_min_m": min(clearances) if clearances else None,
         "certified_clearance_median_m": float(np.median(clearances)) if clearances else None,
     }
     common = {
         "obstacles": len(cases),
-        "queries": n_queries,
+        "queries": len(tally.plan_times),
         "answered": len(clearances),
         "certified": certified,
         "keeps_margin": keeps,
         "extra": extra,
     }
+    simplify = " + simplifySolution" if settings.ompl_simplify else ""
     plan = MethodResult(
         key="d",
         label="(d)  OMPL RRT-Connect" + (" + simplify" if settings.ompl_simplify else ""),
-        times_s=tuple(plan_times),
-        note="per query: Coal checker + SimpleSetup + IK of P1/P5 + solve"
-        + (" + simplifySolution" if settings.ompl_simplify else ""),
+        times_s=tuple(tally.plan_times),
+        note="per query: Coal checker + SimpleSetup + IK of P1/P5 + solve" + simplify,
         **common,
     )
     total = MethodResult(
         key="d_cert",
         label="(d+) OMPL path + our certificate",
-        times_s=tuple(total_times),
+        times_s=tuple(tally.total_times),
         note="(d) + certify_path (piecewise-linear certificate, Coal)",
         **common,
     )
@@ -239,7 +260,7 @@ def bench_ompl(
 
 
 def bench_sweep(source: str, coefficients: Any, arm: PlanarArm, cases: np.ndarray) -> tuple[dict[str, Any], Any]:
-    """Sweep rate of ``verify.sweep.run_cases`` (one process) with and without the certificate.
+    """Sweep rate of :func:`verify.acceptance.run.run_cases` (one process) with and without the certificate.
 
     Returns:
         (rates, the certified sweep's case results).
@@ -315,7 +336,8 @@ def run_reduced_build(levels: int, config: SolverConfig, seed: int, urdf: Path |
             argv += ["--urdf", str(urdf)]
         build.build(build.parser().parse_args(argv), out=io.StringIO())
         summary = read_build_timing(Path(folder) / "build_timing.json")
-    assert summary is not None
+    if summary is None:
+        raise DataFileError(Path(folder) / "build_timing.json", "the build run by the benchmark wrote no timing file")
     pso = config.pso
     summary["source"] = (
         f"build run by the benchmark: {levels} x {levels} levels, PSO swarm {pso.swarm_size}, iterations "

@@ -7,7 +7,7 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .bench import BenchReport
+    from .results import BenchReport
 
 
 def _format_time(seconds: float) -> str:
@@ -34,9 +34,12 @@ def _format_fraction(fraction: float) -> str:
 
 def format_report(report: BenchReport) -> str:
     """The table and notes printed on stdout."""
-    a, b = report.method("a"), report.method("b")
-    reference_a = a.median_s if a else float("nan")
-    reference_b = b.median_s if b else None
+    lines = _header_lines(report) + _table_lines(report) + _rate_lines(report) + _note_lines(report)
+    lines.append(f"Total benchmark wall time: {report.elapsed_s:.1f} s.")
+    return "\n".join(lines)
+
+
+def _header_lines(report: BenchReport) -> list[str]:
     fitted = report.coefficients["fitted_range_m"]
     machine = report.machine
     versions = machine["versions"]
@@ -51,11 +54,18 @@ def format_report(report: BenchReport) -> str:
         f"numpy {versions['numpy']}, pin {versions['pin']}, coal {versions['coal']}, ompl {versions['ompl']}.",
         "",
     ]
+    return lines
+
+
+def _table_lines(report: BenchReport) -> list[str]:
+    a, b = report.method("a"), report.method("b")
+    reference_a = a.median_s if a else float("nan")
+    reference_b = b.median_s if b else None
     header = (
         f"{'method':<44} {'obst.':>5} {'runs':>6} {'median/query':>12} {'vs (a)':>9} {'vs (b)':>9} "
         f"{'answered':>8} {'cert. free':>10} {'keeps margin':>12}"
     )
-    lines += [header, "-" * len(header)]
+    lines = [header, "-" * len(header)]
     for m in report.methods:
         ratio_b = None if reference_b is None else m.median_s / reference_b
         lines.append(
@@ -67,10 +77,15 @@ def format_report(report: BenchReport) -> str:
     for key, reason in report.skipped.items():
         lines.append(f"({key}) skipped: {reason}")
     lines.append("")
+    return lines
+
+
+def _rate_lines(report: BenchReport) -> list[str]:
+    lines = []
     if report.sweep is not None:
         without, with_ = report.sweep["without_certificate"], report.sweep["with_certificate"]
         lines.append(
-            f"Sweep rate (verify.sweep.run_cases, {report.sweep['n_cases']} cases, 1 process): "
+            f"Sweep rate (verify.acceptance.run.run_cases, {report.sweep['n_cases']} cases, 1 process): "
             f"{without['cases_per_s']:.1f} cases/s without the certificate, "
             f"{with_['cases_per_s']:.1f} cases/s with it."
         )
@@ -93,7 +108,11 @@ def format_report(report: BenchReport) -> str:
             )
         if build.get("missing"):
             lines.append(f"Build time: {build['missing']}.")
-    lines += ["", "Notes:"]
+    return lines
+
+
+def _note_lines(report: BenchReport) -> list[str]:
+    lines = ["", "Notes:"]
     for m in report.methods:
         lines.append(f"  {m.label.split()[0]} {m.note}")
     d = report.method("d")
@@ -118,6 +137,5 @@ def format_report(report: BenchReport) -> str:
         "(rigorous lower bound over the whole continuous motion, Pinocchio + Coal) is > 0; keeps margin: >= "
         f"{report.margin_m * 1e3:.0f} mm.",
         "  These are ratios measured in one run on this machine, not absolute claims.",
-        f"Total benchmark wall time: {report.elapsed_s:.1f} s.",
     ]
-    return "\n".join(lines)
+    return lines

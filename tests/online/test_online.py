@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -16,7 +14,6 @@ from pipeline.motion.families import EXACT_ENDPOINTS
 from pipeline.offline.coefficients import load_coefficients
 from pipeline.online.generator import generate
 from pipeline.online.repair import RepairConfig, generate_certified
-from verify import online_sweep
 
 
 @pytest.fixture(scope="module")
@@ -80,24 +77,6 @@ def test_every_answer_is_certified_above_margin_or_refused(arm, paper, length_m,
         return
     assert answer.certified_clearance_m >= paper.scene.margin_m
     assert dense_min_clearance(arm, answer, 4001) >= answer.certified_clearance_m - 1e-9
-
-
-def test_online_sweep_cli_reports_and_writes_json(tmp_path, capsys):
-    out = tmp_path / "online.json"
-    status = online_sweep.main(["--coefficients", "paper", "--n", "6", "--no-progress", "--json", str(out)])
-    assert status == 0
-    summary = json.loads(out.read_text())["summary"]
-    assert summary["cases"] == 6
-    assert summary["answers_below_margin"] == 0
-    assert summary["certified_from_regression"] + summary["repaired"] + summary["refused"] == 6
-    assert "certify-or-repair on paper" in capsys.readouterr().out
-
-
-def test_online_sweep_cli_bad_input(capsys):
-    assert online_sweep.main(["--coefficients", "/nonexistent.json", "--n", "3"]) == 2
-    assert online_sweep.main(["--coefficients", "paper", "--n", "0"]) == 2
-    err = capsys.readouterr().err
-    assert "error:" in err and "Traceback" not in err
 
 
 def test_exact_endpoints_refusal_names_the_fixed_end_pose(arm, paper):

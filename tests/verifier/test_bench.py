@@ -1,6 +1,6 @@
-"""The benchmark's command line (verify.bench): it runs on tiny settings and writes the JSON schema,
-reports build timing files, skips OMPL cleanly when it is missing, and gives one clear line and
-exit status 2 on bad input. No timing is asserted: these machines are noisy."""
+"""The benchmark's command line (verify.bench) and library (verify.benchmark): it runs on tiny
+settings and writes the JSON schema, reports build timing files, skips OMPL cleanly when it is
+missing, and gives one clear line and exit status 2 on bad input. No timing is asserted: these machines are noisy."""
 
 from __future__ import annotations
 
@@ -13,11 +13,13 @@ from pathlib import Path
 
 import pytest
 
+from pipeline.cli import EXIT_OK, EXIT_USAGE, HelpFormatter
 from pipeline.exceptions import EndpointConstraintWarning
 from pipeline.io.jsonio import write_json_atomic
-from verify import bench, bench_results, planner
-from verify.bench import EXIT_OK, EXIT_USAGE, build_parser, main
-from verify.cli import HelpFormatter
+from verify.bench import build_parser, main
+from verify.benchmark import ompl_planner as planner
+from verify.benchmark import results as bench_results
+from verify.benchmark import run as bench_run
 
 #: Tiny settings: 3 obstacles, a 4-particle 2-iteration PSO without polish on one of them.
 TINY = [
@@ -100,7 +102,7 @@ def test_help_lists_every_option_with_units_and_defaults(capsys: pytest.CaptureF
     for action in build_parser()._actions:
         for option in action.option_strings:
             assert option in out
-        if action.option_strings != ["-h", "--help"]:
+        if action.option_strings != ["-h", "--help"] and action.default not in (None, False):
             assert "(default" in HelpFormatter("x")._get_help_string(action), action.option_strings
     for expected in ("default: results/coefficients.json", "[s]", "[cases]", "(default: 50)", "(default: 3)"):
         assert expected in text
@@ -189,6 +191,8 @@ def test_missing_ompl_skips_d_with_a_clear_line(
         (["--pso-swarm-size", "1"], "--pso-swarm-size"),
         (["--n", "three"], "--n"),
         (["--run-build", "2"], "--run-build"),
+        (["--json", "/proc/x"], "--json"),
+        (["--json", "/etc/passwd/x.json"], "--json"),
     ],
 )
 def test_bad_input_gives_one_line_and_status_2(
@@ -216,7 +220,7 @@ def test_solver_config_takes_the_builds_settings_from_provenance() -> None:
     from pipeline.offline.coefficients import load_coefficients
 
     coefficients = load_coefficients("paper")
-    config, source = bench.solver_config(coefficients, bench.BenchSettings())
+    config, source = bench_run.solver_config(coefficients, bench_results.BenchSettings())
     assert "defaults" in source and config.family.name == "paper" and config.polish
     recorded = type(coefficients)(
         **{
@@ -224,7 +228,13 @@ def test_solver_config_takes_the_builds_settings_from_provenance() -> None:
             "extra": {"provenance": {"pso": {"swarm_size": 7, "iterations": 9, "restarts": 2}, "polish": False}},
         }
     )
-    config, source = bench.solver_config(recorded, bench.BenchSettings(pso_iterations=3))
+    config, source = bench_run.solver_config(recorded, bench_results.BenchSettings(pso_iterations=3))
     assert (config.pso.swarm_size, config.pso.iterations, config.pso.restarts) == (7, 3, 2)
     assert config.polish is False
     assert "build" in source and "iterations" in source
+
+
+def test_another_arm_is_refused_naming_both(capsys: pytest.CaptureFixture[str], double_pendulum_urdf) -> None:
+    status, _, err = run_main(capsys, "--coefficients", "paper", "--urdf", str(double_pendulum_urdf), "--quiet")
+    assert status == EXIT_USAGE and "(0.3, 0.35)" in err and "(0.1, 0.2)" in err and "--urdf" in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err

@@ -1,4 +1,4 @@
-"""Per-case measurement (verify.metrics): the verifier's clearance against an independent planar
+"""Per-case measurement (verify.acceptance.metrics): the verifier's clearance against an independent planar
 distance (not Coal), endpoint and tracking errors against Eq. 2 written here, closed-form joint
 ranges against sampling, and the acceptance checks."""
 
@@ -18,14 +18,14 @@ from pipeline.model.scene import Scene
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import load_coefficients
-from verify.metrics import (
+from verify.acceptance.metrics import (
     AcceptanceThresholds,
-    CaseResult,
     MeasureSettings,
     joint_ranges,
     measure_case,
     measure_trajectory,
 )
+from verify.acceptance.results import CaseResult, EndpointErrors, Verdict
 
 L1, L2, R_LINK = 0.30, 0.35, 0.005
 TABLE2 = {  # Test: (A1, w1, phi1, gamma1, A2, w2, phi2, gamma2, L, W)
@@ -110,7 +110,7 @@ def test_clearance_matches_an_independent_planar_distance_on_random_cases(arm: P
             assert result.certified_clearance_m <= reference
         else:
             assert result.clearance_m <= 1e-9
-            assert not result.collision_free and not result.passed
+            assert not result.certificate.collision_free and not result.passed
 
 
 def test_endpoint_and_tracking_errors_against_eq2(arm: PlanarArm, scene: Scene) -> None:
@@ -118,33 +118,34 @@ def test_endpoint_and_tracking_errors_against_eq2(arm: PlanarArm, scene: Scene) 
     result = measure_trajectory(trajectory, path, obstacle, arm, FAST)
     p1 = np.array([0.30 / 2 + 0.12, 0.56])
     p5 = np.array([-(0.30 / 2 + 0.12), 0.56])
-    assert result.endpoint_error_start_m == pytest.approx(np.linalg.norm(eq2(trajectory.q(0.0)) - p1), abs=1e-12)
-    assert result.endpoint_error_end_m == pytest.approx(
+    assert result.measurement.endpoints.start_m == pytest.approx(np.linalg.norm(eq2(trajectory.q(0.0)) - p1), abs=1e-12)
+    assert result.measurement.endpoints.end_m == pytest.approx(
         np.linalg.norm(eq2(trajectory.q(trajectory.duration_s)) - p5), abs=1e-12
     )
     # At matched times t = 0 and t = T the desired point is P1 and P5.
-    assert result.tracking_max_m >= max(result.endpoint_error_start_m, result.endpoint_error_end_m) - 1e-9
-    assert 0 < result.tracking_rms_m <= result.tracking_max_m
+    assert result.tracking_max_m >= max(result.measurement.endpoints.start_m, result.measurement.endpoints.end_m) - 1e-9
+    assert 0 < result.measurement.tracking.rms_m <= result.tracking_max_m
     times = np.linspace(0.0, trajectory.duration_s, 400)
     deviation = [
         np.linalg.norm(eq2(q) - path.position_at_time(t)) for q, t in zip(trajectory.q(times), times, strict=True)
     ]
     assert result.tracking_max_m == pytest.approx(max(deviation), abs=1e-12)
-    assert result.tracking_rms_m == pytest.approx(math.sqrt(np.mean(np.square(deviation))), abs=1e-12)
+    assert result.measurement.tracking.rms_m == pytest.approx(math.sqrt(np.mean(np.square(deviation))), abs=1e-12)
 
 
 def test_table2_trajectories_are_measured_as_expected(arm: PlanarArm, scene: Scene) -> None:
     for test in TABLE2:
         trajectory, path, obstacle = table2_case(test, scene)
         result = measure_trajectory(trajectory, path, obstacle, arm)
-        assert result.error is None and result.T_s == pytest.approx(path.duration_s)
-        assert result.collision_free and result.certified_clearance_m > 0
+        assert result.error is None and result.measurement.T_s == pytest.approx(path.duration_s)
+        assert result.certificate.collision_free and result.certified_clearance_m > 0
         assert result.certified_clearance_m <= result.clearance_m
         assert result.certified_clearance_m >= result.clearance_m - 3e-5
-        assert result.time_samples > 2000  # 1 mm motion resolution
-        assert result.within_velocity_limits and result.within_position_limits
-        assert result.within_acceleration_limits is None  # the URDF has no acceleration limits
-        assert result.peak_velocity_rad_s == pytest.approx(tuple(trajectory.peak_velocity_rad_s()))
+        assert result.measurement.clearance.time_samples > 2000  # 1 mm motion resolution
+        joints = result.measurement.joints
+        assert joints.within_velocity_limits and joints.within_position_limits and joints.within_limits
+        assert joints.within_acceleration_limits is None  # the URDF has no acceleration limits
+        assert joints.peak_velocity_rad_s == pytest.approx(tuple(trajectory.peak_velocity_rad_s()))
 
 
 def test_thresholds_decide_pass_and_fail(arm: PlanarArm, scene: Scene) -> None:
@@ -164,7 +165,7 @@ def test_thresholds_decide_pass_and_fail(arm: PlanarArm, scene: Scene) -> None:
     )
     result = measure_trajectory(trajectory, path, obstacle, arm, strict)
     text = " | ".join(result.failures)
-    assert not result.passed and result.keeps_margin is False
+    assert not result.passed and result.certificate.keeps_margin is False
     for words in (
         "endpoint error at start",
         "endpoint error at end",
@@ -184,7 +185,8 @@ def test_joint_limits_are_checked(arm: PlanarArm, scene: Scene) -> None:
     _, path, obstacle = table2_case(5, scene)
     fast = JointTrajectory((0.5, 8.0, 0.0, 1.0, 0.2, 1.0, 0.0, 3.1), path.duration_s)  # 4 rad/s; angle > pi
     result = measure_trajectory(fast, path, obstacle, arm, FAST)
-    assert not result.within_velocity_limits and not result.within_position_limits
+    assert not result.measurement.joints.within_velocity_limits
+    assert not result.measurement.joints.within_position_limits
     assert any("joint speed" in f for f in result.failures) and any("joint range" in f for f in result.failures)
     relaxed = MeasureSettings(time_samples=400, thresholds=AcceptanceThresholds(check_joint_limits=False))
     assert not any("joint" in f for f in measure_trajectory(fast, path, obstacle, arm, relaxed).failures)
@@ -195,7 +197,7 @@ def test_collision_is_reported(arm: PlanarArm, scene: Scene) -> None:
     big = Obstacle.in_scene(0.60, 0.30, scene)  # the Test 1 motion goes through it
     result = measure_trajectory(trajectory, path, big, arm, FAST)
     assert result.clearance_m < 0 and result.certified_clearance_m <= result.clearance_m
-    assert result.collision_free is False and not result.passed
+    assert result.certificate.collision_free is False and not result.passed
     assert any("collision not excluded" in f for f in result.failures)
 
 
@@ -232,12 +234,16 @@ def test_case_result_invariants_and_json(arm: PlanarArm, scene: Scene) -> None:
     ):
         assert key in data
     assert data["index"] == 7 and data["extrapolated"] is True and data["L"] == pytest.approx(0.25)
+    assert data["endpoint_error_m"] == pytest.approx(result.measurement.endpoints.max_m)
+    assert Verdict().passed and not Verdict(failures=("x",)).passed and not Verdict(error="e").passed
+    with pytest.raises(InvalidParameterError):  # a measured case has no error
+        CaseResult(0, 0.2, 0.1, False, result.measurement, Verdict(error="e"))
+    with pytest.raises(InvalidParameterError):  # a case without a measurement says why
+        CaseResult(0, 0.2, 0.1, False, None, Verdict())
     with pytest.raises(InvalidParameterError):
-        CaseResult(index=0, L_m=0.2, W_m=0.1, extrapolated=False, passed=True, failures=("x",), T_s=1.0)
+        CaseResult(0, -0.2, 0.1, False, None, Verdict(error="e"))
     with pytest.raises(InvalidParameterError):
-        CaseResult(index=0, L_m=0.2, W_m=0.1, extrapolated=False, passed=False, T_s=1.0)
-    with pytest.raises(InvalidParameterError):
-        CaseResult(index=0, L_m=-0.2, W_m=0.1, extrapolated=False, passed=False, error="e")
+        EndpointErrors(start_m=-1.0, end_m=0.0)
     with pytest.raises(InvalidParameterError):
         MeasureSettings(time_samples=1)
     with pytest.raises(InvalidParameterError):

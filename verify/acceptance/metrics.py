@@ -14,7 +14,8 @@ For one case the verifier measures
 * **joint peaks**: closed-form max |dtheta/dt| [rad/s] and |d2theta/dt2| [rad/s^2], and the
   closed-form range of each joint angle [rad], against the URDF's limits.
 
-The acceptance thresholds are :class:`AcceptanceThresholds`; :class:`CaseResult` says which
+The acceptance thresholds are :class:`AcceptanceThresholds`; the result is a
+:class:`verify.acceptance.results.CaseResult` made of typed parts, whose verdict says which check
 failed and why.
 """
 
@@ -35,7 +36,21 @@ from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import QuarticPath
 from pipeline.motion.trajectory import JointTrajectory
+from pipeline.online.generator import generate
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
+
+from .results import (
+    CaseResult,
+    CertifiedClearance,
+    Clearance,
+    EndpointErrors,
+    JointCheck,
+    Measurement,
+    Pair,
+    Tracking,
+    Verdict,
+    failed_case,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     from pipeline.offline.coefficients import Coefficients
@@ -128,101 +143,6 @@ class MeasureSettings:
         }
 
 
-Pair = tuple[float, float]
-
-
-@dataclass(frozen=True)
-class CaseResult:
-    """Everything measured on one case. Lengths in m, times in s, angles in rad.
-
-    Fields that could not be measured (the trajectory could not be generated: ``error`` says
-    why) are None. ``failures`` lists every failed acceptance check in words; ``passed`` is
-    True only if there is none and no error.
-    """
-
-    index: int
-    L_m: float
-    W_m: float
-    extrapolated: bool
-    passed: bool
-    failures: tuple[str, ...] = ()
-    error: str | None = None
-    T_s: float | None = None
-    parameters: tuple[float, ...] | None = None
-    time_samples: int | None = None
-    clearance_m: float | None = None
-    clearance_link_m: Pair | None = None
-    clearance_time_s: float | None = None
-    certified_clearance_m: float | None = None
-    certified_link_clearance_m: Pair | None = None
-    certified_time_s: float | None = None
-    certified_link: int | None = None
-    certificate_evaluations: int | None = None
-    certificate_converged: bool | None = None
-    collision_free: bool | None = None
-    keeps_margin: bool | None = None
-    endpoint_error_start_m: float | None = None
-    endpoint_error_end_m: float | None = None
-    tracking_max_m: float | None = None
-    tracking_rms_m: float | None = None
-    peak_velocity_rad_s: Pair | None = None
-    peak_acceleration_rad_s2: Pair | None = None
-    velocity_limits_rad_s: Pair | None = None
-    acceleration_limits_rad_s2: Pair | None = None
-    joint_range_rad: tuple[Pair, Pair] | None = None
-    position_limits_rad: tuple[Pair, Pair] | None = None
-    within_velocity_limits: bool | None = None
-    within_acceleration_limits: bool | None = None
-    within_position_limits: bool | None = None
-
-    def __post_init__(self) -> None:
-        check_positive_int("index", self.index, minimum=0)
-        check_positive("L_m", self.L_m)
-        check_positive("W_m", self.W_m)
-        if self.passed and (self.failures or self.error is not None):
-            raise InvalidParameterError("passed", self.passed, "False when there are failures or an error")
-        if not self.passed and not (self.failures or self.error is not None):
-            raise InvalidParameterError("passed", self.passed, "True when there is no failure and no error")
-        if self.error is None and self.T_s is None:
-            raise InvalidParameterError("T_s", None, "a duration when the case was measured")
-        for name in ("clearance_m", "certified_clearance_m", "endpoint_error_start_m", "endpoint_error_end_m"):
-            value = getattr(self, name)
-            if value is not None:
-                check_finite(name, value)
-        if self.certified_clearance_m is not None and self.clearance_m is not None:
-            if self.certified_clearance_m > self.clearance_m:
-                raise InvalidParameterError(
-                    "certified_clearance_m", self.certified_clearance_m, "<= the sampled clearance_m"
-                )
-
-    @property
-    def endpoint_error_m(self) -> float | None:
-        """The larger of the two endpoint errors [m]."""
-        if self.endpoint_error_start_m is None or self.endpoint_error_end_m is None:
-            return None
-        return max(self.endpoint_error_start_m, self.endpoint_error_end_m)
-
-    def to_json(self) -> dict[str, Any]:
-        """JSON form with the issue's keys ("L", "W", "T_s", ...); non-finite numbers become null."""
-        out: dict[str, Any] = {"index": self.index, "L": self.L_m, "W": self.W_m}
-        for name in self.__dataclass_fields__:
-            if name in ("index", "L_m", "W_m"):
-                continue
-            out[name] = _jsonable(getattr(self, name))
-        out["endpoint_error_m"] = _jsonable(self.endpoint_error_m)
-        return out
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, tuple | list):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
-
-
 def _sin_range(lo: float, hi: float) -> tuple[float, float]:
     """(min, max) of sin(u) over u in [lo, hi], closed form."""
     top = 1.0 if math.ceil((lo - math.pi / 2) / (2 * math.pi)) * 2 * math.pi + math.pi / 2 <= hi else None
@@ -276,136 +196,151 @@ def measure_trajectory(
         The :class:`CaseResult`.
     """
     settings = settings or MeasureSettings()
-    thresholds = settings.thresholds
     reach = reach or LinkReach.from_arm(arm)
-    duration = trajectory.duration_s
     n = settings.time_samples or samples_for_resolution(trajectory, reach, settings.resolution_m)
-    coal_route = CoalClearance(arm, obstacle)
-
-    # Clearance: sampled (Coal) and, if asked, certified over the continuous interval.
-    times = np.linspace(0.0, duration, n)
-    certificate = None
-    if settings.certify:
-        certificate = certify(
-            trajectory,
-            coal_route.link_clearance,
-            reach,
-            samples=n,
-            distance_error_m=COAL_DISTANCE_ERROR_M,
-            tolerance_m=settings.tolerance_m,
-            max_evaluations=settings.max_evaluations,
-        )
-        sampled_link = certificate.sampled_link_clearance_m
-        sampled_time = certificate.sampled_time_s
-    else:
-        values = coal_route.link_clearance(trajectory.q(times))
-        sampled_link = _pair(values.min(axis=0))
-        sampled_time = float(times[int(np.argmin(values.min(axis=1)))])
-    clearance = min(sampled_link)
-
-    # Endpoints through the URDF's end-effector frame (Pinocchio).
-    start = arm.to_plane(arm.end_effector_position(trajectory.q(0.0)))
-    end = arm.to_plane(arm.end_effector_position(trajectory.q(duration)))
-    error_start = float(np.linalg.norm(start - path.points_m[0]))
-    error_end = float(np.linalg.norm(end - path.points_m[-1]))
-
-    # Tracking at matched times.
-    actual = arm.end_effector_planar(trajectory.q(times))
-    desired = path.position_at_time(times)
-    deviation = np.linalg.norm(actual - desired, axis=-1)
-    tracking_max = float(np.max(deviation))
-    tracking_rms = float(np.sqrt(np.mean(deviation**2)))
-
-    # Joints (closed form).
-    peak_velocity = _pair(trajectory.peak_velocity_rad_s())
-    peak_acceleration = _pair(trajectory.peak_acceleration_rad_s2())
-    ranges = joint_ranges(trajectory)
-    velocity_limits = _pair(arm.velocity_limits_rad_s)
-    position_limits = (_pair(arm.position_limits_rad[0]), _pair(arm.position_limits_rad[1]))
-    within_velocity = all(p <= v for p, v in zip(peak_velocity, velocity_limits, strict=True))
-    within_position = all(lim[0] <= r[0] and r[1] <= lim[1] for r, lim in zip(ranges, position_limits, strict=True))
-    acceleration_limits = thresholds.acceleration_limits_rad_s2
-    within_acceleration = (
-        None
-        if acceleration_limits is None
-        else all(p <= a for p, a in zip(peak_acceleration, acceleration_limits, strict=True))
+    times = np.linspace(0.0, trajectory.duration_s, n)
+    measurement = Measurement(
+        T_s=float(trajectory.duration_s),
+        parameters=tuple(float(v) for v in trajectory.parameters),
+        clearance=measure_clearance(trajectory, obstacle, arm, reach, n, settings),
+        endpoints=endpoint_errors(trajectory, path, arm),
+        tracking=tracking_errors(trajectory, path, arm, times),
+        joints=joint_check(trajectory, arm, settings.thresholds.acceleration_limits_rad_s2),
     )
-
-    # Acceptance.
-    failures: list[str] = []
-    certified_value = certificate.certified_clearance_m if certificate else None
-    if certificate is None:
-        failures.append("clearance not certified (certificate disabled)")
-        collision_free = None
-        keeps_margin = None
-    else:
-        collision_free = certificate.certified
-        keeps_margin = certified_value >= thresholds.margin_m
-        if certified_value <= thresholds.min_certified_clearance_m:
-            failures.append(
-                f"certified clearance {certified_value * 1e3:.3f} mm <= "
-                f"{thresholds.min_certified_clearance_m * 1e3:.3f} mm"
-                + ("" if collision_free else " (collision not excluded)")
-            )
-        if thresholds.require_margin and not keeps_margin:
-            failures.append(
-                f"certified clearance {certified_value * 1e3:.3f} mm < margin {thresholds.margin_m * 1e3:.3f} mm"
-            )
-    for name, value in (("start", error_start), ("end", error_end)):
-        if value > thresholds.max_endpoint_error_m:
-            failures.append(
-                f"endpoint error at {name} {value * 1e3:.3f} mm > {thresholds.max_endpoint_error_m * 1e3:.3f} mm"
-            )
-    if thresholds.max_tracking_error_m is not None and tracking_max > thresholds.max_tracking_error_m:
-        failures.append(f"tracking error {tracking_max * 1e3:.3f} mm > {thresholds.max_tracking_error_m * 1e3:.3f} mm")
-    if thresholds.check_joint_limits:
-        if not within_velocity:
-            failures.append(f"joint speed peak {peak_velocity} rad/s exceeds the URDF limits {velocity_limits}")
-        if not within_position:
-            failures.append(f"joint range {ranges} rad leaves the URDF limits {position_limits}")
-        if within_acceleration is False:
-            failures.append(f"joint acceleration peak {peak_acceleration} rad/s^2 exceeds {acceleration_limits}")
-
+    verdict = Verdict(failures=tuple(acceptance_failures(measurement, settings.thresholds)))
     return CaseResult(
         index=index,
         L_m=float(obstacle.length_m),
         W_m=float(obstacle.width_m),
         extrapolated=bool(extrapolated),
-        passed=not failures,
-        failures=tuple(failures),
-        T_s=float(duration),
-        parameters=tuple(trajectory.parameters),
-        time_samples=n,
-        clearance_m=float(clearance),
-        clearance_link_m=sampled_link,
-        clearance_time_s=sampled_time,
-        certified_clearance_m=certified_value,
-        certified_link_clearance_m=certificate.certified_link_clearance_m if certificate else None,
-        certified_time_s=certificate.bound_time_s if certificate else None,
-        certified_link=certificate.bound_link if certificate else None,
-        certificate_evaluations=certificate.evaluations if certificate else None,
-        certificate_converged=certificate.converged if certificate else None,
-        collision_free=collision_free,
-        keeps_margin=keeps_margin,
-        endpoint_error_start_m=error_start,
-        endpoint_error_end_m=error_end,
-        tracking_max_m=tracking_max,
-        tracking_rms_m=tracking_rms,
-        peak_velocity_rad_s=peak_velocity,
-        peak_acceleration_rad_s2=peak_acceleration,
-        velocity_limits_rad_s=velocity_limits,
-        acceleration_limits_rad_s2=acceleration_limits,
-        joint_range_rad=ranges,
-        position_limits_rad=position_limits,
-        within_velocity_limits=within_velocity,
-        within_acceleration_limits=within_acceleration,
-        within_position_limits=within_position,
+        measurement=measurement,
+        verdict=verdict,
     )
 
 
-def failed_case(index: int, L_m: float, W_m: float, extrapolated: bool, error: str) -> CaseResult:
-    """A case whose trajectory could not be generated (``error`` says why): it fails."""
-    return CaseResult(index=index, L_m=L_m, W_m=W_m, extrapolated=extrapolated, passed=False, error=error)
+def measure_clearance(
+    trajectory: JointTrajectory,
+    obstacle: Obstacle,
+    arm: PlanarArm,
+    reach: LinkReach,
+    samples: int,
+    settings: MeasureSettings,
+) -> Clearance:
+    """Sampled clearance (Coal, ``samples`` uniform times) and, if ``settings.certify``, the
+    continuous-time certificate over [0, T]."""
+    coal_route = CoalClearance(arm, obstacle)
+    if not settings.certify:
+        times = np.linspace(0.0, trajectory.duration_s, samples)
+        values = coal_route.link_clearance(trajectory.q(times))
+        sampled_link = _pair(values.min(axis=0))
+        sampled_time = float(times[int(np.argmin(values.min(axis=1)))])
+        return Clearance(min(sampled_link), sampled_link, sampled_time, samples, None)
+    certificate = certify(
+        trajectory,
+        coal_route.link_clearance,
+        reach,
+        samples=samples,
+        distance_error_m=COAL_DISTANCE_ERROR_M,
+        tolerance_m=settings.tolerance_m,
+        max_evaluations=settings.max_evaluations,
+    )
+    bound = float(certificate.certified_clearance_m)
+    certified = CertifiedClearance(
+        certified_clearance_m=bound,
+        link_clearance_m=_pair(certificate.certified_link_clearance_m),
+        time_s=float(certificate.bound_time_s),
+        link=int(certificate.bound_link),
+        evaluations=int(certificate.evaluations),
+        converged=bool(certificate.converged),
+        collision_free=bool(certificate.certified),
+        keeps_margin=bound >= settings.thresholds.margin_m,
+    )
+    sampled_link = _pair(certificate.sampled_link_clearance_m)
+    return Clearance(min(sampled_link), sampled_link, float(certificate.sampled_time_s), samples, certified)
+
+
+def endpoint_errors(trajectory: JointTrajectory, path: QuarticPath, arm: PlanarArm) -> EndpointErrors:
+    """End effector (the URDF's frame, through Pinocchio) against P1 at t = 0 and P5 at t = T [m]."""
+    start = arm.to_plane(arm.end_effector_position(trajectory.q(0.0)))
+    end = arm.to_plane(arm.end_effector_position(trajectory.q(trajectory.duration_s)))
+    return EndpointErrors(
+        start_m=float(np.linalg.norm(start - path.points_m[0])),
+        end_m=float(np.linalg.norm(end - path.points_m[-1])),
+    )
+
+
+def tracking_errors(trajectory: JointTrajectory, path: QuarticPath, arm: PlanarArm, times_s: np.ndarray) -> Tracking:
+    """Max and RMS distance between the end effector and the desired path at the same times [m]."""
+    actual = arm.end_effector_planar(trajectory.q(times_s))
+    deviation = np.linalg.norm(actual - path.position_at_time(times_s), axis=-1)
+    return Tracking(max_m=float(np.max(deviation)), rms_m=float(np.sqrt(np.mean(deviation**2))))
+
+
+def joint_check(
+    trajectory: JointTrajectory, arm: PlanarArm, acceleration_limits_rad_s2: Pair | None = None
+) -> JointCheck:
+    """Closed-form joint peaks and ranges against the URDF's limits (and the given acceleration limits)."""
+    peak_velocity = _pair(trajectory.peak_velocity_rad_s())
+    peak_acceleration = _pair(trajectory.peak_acceleration_rad_s2())
+    ranges = joint_ranges(trajectory)
+    velocity_limits = _pair(arm.velocity_limits_rad_s)
+    position_limits = (_pair(arm.position_limits_rad[0]), _pair(arm.position_limits_rad[1]))
+    return JointCheck(
+        peak_velocity_rad_s=peak_velocity,
+        peak_acceleration_rad_s2=peak_acceleration,
+        range_rad=ranges,
+        velocity_limits_rad_s=velocity_limits,
+        position_limits_rad=position_limits,
+        acceleration_limits_rad_s2=acceleration_limits_rad_s2,
+        within_velocity_limits=all(p <= v for p, v in zip(peak_velocity, velocity_limits, strict=True)),
+        within_position_limits=all(
+            lim[0] <= r[0] and r[1] <= lim[1] for r, lim in zip(ranges, position_limits, strict=True)
+        ),
+        within_acceleration_limits=(
+            None
+            if acceleration_limits_rad_s2 is None
+            else all(p <= a for p, a in zip(peak_acceleration, acceleration_limits_rad_s2, strict=True))
+        ),
+    )
+
+
+def acceptance_failures(measurement: Measurement, thresholds: AcceptanceThresholds) -> list[str]:
+    """Every acceptance check ``measurement`` fails, in words (empty: it passes)."""
+    failures: list[str] = []
+    certified = measurement.clearance.certified
+    if certified is None:
+        failures.append("clearance not certified (certificate disabled)")
+    else:
+        bound = certified.certified_clearance_m
+        if bound <= thresholds.min_certified_clearance_m:
+            failures.append(
+                f"certified clearance {bound * 1e3:.3f} mm <= {thresholds.min_certified_clearance_m * 1e3:.3f} mm"
+                + ("" if certified.collision_free else " (collision not excluded)")
+            )
+        if thresholds.require_margin and not certified.keeps_margin:
+            failures.append(f"certified clearance {bound * 1e3:.3f} mm < margin {thresholds.margin_m * 1e3:.3f} mm")
+    endpoints = measurement.endpoints
+    for name, value in (("start", endpoints.start_m), ("end", endpoints.end_m)):
+        if value > thresholds.max_endpoint_error_m:
+            failures.append(
+                f"endpoint error at {name} {value * 1e3:.3f} mm > {thresholds.max_endpoint_error_m * 1e3:.3f} mm"
+            )
+    tracking_max = measurement.tracking.max_m
+    if thresholds.max_tracking_error_m is not None and tracking_max > thresholds.max_tracking_error_m:
+        failures.append(f"tracking error {tracking_max * 1e3:.3f} mm > {thresholds.max_tracking_error_m * 1e3:.3f} mm")
+    if thresholds.check_joint_limits:
+        j = measurement.joints
+        if not j.within_velocity_limits:
+            failures.append(
+                f"joint speed peak {j.peak_velocity_rad_s} rad/s exceeds the URDF limits {j.velocity_limits_rad_s}"
+            )
+        if not j.within_position_limits:
+            failures.append(f"joint range {j.range_rad} rad leaves the URDF limits {j.position_limits_rad}")
+        if j.within_acceleration_limits is False:
+            failures.append(
+                f"joint acceleration peak {j.peak_acceleration_rad_s2} rad/s^2 exceeds {j.acceleration_limits_rad_s2}"
+            )
+    return failures
 
 
 def is_extrapolated(coefficients: Coefficients, L_m: float, W_m: float) -> bool:
@@ -414,17 +349,31 @@ def is_extrapolated(coefficients: Coefficients, L_m: float, W_m: float) -> bool:
     return not (fitted["L"][0] <= L_m <= fitted["L"][1] and fitted["W"][0] <= W_m <= fitted["W"][1])
 
 
-def check_arm_matches(coefficients: Coefficients, arm: PlanarArm, tolerance_m: float = 1e-9) -> None:
-    """Raise InvalidParameterError if the coefficients were fitted for other link lengths than ``arm``'s."""
-    expected = getattr(coefficients, "link_lengths_m", None)
-    if expected is None:
-        return
-    if any(abs(float(a) - float(b)) > tolerance_m for a, b in zip(expected, arm.link_lengths_m, strict=True)):
-        raise InvalidParameterError(
-            "coefficients link_lengths_m",
-            tuple(float(v) for v in expected),
-            f"the URDF's link lengths {tuple(round(v, 9) for v in arm.link_lengths_m)} m ({arm.urdf_path})",
-        )
+def check_arm_matches(
+    coefficients: Coefficients, arm: PlanarArm, option: str = "--urdf", tolerance_m: float = 1e-9
+) -> None:
+    """Refuse an arm whose link lengths or radii differ from those the coefficients were fitted for.
+
+    Raises:
+        InvalidParameterError: named after ``option``, with both arms' link lengths (and radii) [m].
+    """
+    for what, fitted, actual in (
+        ("link lengths", getattr(coefficients, "link_lengths_m", None), arm.link_lengths_m),
+        ("link radii", getattr(coefficients, "link_radii_m", None), arm.link_radii_m),
+    ):
+        if fitted is None:
+            continue
+        if not all(abs(float(a) - float(b)) <= tolerance_m for a, b in zip(fitted, actual, strict=True)):
+            raise InvalidParameterError(
+                option,
+                str(arm.urdf_path),
+                f"an arm with the {what} the coefficients were fitted for, {_lengths(fitted)} m "
+                f"(this arm's: {_lengths(actual)} m)",
+            )
+
+
+def _lengths(values: Any) -> str:
+    return "(" + ", ".join(f"{float(v):.4g}" for v in values) + ")"
 
 
 def measure_case(
@@ -444,8 +393,6 @@ def measure_case(
     ``error`` set; it does not raise. The generator uses the link lengths stored in the
     coefficients; :func:`check_arm_matches` tells whether they are ``arm``'s.
     """
-    from pipeline.online.generator import generate
-
     try:
         generated = generate(coefficients, L_m, W_m, out_of_range="ignore")
     except PipelineError as exc:

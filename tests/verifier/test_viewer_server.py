@@ -28,7 +28,7 @@ from verify.viewer.server import (
     listening_sockets,
 )
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 
 
@@ -158,12 +158,17 @@ def test_listening_sockets_of_a_missing_process_raise():
 
 
 def test_meshcat_is_imported_only_by_the_viewer_modules():
-    modules = sorted(
-        f"pipeline.{p.stem}" for p in (ROOT / "pipeline").glob("*.py") if p.stem not in {"__init__", "__main__"}
-    )
-    modules += ["verify.view", "verify.viewer", "verify.viewer.server", "verify.viewer.browser"]
-    if (ROOT / "verify" / "sweep.py").is_file():
-        modules.append("verify.sweep")  # without --meshcat it must not need Meshcat
+    """At run time too: importing every other module of both packages (and the viewer's server and
+    browser helpers, which draw nothing) loads no Meshcat module."""
+    modules = []
+    for package in ("pipeline", "verify"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] in {"__init__", "__main__"}:
+                parts.pop()
+            name = ".".join(parts)
+            if not name.startswith("verify.viewer.") or name in {"verify.viewer.server", "verify.viewer.browser"}:
+                modules.append(name)
     code = (
         "import importlib, sys\n"
         f"for name in {modules!r}:\n"
@@ -175,3 +180,34 @@ def test_meshcat_is_imported_only_by_the_viewer_modules():
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120, env=env)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def test_sigterm_is_handled_before_the_url_is_announced():
+    """Whoever reads the URL may send SIGTERM at once: the handler must already be in place when
+    the line is written (it was not, and the live CLI died with -15 now and then)."""
+    from verify.viewer.server import serve_until_interrupted
+
+    class FakeServer:
+        web_url, pid, running = "http://127.0.0.1:7000/static/", 1, True
+
+    class Recorder:
+        def __init__(self) -> None:
+            self.handlers: list[object] = []
+
+        def write(self, text: str) -> int:
+            if text.startswith("Meshcat viewer"):
+                handler = signal.getsignal(signal.SIGTERM)
+                self.handlers.append(handler)
+                if handler in (signal.SIG_DFL, signal.SIG_IGN, None):
+                    raise AssertionError("the URL is announced before SIGTERM is handled")
+                os.kill(os.getpid(), signal.SIGTERM)  # as the test above does on reading the line
+            return len(text)
+
+        def flush(self) -> None:
+            pass
+
+    before = signal.getsignal(signal.SIGTERM)
+    out = Recorder()
+    serve_until_interrupted(FakeServer(), hold_s=30.0, out=out)  # returns at once: SIGTERM stops it cleanly
+    assert out.handlers and out.handlers[0] not in (signal.SIG_DFL, signal.SIG_IGN, None)
+    assert signal.getsignal(signal.SIGTERM) == before

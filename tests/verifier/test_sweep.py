@@ -1,4 +1,4 @@
-"""The acceptance verifier's command line and library (verify.sweep): bad input gives one clear
+"""The acceptance verifier's command line (verify.sweep) and library (verify.acceptance): bad input gives one clear
 line and exit status 2, the JSON schema, determinism under a seed, and results independent of
 --jobs."""
 
@@ -8,28 +8,21 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from pipeline.cli import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from pipeline.exceptions import InvalidParameterError
+from pipeline.io.jsonio import write_json_atomic
 from verify import sweep
-from verify.metrics import MeasureSettings
-from verify.sweep import (
-    EXIT_FAILED,
-    EXIT_OK,
-    EXIT_USAGE,
-    SweepRange,
-    build_parser,
-    case_study_sizes,
-    main,
-    on_doe_grid,
-    run_cases,
-    run_sweep,
-    sample_cases,
-    write_json_atomic,
-)
+from verify.acceptance.cases import SweepRange, case_study_sizes, on_doe_grid, sample_cases
+from verify.acceptance.metrics import MeasureSettings
+from verify.acceptance.results import CaseResult
+from verify.acceptance.run import run_cases, run_sweep
+from verify.sweep import build_parser, main
 
 FAST = ["--samples", "200", "--no-progress"]
 CASE_KEYS = (
@@ -86,7 +79,9 @@ def test_help_lists_every_option_with_units_and_defaults(capsys: pytest.CaptureF
         (["--n", "ten"], "--n"),
         (["--bogus"], "unrecognized"),
         (["--coefficients", "/nonexistent/coefficients.json"], "not found"),
-        (["--json", "/nonexistent/dir/out.json"], "--json"),
+        (["--json", "/proc/x"], "--json"),
+        (["--plots", "/proc/x"], "--plots"),
+        (["--html", "/proc/x/view.html"], "--html"),
         (["--resolution", "0"], "--resolution"),
         (["--tolerance", "-1e-5"], "--tolerance"),
         (["--max-endpoint-error", "-1"], "--max-endpoint-error"),
@@ -123,7 +118,7 @@ def test_malformed_coefficients_file(capsys: pytest.CaptureFixture[str], tmp_pat
 def test_bad_input_in_a_real_process_has_no_traceback() -> None:
     done = subprocess.run(
         [sys.executable, "-m", "verify.sweep", "--range", "0.3", "0.2", "0.08", "0.12"],
-        cwd=Path(__file__).resolve().parents[1],
+        cwd=Path(__file__).resolve().parents[2],
         capture_output=True,
         text=True,
         timeout=120,
@@ -154,7 +149,7 @@ def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: 
     class FakeViewer:
         @staticmethod
         def sweep_html(cases, regenerate, path, *, arm=None):
-            generated = regenerate(cases[0]["L"], cases[0]["W"])
+            generated = regenerate(cases[0].L_m, cases[0].W_m)
             calls.append((cases, generated, path, arm))
 
         @staticmethod
@@ -172,14 +167,14 @@ def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: 
     assert status in (EXIT_OK, EXIT_FAILED) and len(calls) == 1
     cases, generated, path, arm = calls[0]
     assert path == page and arm is not None and len(cases) == 2
-    assert {"L", "W", "clearance_m", "certified_clearance_m", "passed"} <= set(cases[0])
-    assert generated.obstacle.length_m == cases[0]["L"]
+    assert isinstance(cases[0], CaseResult) and cases[0].certified_clearance_m is not None  # typed, not dicts
+    assert generated.obstacle.length_m == cases[0].L_m
     assert f"wrote {page}" in out
 
 
 def test_coefficients_for_another_arm_are_refused(capsys: pytest.CaptureFixture[str], double_pendulum_urdf) -> None:
     status, _, err = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST, "--urdf", str(double_pendulum_urdf))
-    assert status == EXIT_USAGE and "link_lengths_m" in err and "Traceback" not in err
+    assert status == EXIT_USAGE and "link lengths" in err and "(0.1, 0.2)" in err and "Traceback" not in err
 
 
 # --------------------------------------------------------------------------------------------
@@ -311,3 +306,24 @@ def test_compare_prints_both_on_the_same_cases(capsys: pytest.CaptureFixture[str
     pngs = sorted(p.name for p in (tmp_path / "p").rglob("*.png"))
     assert pngs.count("clearance_map.png") == 2 and pngs.count("case_studies.png") == 2
     assert status in (EXIT_OK, EXIT_FAILED)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["--json", "/proc/x"], ["--plots", "/proc/x"], ["--html", "/proc/x"], ["--json", "/proc/x", "--n", "100000"]],
+)
+def test_output_paths_are_refused_before_any_work(capsys, tmp_path: Path, monkeypatch, argv: list[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    started = time.perf_counter()
+    status, out, err = run_main(capsys, "--coefficients", "paper", *argv, "--no-progress")
+    assert time.perf_counter() - started < 5.0
+    assert status == EXIT_USAGE and out == "" and "verdict" not in out
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and argv[0] in lines[0] and lines[0].startswith("python -m verify.sweep: error:")
+    assert ".tmp" not in err and "Traceback" not in err and list(tmp_path.iterdir()) == []
+
+
+def test_the_coefficients_in_use_are_named_first(capsys) -> None:
+    status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST)
+    assert status in (EXIT_OK, EXIT_FAILED)
+    assert out.splitlines()[0].startswith("coefficients: paper (paper, sha256 ")

@@ -6,14 +6,18 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from .metrics import CaseResult
+from .results import CaseResult
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .sweep import SweepRun
+    from .run import SweepRun
 
 
 def _mm(value: float | None, digits: int = 3) -> str:
     return "n/a" if value is None else f"{value * 1e3:.{digits}f} mm"
+
+
+def _samples(bounds: tuple[int, int] | None) -> str:
+    return "None..None" if bounds is None else f"{bounds[0]}..{bounds[1]}"
 
 
 def _case_line(case: CaseResult) -> str:
@@ -34,7 +38,7 @@ def _case_line(case: CaseResult) -> str:
 def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
     s = run.summary
     t = run.settings.thresholds
-    n = s["n_cases"]
+    n = s.n_cases
     rows = [
         (
             "coefficients",
@@ -49,44 +53,44 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
         ),
         (
             "extrapolated",
-            f"{s['n_extrapolated']} / {n} cases outside the fitted range "
+            f"{s.n_extrapolated} / {n} cases outside the fitted range "
             f"L [{run.fitted_range.L_m[0]:.4f}, {run.fitted_range.L_m[1]:.4f}] m, "
             f"W [{run.fitted_range.W_m[0]:.4f}, {run.fitted_range.W_m[1]:.4f}] m",
         ),
-        ("PASSED", f"{s['n_passed']} / {n} ({100.0 * (s['pass_rate'] or 0.0):.1f} %)"),
+        ("PASSED", f"{s.n_passed} / {n} ({100.0 * (s.pass_rate or 0.0):.1f} %)"),
         (
             "collision-free",
-            f"certified {s['n_certified_collision_free']} / {n}; keep the "
-            f"{t.margin_m * 1e3:.1f} mm margin {s['n_keep_margin']} / {n} "
-            f"({100.0 * (s['keep_margin_fraction'] or 0.0):.1f} %)",
+            f"certified {s.n_certified_collision_free} / {n}; keep the "
+            f"{t.margin_m * 1e3:.1f} mm margin {s.n_keep_margin} / {n} "
+            f"({100.0 * (s.keep_margin_fraction or 0.0):.1f} %)",
         ),
         (
             "clearance",
-            f"certified min {_mm(s['certified_clearance_min_m'])}, median "
-            f"{_mm(s['certified_clearance_median_m'])}; sampled min {_mm(s['clearance_min_m'])}, median "
-            f"{_mm(s['clearance_median_m'])}",
+            f"certified min {_mm(s.certified_clearance.min)}, median "
+            f"{_mm(s.certified_clearance.median)}; sampled min {_mm(s.sampled_clearance.min)}, median "
+            f"{_mm(s.sampled_clearance.median)}",
         ),
         (
             "endpoint error",
-            f"median {_mm(s['endpoint_error_median_m'])}, p99 {_mm(s['endpoint_error_p99_m'])}, "
-            f"max {_mm(s['endpoint_error_max_m'])} (limit {_mm(t.max_endpoint_error_m, 1)})",
+            f"median {_mm(s.endpoint_error.median)}, p99 {_mm(s.endpoint_error.p99)}, "
+            f"max {_mm(s.endpoint_error.max)} (limit {_mm(t.max_endpoint_error_m, 1)})",
         ),
         (
             "tracking error",
-            f"max {_mm(s['tracking_max_m'], 2)}, median of max {_mm(s['tracking_max_median_m'], 2)}, "
-            f"RMS median {_mm(s['tracking_rms_median_m'], 2)}",
+            f"max {_mm(s.tracking_max.max, 2)}, median of max {_mm(s.tracking_max.median, 2)}, "
+            f"RMS median {_mm(s.tracking_rms.median, 2)}",
         ),
     ]
-    if s["peak_velocity_max_rad_s"] is not None:
-        measured = n - s["n_errors"]
+    if s.peak_velocity_max_rad_s is not None and s.peak_acceleration_max_rad_s2 is not None:
+        measured = n - s.n_errors
         rows.append(
             (
                 "joints",
                 "speed peak ({:.3f}, {:.3f}) rad/s, acceleration peak ({:.3f}, {:.3f}) rad/s^2; "
                 "{} / {} within the URDF limits".format(
-                    *s["peak_velocity_max_rad_s"],
-                    *s["peak_acceleration_max_rad_s2"],
-                    s["n_within_joint_limits"],
+                    *s.peak_velocity_max_rad_s,
+                    *s.peak_acceleration_max_rad_s2,
+                    s.n_within_joint_limits,
                     measured,
                 ),
             )
@@ -94,21 +98,21 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
     rows.append(
         (
             "sampling",
-            f"{s['time_samples_min']}..{s['time_samples_max']} time samples per case "
+            f"{_samples(s.time_samples_range)} time samples per case "
             + (
                 "(fixed by --samples)"
                 if run.settings.time_samples is not None
                 else f"({run.settings.resolution_m * 1e3:g} mm motion resolution)"
             )
             + ", certificate tolerance "
-            f"{run.settings.tolerance_m * 1e3:g} mm, {s['certificate_evaluations_total']} clearance evaluations"
-            + (f", {s['n_certificate_not_converged']} not converged" if s["n_certificate_not_converged"] else ""),
+            f"{run.settings.tolerance_m * 1e3:g} mm, {s.certificate_evaluations_total} clearance evaluations"
+            + (f", {s.n_certificate_not_converged} not converged" if s.n_certificate_not_converged else ""),
         )
     )
     rate = n / run.elapsed_s if run.elapsed_s > 0 else float("inf")
     rows.append(("speed", f"{run.elapsed_s:.1f} s, {rate:.1f} cases/s with {run.jobs} job(s)"))
-    if s["n_errors"]:
-        rows.append(("errors", f"{s['n_errors']} cases could not be generated"))
+    if s.n_errors:
+        rows.append(("errors", f"{s.n_errors} cases could not be generated"))
     return rows
 
 
@@ -118,15 +122,14 @@ def format_summary(run: SweepRun, list_failures: int | None = None) -> str:
     rows = _summary_rows(run)
     width = max(len(k) for k, _ in rows)
     lines += [f"{k:<{width}}  {v}" for k, v in rows]
-    by_index = {c.index: c for c in run.cases}
     lines.append("worst clearance:")
-    lines += ["  " + _case_line(by_index[b["index"]]) for b in run.summary["worst_clearance"]]
+    lines += ["  " + _case_line(c) for c in run.summary.worst_clearance]
     lines.append("worst endpoint error:")
-    lines += ["  " + _case_line(by_index[b["index"]]) for b in run.summary["worst_endpoint_error"]]
+    lines += ["  " + _case_line(c) for c in run.summary.worst_endpoint_error]
     if run.case_studies:
         lines.append("case studies (inside the fitted range, off the DOE grid):")
         lines += ["  " + _case_line(c).replace(f"#{c.index:<4d}", f"case {c.index + 1}") for c in run.case_studies]
-    failing = [c for c in run.cases if not c.passed]
+    failing = run.summary.failing
     if failing:
         shown = failing if list_failures is None else failing[:list_failures]
         lines.append(f"FAILED: {len(failing)} case(s):")
@@ -146,7 +149,7 @@ def format_comparison(runs: Sequence[SweepRun]) -> str:
     width = max(len(k) for k in keys)
     column = max(44, *(len(run.label) for run in runs))
     lines = [
-        f"== verify.sweep: comparison on the same {runs[0].summary['n_cases']} cases ==",
+        f"== verify.sweep: comparison on the same {runs[0].summary.n_cases} cases ==",
         f"{'':<{width}}  " + " | ".join(f"{run.label:<{column}}" for run in runs),
     ]
     for key in keys:

@@ -1,0 +1,113 @@
+"""``python -m verify.online_sweep``: certify-or-repair over many obstacles; every answer is
+certified at least the margin or refused; bad input is one line and exit status 2."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+
+from pipeline.exceptions import InvalidParameterError
+from verify import online_sweep
+from verify.acceptance.online import OnlineCase, summarize_online
+
+
+def test_online_sweep_cli_reports_and_writes_json(tmp_path, capsys):
+    out = tmp_path / "online.json"
+    status = online_sweep.main(["--coefficients", "paper", "--n", "6", "--no-progress", "--json", str(out)])
+    assert status == 0
+    summary = json.loads(out.read_text())["summary"]
+    assert summary["cases"] == 6
+    assert summary["answers_below_margin"] == 0
+    assert summary["certified_from_regression"] + summary["repaired"] + summary["refused"] == 6
+    assert "certify-or-repair on paper" in capsys.readouterr().out
+
+
+def test_online_sweep_cli_bad_input(capsys):
+    assert online_sweep.main(["--coefficients", "/nonexistent.json", "--n", "3"]) == 2
+    assert online_sweep.main(["--coefficients", "paper", "--n", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "Traceback" not in err
+
+
+def test_online_sweep_refuses_bad_options_one_by_one(capsys):
+    for argv, option in (
+        (["--n", "-1"], "--n"),
+        (["--jobs", "-1"], "--jobs"),
+        (["--beyond", "5"], "--beyond"),
+        (["--beyond", "-0.1"], "--beyond"),
+        (["--max-seconds", "0"], "--max-seconds"),
+    ):
+        assert online_sweep.main(["--coefficients", "paper", *argv]) == 2
+        err = capsys.readouterr().err
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and option in lines[0] and "Traceback" not in err, err
+        assert lines[0].startswith("python -m verify.online_sweep: error:")
+
+
+def test_online_sweep_checks_the_json_path_before_any_work(capsys):
+    started = time.perf_counter()
+    assert online_sweep.main(["--coefficients", "paper", "--n", "1000", "--json", "/proc/x"]) == 2
+    assert time.perf_counter() - started < 5.0
+    err = capsys.readouterr().err
+    assert "--json" in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_online_sweep_refuses_another_arm(capsys, double_pendulum_urdf):
+    status = online_sweep.main(["--coefficients", "paper", "--n", "2", "--urdf", str(double_pendulum_urdf)])
+    err = capsys.readouterr().err
+    assert status == 2 and "(0.3, 0.35)" in err and "(0.1, 0.2)" in err and len(err.strip().splitlines()) == 1
+
+
+def test_online_sweep_results_do_not_depend_on_jobs(capsys, tmp_path):
+    documents = []
+    for jobs in ("1", "2"):
+        out = tmp_path / f"online_{jobs}.json"
+        argv = [
+            "--coefficients",
+            "paper",
+            "--n",
+            "4",
+            "--seed",
+            "5",
+            "--no-progress",
+            "--jobs",
+            jobs,
+            "--json",
+            str(out),
+        ]
+        assert online_sweep.main(argv) == 0
+        documents.append(json.loads(out.read_text()))
+    strip = [[{k: v for k, v in c.items() if k != "seconds"} for c in d["cases"]] for d in documents]
+    assert strip[0] == strip[1]
+
+
+def test_online_summary_counts_and_refuses_an_empty_sweep():
+    cases = [
+        OnlineCase(0.25, 0.10, "certified", 0.02, 0.02, "", 0.01),
+        OnlineCase(0.25, 0.11, "repaired", 0.0101, 0.004, "", 0.03),
+        OnlineCase(0.25, 0.12, "refused", None, 0.003, "end pose at P5 too close (detail)", 0.02),
+    ]
+    summary = summarize_online(cases, 0.01)
+    assert (summary.n_certified_from_regression, summary.n_repaired, summary.n_refused) == (1, 1, 1)
+    assert summary.invariant_holds and summary.min_returned_certified_clearance_m == 0.0101
+    assert dict(summary.refusal_reasons) == {"end pose at P5 too close": 1}
+    unsafe = summarize_online([OnlineCase(0.25, 0.1, "certified", 0.005, 0.005, "", 0.01)], 0.01)
+    assert not unsafe.invariant_holds
+    with pytest.raises(InvalidParameterError):
+        summarize_online([], 0.01)
+    with pytest.raises(InvalidParameterError):
+        OnlineCase(0.25, 0.1, "refused", 0.02, None, "", 0.01)
+
+
+def test_online_sweep_ctrl_c_is_one_line_and_status_130(capsys, monkeypatch):
+    from verify.acceptance import online
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(online, "query", interrupted)
+    assert online_sweep.main(["--coefficients", "paper", "--n", "3", "--no-progress"]) == 130
+    err = capsys.readouterr().err
+    assert err.strip() == "python -m verify.online_sweep: interrupted"

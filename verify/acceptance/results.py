@@ -1,0 +1,313 @@
+"""What the verifier measured on one case, as typed parts.
+
+A :class:`CaseResult` is the case (index, obstacle size, extrapolated or not), its
+:class:`Verdict` (failed checks in words, or the error that kept it from being generated), and,
+when the trajectory could be generated, its :class:`Measurement`: duration and parameters, the
+:class:`Clearance` (sampled, and the :class:`CertifiedClearance` when the certificate ran), the
+:class:`EndpointErrors`, the :class:`Tracking` errors and the :class:`JointCheck` against the
+URDF. Lengths in m, times in s, angles in rad.
+
+``CaseResult.to_json`` writes the flat document the sweep's ``--json`` has always written
+(``"L"``, ``"W"``, ``"T_s"``, ``"clearance_m"``, ...); the viewer reads that form.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pipeline.exceptions import InvalidParameterError
+from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
+
+Pair = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class CertifiedClearance:
+    """The continuous-time certificate of one trajectory.
+
+    Attributes:
+        certified_clearance_m: Rigorous lower bound of the clearance over [0, T] [m].
+        link_clearance_m: The bound per link [m].
+        time_s: Where the bound is attained [s].
+        link: The link attaining it (1 or 2).
+        evaluations: Clearance evaluations the certificate used.
+        converged: Whether the refinement reached its tolerance.
+        collision_free: The bound is > 0.
+        keeps_margin: The bound is >= the safety margin of the thresholds.
+    """
+
+    certified_clearance_m: float
+    link_clearance_m: Pair
+    time_s: float
+    link: int
+    evaluations: int
+    converged: bool
+    collision_free: bool
+    keeps_margin: bool
+
+    def __post_init__(self) -> None:
+        check_finite("certified_clearance_m", self.certified_clearance_m)
+        check_positive_int("evaluations", self.evaluations, minimum=0)
+
+
+@dataclass(frozen=True)
+class Clearance:
+    """Link-obstacle clearance of one trajectory.
+
+    Attributes:
+        sampled_m: Minimum over the time samples (Coal's exact distance) [m].
+        sampled_link_m: That minimum per link [m].
+        sampled_time_s: Where the sampled minimum is [s].
+        time_samples: Number of uniform time samples over [0, T].
+        certified: The certificate, or None if it was not computed.
+    """
+
+    sampled_m: float
+    sampled_link_m: Pair
+    sampled_time_s: float
+    time_samples: int
+    certified: CertifiedClearance | None
+
+    def __post_init__(self) -> None:
+        check_finite("sampled_m", self.sampled_m)
+        check_positive_int("time_samples", self.time_samples, minimum=2)
+        if self.certified is not None and self.certified.certified_clearance_m > self.sampled_m:
+            raise InvalidParameterError(
+                "certified_clearance_m", self.certified.certified_clearance_m, "<= the sampled clearance"
+            )
+
+
+@dataclass(frozen=True)
+class EndpointErrors:
+    """Distance of the end effector from P1 at t = 0 and from P5 at t = T [m]."""
+
+    start_m: float
+    end_m: float
+
+    def __post_init__(self) -> None:
+        check_non_negative("start_m", self.start_m)
+        check_non_negative("end_m", self.end_m)
+
+    @property
+    def max_m(self) -> float:
+        """The larger of the two [m]."""
+        return max(self.start_m, self.end_m)
+
+
+@dataclass(frozen=True)
+class Tracking:
+    """Distance between the end effector and the desired path at matched times (t = S / v) [m]."""
+
+    max_m: float
+    rms_m: float
+
+    def __post_init__(self) -> None:
+        check_non_negative("max_m", self.max_m)
+        check_non_negative("rms_m", self.rms_m)
+
+
+@dataclass(frozen=True)
+class JointCheck:
+    """Closed-form joint peaks and ranges against the limits.
+
+    Attributes:
+        peak_velocity_rad_s, peak_acceleration_rad_s2: max |dtheta/dt| [rad/s], |d2theta/dt2| [rad/s^2] per joint.
+        range_rad: (min, max) of each joint angle over [0, T] [rad].
+        velocity_limits_rad_s: The URDF's speed limits [rad/s].
+        position_limits_rad: The URDF's angle limits [rad].
+        acceleration_limits_rad_s2: The thresholds' acceleration limits [rad/s^2] (None: not checked).
+        within_velocity_limits, within_position_limits: Whether the peaks / ranges respect them.
+        within_acceleration_limits: Likewise; None if there are no acceleration limits.
+    """
+
+    peak_velocity_rad_s: Pair
+    peak_acceleration_rad_s2: Pair
+    range_rad: tuple[Pair, Pair]
+    velocity_limits_rad_s: Pair
+    position_limits_rad: tuple[Pair, Pair]
+    acceleration_limits_rad_s2: Pair | None
+    within_velocity_limits: bool
+    within_position_limits: bool
+    within_acceleration_limits: bool | None
+
+    @property
+    def within_limits(self) -> bool:
+        """Speeds, angles and (if limited) accelerations all within their limits."""
+        return (
+            self.within_velocity_limits and self.within_position_limits and self.within_acceleration_limits is not False
+        )
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """Everything measured on a generated trajectory.
+
+    Attributes:
+        T_s: Duration [s].
+        parameters: The eight sinusoid parameters (A1, w1, phi1, gamma1, A2, w2, phi2, gamma2).
+    """
+
+    T_s: float
+    parameters: tuple[float, ...]
+    clearance: Clearance
+    endpoints: EndpointErrors
+    tracking: Tracking
+    joints: JointCheck
+
+    def __post_init__(self) -> None:
+        check_positive("T_s", self.T_s)
+        if len(self.parameters) != 8:
+            raise InvalidParameterError("parameters", self.parameters, "eight sinusoid parameters")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Acceptance of one case: the failed checks in words, or why it could not be generated.
+
+    ``passed`` is True only if there is no failure and no error.
+    """
+
+    failures: tuple[str, ...] = ()
+    error: str | None = None
+
+    @property
+    def passed(self) -> bool:
+        """No failed check and no error."""
+        return not self.failures and self.error is None
+
+
+@dataclass(frozen=True)
+class CaseResult:
+    """One case of a sweep: the obstacle, what was measured (None if it could not be generated:
+    ``verdict.error`` says why), and the verdict.
+
+    Attributes:
+        index: Case number (>= 0).
+        L_m, W_m: Obstacle size [m].
+        extrapolated: (L, W) lies outside the coefficients' fitted range.
+        measurement: The measured trajectory, or None.
+        verdict: Failed checks or error.
+    """
+
+    index: int
+    L_m: float
+    W_m: float
+    extrapolated: bool
+    measurement: Measurement | None
+    verdict: Verdict
+
+    def __post_init__(self) -> None:
+        check_positive_int("index", self.index, minimum=0)
+        check_positive("L_m", self.L_m)
+        check_positive("W_m", self.W_m)
+        if (self.measurement is None) == (self.verdict.error is None):
+            raise InvalidParameterError(
+                "measurement", self.measurement, "a measurement exactly when the case has no error"
+            )
+
+    # The few numbers every report reads; the rest is in the parts.
+
+    @property
+    def passed(self) -> bool:
+        """The case passed every check."""
+        return self.verdict.passed
+
+    @property
+    def failures(self) -> tuple[str, ...]:
+        """Failed checks, in words."""
+        return self.verdict.failures
+
+    @property
+    def error(self) -> str | None:
+        """Why the trajectory could not be generated (None if it was)."""
+        return self.verdict.error
+
+    @property
+    def certificate(self) -> CertifiedClearance | None:
+        """The certificate, if the case was measured with one."""
+        return None if self.measurement is None else self.measurement.clearance.certified
+
+    @property
+    def clearance_m(self) -> float | None:
+        """Sampled minimum clearance [m]."""
+        return None if self.measurement is None else self.measurement.clearance.sampled_m
+
+    @property
+    def certified_clearance_m(self) -> float | None:
+        """Certified clearance [m]."""
+        return None if self.certificate is None else self.certificate.certified_clearance_m
+
+    @property
+    def endpoint_error_m(self) -> float | None:
+        """The larger endpoint error [m]."""
+        return None if self.measurement is None else self.measurement.endpoints.max_m
+
+    @property
+    def tracking_max_m(self) -> float | None:
+        """Max tracking error [m]."""
+        return None if self.measurement is None else self.measurement.tracking.max_m
+
+    def to_json(self) -> dict[str, Any]:
+        """The flat JSON form ("L", "W", "T_s", "clearance_m", ...); non-finite numbers become null."""
+        m, c = self.measurement, self.certificate
+        clearance = None if m is None else m.clearance
+        joints = None if m is None else m.joints
+        out: dict[str, Any] = {
+            "index": self.index,
+            "L": self.L_m,
+            "W": self.W_m,
+            "extrapolated": self.extrapolated,
+            "passed": self.passed,
+            "failures": list(self.failures),
+            "error": self.error,
+            "T_s": None if m is None else m.T_s,
+            "parameters": None if m is None else m.parameters,
+            "time_samples": None if clearance is None else clearance.time_samples,
+            "clearance_m": self.clearance_m,
+            "clearance_link_m": None if clearance is None else clearance.sampled_link_m,
+            "clearance_time_s": None if clearance is None else clearance.sampled_time_s,
+            "certified_clearance_m": self.certified_clearance_m,
+            "certified_link_clearance_m": None if c is None else c.link_clearance_m,
+            "certified_time_s": None if c is None else c.time_s,
+            "certified_link": None if c is None else c.link,
+            "certificate_evaluations": None if c is None else c.evaluations,
+            "certificate_converged": None if c is None else c.converged,
+            "collision_free": None if c is None else c.collision_free,
+            "keeps_margin": None if c is None else c.keeps_margin,
+            "endpoint_error_start_m": None if m is None else m.endpoints.start_m,
+            "endpoint_error_end_m": None if m is None else m.endpoints.end_m,
+            "tracking_max_m": None if m is None else m.tracking.max_m,
+            "tracking_rms_m": None if m is None else m.tracking.rms_m,
+        }
+        for name in (
+            "peak_velocity_rad_s",
+            "peak_acceleration_rad_s2",
+            "velocity_limits_rad_s",
+            "acceleration_limits_rad_s2",
+        ):
+            out[name] = None if joints is None else getattr(joints, name)
+        out["joint_range_rad"] = None if joints is None else joints.range_rad
+        out["position_limits_rad"] = None if joints is None else joints.position_limits_rad
+        for name in ("within_velocity_limits", "within_acceleration_limits", "within_position_limits"):
+            out[name] = None if joints is None else getattr(joints, name)
+        out["endpoint_error_m"] = self.endpoint_error_m
+        return {key: _jsonable(value) for key, value in out.items()}
+
+
+def failed_case(index: int, L_m: float, W_m: float, extrapolated: bool, error: str) -> CaseResult:
+    """A case whose trajectory could not be generated (``error`` says why): it fails."""
+    return CaseResult(index, L_m, W_m, extrapolated, None, Verdict(error=error))
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, tuple | list):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value

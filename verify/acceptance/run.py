@@ -1,0 +1,324 @@
+"""Running a sweep: measure every case (in this process or in worker processes, same results
+either way), then summarise and record where the numbers came from.
+
+:func:`run_sweep` judges one coefficients set on n seeded cases: each trajectory is generated as
+an online user would (:func:`pipeline.online.generator.generate`) and measured by
+:func:`verify.acceptance.metrics.measure_case`.
+"""
+
+from __future__ import annotations
+
+import datetime
+import functools
+import os
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from pipeline.exceptions import DataFileError
+from pipeline.geometry.link_reach import LinkReach
+from pipeline.io.jsonio import json_safe
+from pipeline.io.parallel import process_map
+from pipeline.io.provenance import package_versions, sha256_file
+from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.obstacle import Obstacle
+from pipeline.motion.families import PAPER_SOURCE
+from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.validation import check_non_negative, check_positive_int
+
+from .cases import SweepRange, case_study_sizes, sample_cases
+from .metrics import MeasureSettings, check_arm_matches, measure_case
+from .results import CaseResult
+from .summary import SweepSummary, summarize
+
+DEFAULT_CASES = 1000
+DEFAULT_SEED = 0
+
+
+def source_label(source: str) -> str:
+    """Short name of a coefficients source: the paper's name, or the file's stem."""
+    return PAPER_SOURCE if source == PAPER_SOURCE else Path(source).stem
+
+
+def resolve_jobs(jobs: int) -> int:
+    """Number of worker processes: ``jobs``, or every usable CPU if 0."""
+    check_positive_int("jobs", jobs, minimum=0)
+    if jobs == 0:
+        try:
+            return len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - not Linux
+            return os.cpu_count() or 1
+    return jobs
+
+
+@dataclass(frozen=True)
+class _WorkerContext:
+    """What a worker process needs to measure cases (picklable); it loads the rest once."""
+
+    source: str
+    sha256: str
+    urdf_path: str | None
+    settings: MeasureSettings
+
+
+@functools.lru_cache(maxsize=4)
+def _loaded(source: str, sha256: str, urdf_path: str | None) -> tuple[Coefficients, PlanarArm, LinkReach]:
+    coefficients = load_coefficients(source)
+    if coefficients.source_sha256 != sha256:
+        raise DataFileError(source, "changed while the sweep was running (sha256 differs)")
+    arm = load_planar_arm(urdf_path)
+    return coefficients, arm, LinkReach.from_arm(arm)
+
+
+def _measure_in_worker(context: _WorkerContext, case: tuple[int, float, float]) -> CaseResult:
+    coefficients, arm, reach = _loaded(context.source, context.sha256, context.urdf_path)
+    index, length, width = case
+    return measure_case(coefficients, length, width, arm, context.settings, index=index, reach=reach)
+
+
+def run_cases(
+    source: str,
+    cases_m: np.ndarray,
+    settings: MeasureSettings,
+    *,
+    jobs: int = 1,
+    urdf_path: str | None = None,
+    progress: bool = False,
+    label: str = "",
+    coefficients: Coefficients | None = None,
+    arm: PlanarArm | None = None,
+) -> tuple[CaseResult, ...]:
+    """Measure every case (L, W) of ``cases_m`` (shape (n, 2) [m]); results in case order.
+
+    The results do not depend on ``jobs``: each case is measured independently and
+    deterministically (:func:`pipeline.io.parallel.process_map`). ``jobs`` > 1 uses that many
+    worker processes; each loads the coefficients and the arm itself and checks the
+    coefficients' hash.
+
+    Args:
+        source: Coefficients file, or the paper's name.
+        cases_m: Obstacle sizes, shape (n, 2) [m].
+        settings: Measurement settings.
+        jobs: Worker processes (0: every CPU; 1: in this process).
+        urdf_path: URDF of the arm (default: the project's).
+        progress: Show a tqdm progress bar on stderr.
+        label: Progress-bar label.
+        coefficients, arm: Already loaded objects for the in-process path (optional).
+    """
+    jobs = resolve_jobs(jobs)
+    cases = np.asarray(cases_m, dtype=float).reshape(-1, 2)
+    coefficients = coefficients if coefficients is not None else load_coefficients(source)
+    indexed = [(i, float(length), float(width)) for i, (length, width) in enumerate(cases)]
+    if jobs == 1:
+        arm = arm or load_planar_arm(urdf_path)
+        reach = LinkReach.from_arm(arm)
+
+        def function(case: tuple[int, float, float]) -> CaseResult:
+            return measure_case(coefficients, case[1], case[2], arm, settings, index=case[0], reach=reach)
+
+    else:
+        context = _WorkerContext(source, coefficients.source_sha256, urdf_path, settings)
+        function = functools.partial(_measure_in_worker, context)
+    with tqdm(total=len(indexed), desc=label or "cases", unit="case", file=sys.stderr, disable=not progress) as bar:
+        results = process_map(function, indexed, jobs=jobs, on_done=lambda done: bar.update(len(done)))
+    return tuple(results)
+
+
+@dataclass(frozen=True)
+class SweepRun:
+    """One coefficients set judged on one set of cases.
+
+    Attributes:
+        label: Short name (the paper's name, or the file's stem).
+        source: The coefficients source as given.
+        cases: One result per sampled case, in case order.
+        case_studies: The four case studies (index 0..3, their own list).
+        summary: :func:`verify.acceptance.summary.summarize` of ``cases``.
+        provenance: Coefficients hash, seed, range, settings, package versions.
+        sweep_range: The sampled range.
+        fitted_range: The coefficients' fitted range.
+        elapsed_s: Wall time of the sweep [s].
+        jobs: Worker processes used.
+        settings: How the cases were measured.
+    """
+
+    label: str
+    source: str
+    cases: tuple[CaseResult, ...]
+    case_studies: tuple[CaseResult, ...]
+    summary: SweepSummary
+    provenance: dict[str, Any]
+    sweep_range: SweepRange
+    fitted_range: SweepRange
+    elapsed_s: float
+    jobs: int
+    settings: MeasureSettings = field(default_factory=MeasureSettings)
+
+    def __post_init__(self) -> None:
+        check_non_negative("elapsed_s", self.elapsed_s)
+
+    @property
+    def passed(self) -> bool:
+        """True if every case passed."""
+        return self.summary.all_passed
+
+    @property
+    def extrapolating(self) -> bool:
+        """True if the sampled range leaves the fitted range."""
+        return not self.fitted_range.contains(self.sweep_range)
+
+    def to_json(self) -> dict[str, Any]:
+        """{"cases": [...], "summary": {...}, "provenance": {...}, "case_studies": [...], "timing": {...}}."""
+        return json_safe(
+            {
+                "label": self.label,
+                "cases": [c.to_json() for c in self.cases],
+                "summary": self.summary.to_json(),
+                "case_studies": [c.to_json() for c in self.case_studies],
+                "provenance": self.provenance,
+                "timing": {
+                    "elapsed_s": self.elapsed_s,
+                    "cases_per_s": len(self.cases) / self.elapsed_s if self.elapsed_s > 0 else None,
+                    "jobs": self.jobs,
+                },
+            }
+        )
+
+
+def run_sweep(
+    source: str,
+    *,
+    n: int = DEFAULT_CASES,
+    seed: int = DEFAULT_SEED,
+    sweep_range: SweepRange | None = None,
+    settings: MeasureSettings | None = None,
+    jobs: int = 1,
+    urdf_path: str | None = None,
+    progress: bool = False,
+    label: str | None = None,
+    cases_m: np.ndarray | None = None,
+    case_studies: bool = True,
+    argv: Sequence[str] | None = None,
+    coefficients: Coefficients | None = None,
+) -> SweepRun:
+    """Judge one coefficients set on n seeded cases (or the given ``cases_m``).
+
+    Args:
+        source: Coefficients file or the paper's name.
+        n: Number of cases (ignored if ``cases_m`` is given).
+        seed: Seed of the case sampler.
+        sweep_range: Sampled range; default the coefficients' fitted range.
+        settings: Measurement settings; default :class:`MeasureSettings`.
+        jobs: Worker processes (0: every CPU).
+        urdf_path: URDF of the arm; default the project's.
+        progress: Show a progress bar on stderr.
+        label: Name of the run; default :func:`source_label`.
+        cases_m: Explicit cases (n, 2) [m] instead of sampling (``seed`` is then only recorded).
+        case_studies: Also measure the four case studies.
+        argv: Command line to record in the provenance.
+        coefficients: ``source`` already loaded (optional).
+
+    Raises:
+        PipelineError: bad coefficients, range or settings, or coefficients fitted for another arm.
+    """
+    settings = settings or MeasureSettings()
+    coefficients = coefficients if coefficients is not None else load_coefficients(source)
+    fitted = SweepRange.from_fitted(coefficients.fitted_range_m)
+    chosen = sweep_range or fitted
+    cases = sample_cases(chosen, n, seed) if cases_m is None else np.asarray(cases_m, dtype=float).reshape(-1, 2)
+    arm = load_planar_arm(urdf_path)
+    check_arm_matches(coefficients, arm)
+    for length, width in ((chosen.L_m[0], chosen.W_m[0]), (chosen.L_m[1], chosen.W_m[1])):
+        Obstacle.in_scene(length, width, coefficients.scene)  # fails early on impossible sizes
+    name = label or source_label(source)
+    start = time.perf_counter()
+    results = run_cases(
+        source,
+        cases,
+        settings,
+        jobs=jobs,
+        urdf_path=urdf_path,
+        progress=progress,
+        label=name,
+        coefficients=coefficients,
+        arm=arm,
+    )
+    elapsed = time.perf_counter() - start
+    studies = measure_case_studies(coefficients, arm, settings, fitted) if case_studies else ()
+    provenance = _provenance(
+        source, coefficients, chosen, fitted, settings, seed=seed, n_cases=len(results), arm=arm, urdf_path=urdf_path
+    )
+    provenance.update(
+        cases_given_explicitly=cases_m is not None,
+        range_is_fitted_range=sweep_range is None,
+        command=list(argv) if argv is not None else None,
+    )
+    return SweepRun(
+        label=name,
+        source=source,
+        cases=results,
+        case_studies=studies,
+        summary=summarize(results, settings.thresholds),
+        provenance=json_safe(provenance),
+        sweep_range=chosen,
+        fitted_range=fitted,
+        elapsed_s=elapsed,
+        jobs=resolve_jobs(jobs),
+        settings=settings,
+    )
+
+
+def measure_case_studies(
+    coefficients: Coefficients, arm: PlanarArm, settings: MeasureSettings, fitted: SweepRange
+) -> tuple[CaseResult, ...]:
+    """The four case studies of :func:`verify.acceptance.cases.case_study_sizes`, measured (index 0..3)."""
+    reach = LinkReach.from_arm(arm)
+    return tuple(
+        measure_case(coefficients, length, width, arm, settings, index=i, reach=reach)
+        for i, (length, width) in enumerate(case_study_sizes(fitted))
+    )
+
+
+def _provenance(
+    source: str,
+    coefficients: Coefficients,
+    chosen: SweepRange,
+    fitted: SweepRange,
+    settings: MeasureSettings,
+    *,
+    seed: int,
+    n_cases: int,
+    arm: PlanarArm,
+    urdf_path: str | None,
+) -> dict[str, Any]:
+    """Where a sweep's numbers came from: coefficients (hash, family, range), seed, range, settings,
+    URDF (hash), scene, package versions and the time; the caller adds what only it knows."""
+    urdf = Path(urdf_path) if urdf_path else arm.urdf_path
+    return {
+        "coefficients": {
+            "source": source,
+            "path": None if source == PAPER_SOURCE else str(Path(source).resolve()),
+            "sha256": coefficients.source_sha256,
+            "family": coefficients.family.name,
+            "fitted_range_m": fitted.to_dict(),
+            "provenance": coefficients.provenance,
+        },
+        "seed": seed,
+        "cases_given_explicitly": None,
+        "n_cases": n_cases,
+        "range_m": chosen.to_dict(),
+        "range_is_fitted_range": None,
+        "extrapolating": not fitted.contains(chosen),
+        "settings": settings.to_dict(),
+        "urdf": {"path": str(urdf), "sha256": sha256_file(urdf)},
+        "scene": coefficients.scene.to_dict(),
+        "packages": package_versions(),
+        "command": None,
+        "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+    }

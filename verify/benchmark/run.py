@@ -1,0 +1,342 @@
+"""The benchmark (the library of ``python -m verify.bench``).
+
+On the same ``--n`` random obstacles (L, W) (uniform in the coefficients' fitted range, seeded),
+in one run on this machine, it times side by side:
+
+* **(a)** the regression generator alone (:func:`pipeline.online.generator.generate`), one query at a
+  time, and **(a')** batched (:func:`pipeline.online.generator.generate_parameters` over all obstacles,
+  time divided by their number);
+* **(b)** the generator with certification (:func:`pipeline.online.repair.generate_certified`:
+  certify, repair if needed, or refuse);
+* **(c)** re-running the PSO online for that (L, W) (:func:`pipeline.offline.experiment.solve_experiment`,
+  what the regression replaces; seconds per obstacle, so only on the first ``--pso-cases``);
+* **(d)** a general-purpose planner: OMPL's RRT-Connect from the start to the goal configuration
+  (analytic IK of P1 and P5) with a Coal validity checker on the same geometry
+  (:mod:`verify.benchmark.ompl_planner`), alone and **(d+)** followed by our certificate of its
+  piecewise-linear path.
+
+It reports per method the median time per query, its ratio to (a) and to (b), the fraction of
+queries answered and the fraction of the answers that are **certified collision-free** by our
+certificates (a rigorous lower bound on the clearance over the whole continuous motion > 0) or
+keep the margin. It also reports the build's time and Coal query count (``results/build_timing.json``
+written by ``python -m pipeline.build``, or a reduced build it runs itself with ``--run-build``)
+and the sweep rate of :func:`verify.acceptance.run.run_cases` with and without the certificate.
+
+The figures are ratios measured in one run on one machine, never absolute claims: times use
+``time.perf_counter``, every method is warmed up first, and the cheap methods are repeated many
+times so their medians are stable.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pipeline.exceptions import PipelineError
+from pipeline.geometry.sinusoid_certificate import certify_trajectory
+from pipeline.io.provenance import PACKAGES, package_versions
+from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.motion.trajectory import JointTrajectory
+from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.offline.experiment import SolverConfig
+from pipeline.offline.fitness import FitnessConfig
+from pipeline.offline.pso import PsoConfig
+from verify.acceptance.cases import SweepRange, sample_cases
+from verify.acceptance.metrics import check_arm_matches
+
+from . import ompl_planner as planner
+from .methods import (
+    bench_batched,
+    bench_certified,
+    bench_generator,
+    bench_ompl,
+    bench_pso,
+    bench_sweep,
+    certificate_counts,
+    read_build_timing,
+    run_reduced_build,
+)
+from .results import BenchReport, BenchSettings, MethodResult
+
+# --------------------------------------------------------------------------------------------
+# Helpers
+
+
+def machine_info() -> dict[str, Any]:
+    """Where the benchmark ran: platform, CPUs, load average (other processes compete for the CPUs),
+    package versions."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        cpus = os.cpu_count()
+    try:
+        load = [round(v, 2) for v in os.getloadavg()]
+    except (AttributeError, OSError):  # pragma: no cover - not Unix
+        load = None
+    return {
+        "platform": platform.platform(),
+        "load_average_1_5_15_min": load,
+        "machine": platform.machine(),
+        "processor": platform.processor() or None,
+        "usable_cpus": cpus,
+        "versions": package_versions((*PACKAGES, "ompl")),
+    }
+
+
+def solver_config(coefficients: Any, settings: BenchSettings) -> tuple[SolverConfig, str]:
+    """The PSO settings of (c): the build's (from the coefficients' provenance) unless overridden.
+
+    Returns:
+        (config, where the settings came from, in words).
+    """
+    provenance = coefficients.provenance
+    source = "PsoConfig defaults (the coefficients record no build settings)"
+    pso, fitness, polish = PsoConfig(), FitnessConfig(), True
+    if provenance.get("pso") is not None:
+        try:
+            pso = PsoConfig(**provenance["pso"])
+            fitness = FitnessConfig.from_json(provenance.get("fitness", {}))
+            polish = bool(provenance.get("polish", True))
+            source = "the build's settings (coefficients' provenance)"
+        except (TypeError, PipelineError):
+            source = "PsoConfig defaults (the coefficients' provenance could not be read)"
+    overrides = {
+        name: value
+        for name, value in (
+            ("swarm_size", settings.pso_swarm_size),
+            ("iterations", settings.pso_iterations),
+            ("restarts", settings.pso_restarts),
+        )
+        if value is not None
+    }
+    if overrides:
+        pso, source = replace(pso, **overrides), f"{source}, with {', '.join(overrides)} from the command line"
+    if settings.polish is not None:
+        polish = settings.polish
+    return SolverConfig(family=coefficients.family, fitness=fitness, pso=pso, polish=polish), source
+
+
+# --------------------------------------------------------------------------------------------
+# The run
+
+
+@dataclass(frozen=True)
+class _Context:
+    """What every method of one benchmark run shares."""
+
+    source: str
+    coefficients: Coefficients
+    arm: PlanarArm
+    cases: np.ndarray
+    margin_m: float
+    settings: BenchSettings
+    log: Callable[[str], None]
+
+
+def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, Any]]:
+    """(a), (a') and the sweep rate (whose certified pass also certifies (a)'s answers)."""
+    cases, margin, settings = ctx.cases, ctx.margin_m, ctx.settings
+    ctx.log("timing (a) the regression generator, one query at a time ...")
+    times_a, answers = bench_generator(ctx.coefficients, cases, settings.repeats)
+    ctx.log("timing the sweep with and without the certificate (and certifying (a)'s answers) ...")
+    sweep_info, certified_cases = bench_sweep(ctx.source, ctx.coefficients, ctx.arm, cases)
+    clearances_a = [c.certified_clearance_m for c in certified_cases if c.certified_clearance_m is not None]
+    certified_a, keeps_a = certificate_counts(clearances_a, margin)
+    answered_a = sum(a is not None for a in answers)
+    method_a = MethodResult(
+        key="a",
+        label="(a)  regression generator, per query",
+        obstacles=len(cases),
+        times_s=tuple(times_a),
+        queries=len(cases),
+        answered=answered_a,
+        certified=certified_a,
+        keeps_margin=keeps_a,
+        note=f"generate(coefficients, L, W), each call timed; passes over the obstacles: {settings.repeats}",
+    )
+    ctx.log("timing (a') the regression generator, batched ...")
+    times_batch, parameters = bench_batched(ctx.coefficients, cases, settings.repeats)
+    same = all(
+        answer is not None and np.allclose(row, answer.trajectory.array, rtol=1e-12, atol=1e-12)
+        for row, answer in zip(parameters, answers, strict=True)
+    )
+    if same:
+        certified_batch, keeps_batch = certified_a, keeps_a
+    else:
+        certified_batch, keeps_batch = _certify_batch(ctx, parameters, answers)
+    method_batch = MethodResult(
+        key="a_batch",
+        label=f"(a') regression generator, batched (n = {len(cases)})",
+        obstacles=len(cases),
+        times_s=tuple(times_batch),
+        queries=len(cases),
+        answered=answered_a,
+        certified=certified_batch,
+        keeps_margin=keeps_batch,
+        note="generate_parameters(coefficients, L[:], W[:]) / n; parameters only (no path object)"
+        + ("; same parameters as (a)" if same else ""),
+        extra={"same_parameters_as_a": same},
+    )
+    return [method_a, method_batch], sweep_info
+
+
+def _certify_batch(ctx: _Context, parameters: np.ndarray, answers: list[Any]) -> tuple[int, int]:
+    """Certified and margin-keeping counts of the batched parameters, where they differ from (a)'s."""
+    clearances = []
+    for row, answer in zip(parameters, answers, strict=True):
+        if answer is not None:
+            trajectory = JointTrajectory(tuple(row), answer.duration_s)
+            clearances.append(certify_trajectory(trajectory, ctx.arm, answer.obstacle).certified_clearance_m)
+    return certificate_counts(clearances, ctx.margin_m)
+
+
+def _certified_method(ctx: _Context) -> MethodResult:
+    """(b): the generator with certification (certify-or-repair)."""
+    ctx.log("timing (b) the generator with certification (certify-or-repair) ...")
+    times_b, clearances_b, repairs = bench_certified(ctx.coefficients, ctx.cases, ctx.arm, ctx.settings.slow_repeats)
+    answered = [c for c in clearances_b if c is not None]
+    certified_b, keeps_b = certificate_counts(answered, ctx.margin_m)
+    refusals = len(clearances_b) - len(answered)
+    return MethodResult(
+        key="b",
+        label="(b)  generator + certificate (or repair)",
+        obstacles=len(ctx.cases),
+        times_s=tuple(times_b),
+        queries=len(clearances_b),
+        answered=len(answered),
+        certified=certified_b,
+        keeps_margin=keeps_b,
+        note=f"generate_certified(...) (Coal certificate to the {ctx.margin_m} m margin, repair if needed, "
+        f"else refuse); passes: {ctx.settings.slow_repeats}; repairs: {repairs}, refusals: "
+        f"{refusals} of {len(clearances_b)} queries",
+        extra={"repairs": repairs, "refusals": refusals},
+    )
+
+
+def _pso_method(ctx: _Context, config: SolverConfig, pso_source: str) -> MethodResult:
+    """(c): the PSO re-run online on the first ``pso_cases`` obstacles."""
+    n = ctx.settings.pso_cases
+    ctx.log(f"timing (c) re-running the PSO online on {n} obstacle(s) ({pso_source}) ...")
+    times_c, clearances_c, details = bench_pso(
+        ctx.coefficients, ctx.cases[:n], ctx.arm, config, ctx.settings.seed, ctx.log
+    )
+    certified_c, keeps_c = certificate_counts(clearances_c, ctx.margin_m)
+    return MethodResult(
+        key="c",
+        label="(c)  PSO online (solve_experiment)",
+        obstacles=n,
+        times_s=tuple(times_c),
+        queries=n,
+        answered=n,
+        certified=certified_c,
+        keeps_margin=keeps_c,
+        note=f"solve_experiment on the first {n} obstacle(s), one run each, no warm-up; "
+        f"PSO swarm {config.pso.swarm_size}, iterations {config.pso.iterations}, restarts "
+        f"{config.pso.restarts}, polish {config.polish} ({pso_source}); optimum then certified (not timed)",
+        extra={"cases": details, "pso": asdict(config.pso), "polish": config.polish, "source": pso_source},
+    )
+
+
+def _ompl_methods(ctx: _Context, skipped: dict[str, str]) -> list[MethodResult]:
+    """(d) and (d+) if OMPL is wanted and installed; else the reason goes into ``skipped``."""
+    settings = ctx.settings
+    if not settings.run_ompl:
+        skipped["d"] = "--no-ompl"
+        return []
+    if not planner.ompl_available():
+        skipped["d"] = "ompl is not installed (pip install ompl, or the project's 'bench' extra)"
+        return []
+    ctx.log(f"timing (d) OMPL RRT-Connect ({settings.ompl_time_s} s budget per query) ...")
+    try:
+        ompl_margin = ctx.margin_m if settings.ompl_margin_m is None else settings.ompl_margin_m
+        return list(bench_ompl(ctx.coefficients, ctx.cases, ctx.arm, settings, ompl_margin, ctx.margin_m))
+    except ImportError as exc:
+        skipped["d"] = f"ompl could not be imported ({exc})"
+        return []
+
+
+def _build_info(ctx: _Context, timing: dict[str, Any] | None, config: SolverConfig) -> dict[str, Any] | None:
+    """The build timing file's summary and, with ``run_build_levels``, a reduced build run here."""
+    settings = ctx.settings
+    if settings.run_build_levels is not None:
+        levels = settings.run_build_levels
+        ctx.log(f"running a reduced build ({levels} x {levels} levels) ...")
+        return {"file": timing, "reduced": run_reduced_build(levels, config, settings.seed, settings.urdf)}
+    if timing is not None:
+        return {"file": timing, "reduced": None}
+    if settings.build_timing is not None:
+        return {
+            "file": None,
+            "reduced": None,
+            "missing": f"{settings.build_timing} not found (written by python -m pipeline.build)",
+        }
+    return None
+
+
+def run_bench(
+    source: str,
+    settings: BenchSettings,
+    *,
+    command: str = "",
+    log: Callable[[str], None] = lambda _: None,
+    coefficients: Coefficients | None = None,
+) -> BenchReport:
+    """Run every method on the same random obstacles and collect the report.
+
+    Args:
+        source: Coefficients file or the paper's name.
+        settings: What to run.
+        command: The command line, recorded in the report.
+        log: Progress messages.
+        coefficients: ``source`` already loaded (optional).
+
+    Raises:
+        DataFileError: missing or malformed coefficients / build timing file.
+        InvalidParameterError: coefficients fitted for another arm, or bad settings.
+    """
+    started = time.perf_counter()
+    machine = machine_info()  # load average at the start
+    coefficients = coefficients if coefficients is not None else load_coefficients(source)
+    arm = load_planar_arm(settings.urdf)
+    check_arm_matches(coefficients, arm)
+    cases = sample_cases(SweepRange.from_fitted(coefficients.fitted_range_m), settings.n, settings.seed)
+    ctx = _Context(source, coefficients, arm, cases, coefficients.scene.margin_m, settings, log)
+    # Build timing first (a missing or malformed file is reported before minutes of work).
+    timing = read_build_timing(settings.build_timing) if settings.build_timing is not None else None
+    config, pso_source = solver_config(coefficients, settings)
+    methods, sweep_info = _sweep_and_generator(ctx)
+    methods.append(_certified_method(ctx))
+    skipped: dict[str, str] = {}
+    if settings.pso_cases > 0:
+        methods.append(_pso_method(ctx, config, pso_source))
+    else:
+        skipped["c"] = "--pso-cases 0"
+    methods.extend(_ompl_methods(ctx, skipped))
+    build_info = _build_info(ctx, timing, config)
+    settings_json = {key: (str(value) if isinstance(value, Path) else value) for key, value in asdict(settings).items()}
+    settings_json.update(pso_resolved=asdict(config.pso), polish=config.polish, pso_settings_source=pso_source)
+    return BenchReport(
+        coefficients={
+            "source": source,
+            "family": coefficients.family.name,
+            "sha256": coefficients.source_sha256,
+            "fitted_range_m": {k: list(v) for k, v in coefficients.fitted_range_m.items()},
+        },
+        settings=settings_json,
+        cases_m=cases,
+        margin_m=ctx.margin_m,
+        methods=tuple(methods),
+        skipped=skipped,
+        sweep=sweep_info,
+        build=build_info,
+        machine=machine,
+        command=command,
+        elapsed_s=time.perf_counter() - started,
+    )
