@@ -251,8 +251,10 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
             + _problem_lines(result.problems),
             file=sys.stderr,
         )
-    if not args.no_range_map:
+    if not args.no_range_map and result.converged:
         _certify_range(result, args, out)
+    elif not args.no_range_map:
+        print("range certificate: skipped, the build did not converge", file=out)
     return EXIT_OK
 
 

@@ -29,7 +29,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("certify", ("pipeline.certify",)),
     ("online", ("pipeline.online",)),
     ("pipeline top level (API, CLI scaffold, CLIs)", ("pipeline",)),
-    ("verify library", ("verify.acceptance", "verify.benchmark", "verify.viewer", "verify.output_paths")),
+    ("verify library", ("verify.acceptance", "verify.benchmark", "verify.viewer")),
     ("verify CLIs", ("verify",)),
 )
 

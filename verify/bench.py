@@ -27,11 +27,11 @@ from pipeline.cli import (
 )
 from pipeline.exceptions import PipelineError
 from pipeline.io.jsonio import write_json_atomic
+from pipeline.io.output_paths import check_output_file
 from pipeline.motion.families import PAPER_SOURCE
 from verify.benchmark.report import format_report
 from verify.benchmark.results import DEFAULT_BUILD_TIMING, BenchSettings
 from verify.benchmark.run import run_bench
-from verify.output_paths import check_output_file
 
 PROG = "python -m verify.bench"
 

@@ -33,6 +33,7 @@ from pipeline.cli import (
 from pipeline.exceptions import InvalidParameterError, PipelineError
 from pipeline.geometry.clearance import ROUTES, route_from_name
 from pipeline.io.jsonio import write_json_atomic
+from pipeline.io.output_paths import check_output_file
 from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.families import PAPER_SOURCE
@@ -42,7 +43,6 @@ from pipeline.validation import check_positive, check_positive_int
 from verify.acceptance.cases import SweepRange, sample_cases
 from verify.acceptance.metrics import check_arm_matches
 from verify.acceptance.online import format_online_report, run_online_cases, summarize_online
-from verify.output_paths import check_output_file
 
 PROG = "python -m verify.online_sweep"
 #: --beyond must be below this [fraction of the fitted range's width per side].

@@ -36,6 +36,7 @@ from pipeline.cli import (
 from pipeline.exceptions import InvalidParameterError, PipelineError
 from pipeline.geometry.motion_certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M
 from pipeline.io.jsonio import write_json_atomic
+from pipeline.io.output_paths import check_output_file, check_output_folder
 from pipeline.model.arm import load_planar_arm
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
@@ -44,7 +45,6 @@ from verify.acceptance.cases import SweepRange, sample_cases
 from verify.acceptance.metrics import AcceptanceThresholds, MeasureSettings, check_arm_matches
 from verify.acceptance.report import format_comparison, format_summary
 from verify.acceptance.run import DEFAULT_CASES, DEFAULT_SEED, SweepRun, run_sweep, source_label
-from verify.output_paths import check_output_file, check_output_folder
 
 PROG = "python -m verify.sweep"
 

@@ -38,11 +38,11 @@ from pipeline.cli import (
     run_cli,
 )
 from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning
+from pipeline.io.output_paths import check_output_file
 from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import load_coefficients
 from verify.acceptance.metrics import check_arm_matches
-from verify.output_paths import check_output_file
 
 PROG = "python -m verify.view"
 

@@ -236,5 +236,5 @@ def test_solver_config_takes_the_builds_settings_from_provenance() -> None:
 
 def test_another_arm_is_refused_naming_both(capsys: pytest.CaptureFixture[str], double_pendulum_urdf) -> None:
     status, _, err = run_main(capsys, "--coefficients", "paper", "--urdf", str(double_pendulum_urdf), "--quiet")
-    assert status == EXIT_USAGE and "(0.3, 0.35)" in err and "(0.1, 0.2)" in err and "--urdf" in err
+    assert status == EXIT_USAGE and "0.3, 0.35" in err and "0.1, 0.2" in err and "--urdf" in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err

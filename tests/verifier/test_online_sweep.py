@@ -57,7 +57,7 @@ def test_online_sweep_checks_the_json_path_before_any_work(capsys):
 def test_online_sweep_refuses_another_arm(capsys, double_pendulum_urdf):
     status = online_sweep.main(["--coefficients", "paper", "--n", "2", "--urdf", str(double_pendulum_urdf)])
     err = capsys.readouterr().err
-    assert status == 2 and "(0.3, 0.35)" in err and "(0.1, 0.2)" in err and len(err.strip().splitlines()) == 1
+    assert status == 2 and "0.3, 0.35" in err and "0.1, 0.2" in err and len(err.strip().splitlines()) == 1
 
 
 def test_online_sweep_results_do_not_depend_on_jobs(capsys, tmp_path):

@@ -174,7 +174,7 @@ def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: 
 
 def test_coefficients_for_another_arm_are_refused(capsys: pytest.CaptureFixture[str], double_pendulum_urdf) -> None:
     status, _, err = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST, "--urdf", str(double_pendulum_urdf))
-    assert status == EXIT_USAGE and "link lengths" in err and "(0.1, 0.2)" in err and "Traceback" not in err
+    assert status == EXIT_USAGE and "links of" in err and "0.1, 0.2" in err and "Traceback" not in err
 
 
 # --------------------------------------------------------------------------------------------

@@ -44,7 +44,7 @@ def test_output_path_is_checked_before_any_work(capsys, flag: str) -> None:
 @pytest.mark.parametrize("mode", [["--coefficients", "paper", "--L", "0.27", "--W", "0.09"], ["--paper-test1"]])
 def test_another_arm_is_refused_naming_both(capsys, tmp_path: Path, double_pendulum_urdf, mode) -> None:
     status, _, err = run_view(capsys, *mode, "--urdf", str(double_pendulum_urdf), "--html", str(tmp_path / "v.html"))
-    assert status == 2 and "(0.3, 0.35)" in err and "(0.1, 0.2)" in err and "--urdf" in err
+    assert status == 2 and "0.3, 0.35" in err and "0.1, 0.2" in err and "--urdf" in err
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "v.html").exists()
 
 

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pipeline.exceptions import InvalidParameterError, PipelineError
+from pipeline.exceptions import ArmMismatchError, InvalidParameterError, PipelineError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance
 from pipeline.geometry.link_reach import LinkReach
 from pipeline.geometry.motion_certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M
@@ -36,6 +36,7 @@ from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import QuarticPath
 from pipeline.motion.trajectory import JointTrajectory
+from pipeline.online.arm_check import check_arm_matches as check_arm_matches_online
 from pipeline.online.generator import generate
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 
@@ -349,31 +350,18 @@ def is_extrapolated(coefficients: Coefficients, L_m: float, W_m: float) -> bool:
     return not (fitted["L"][0] <= L_m <= fitted["L"][1] and fitted["W"][0] <= W_m <= fitted["W"][1])
 
 
-def check_arm_matches(
-    coefficients: Coefficients, arm: PlanarArm, option: str = "--urdf", tolerance_m: float = 1e-9
-) -> None:
-    """Refuse an arm whose link lengths or radii differ from those the coefficients were fitted for.
+def check_arm_matches(coefficients: Coefficients, arm: PlanarArm, option: str = "--urdf") -> None:
+    """:func:`pipeline.online.check_arm_matches`, as a command-line error named after ``option``.
 
     Raises:
-        InvalidParameterError: named after ``option``, with both arms' link lengths (and radii) [m].
+        InvalidParameterError: named after ``option``, with both arms' link lengths and radii [m].
     """
-    for what, fitted, actual in (
-        ("link lengths", getattr(coefficients, "link_lengths_m", None), arm.link_lengths_m),
-        ("link radii", getattr(coefficients, "link_radii_m", None), arm.link_radii_m),
-    ):
-        if fitted is None:
-            continue
-        if not all(abs(float(a) - float(b)) <= tolerance_m for a, b in zip(fitted, actual, strict=True)):
-            raise InvalidParameterError(
-                option,
-                str(arm.urdf_path),
-                f"an arm with the {what} the coefficients were fitted for, {_lengths(fitted)} m "
-                f"(this arm's: {_lengths(actual)} m)",
-            )
-
-
-def _lengths(values: Any) -> str:
-    return "(" + ", ".join(f"{float(v):.4g}" for v in values) + ")"
+    try:
+        check_arm_matches_online(coefficients, arm)
+    except ArmMismatchError as exc:
+        raise InvalidParameterError(
+            option, str(arm.urdf_path), f"the arm the coefficients were fitted for ({exc})"
+        ) from None
 
 
 def measure_case(
