@@ -134,4 +134,9 @@ def load_coefficients_for_cli(source: str | Path) -> Coefficients:
 
 def describe_coefficients(coefficients: Coefficients) -> str:
     """One line saying which coefficients are in use: source, family and short hash."""
-    return f"coefficients: {coefficients.source} ({coefficients.family.name}, sha256 {coefficients.source_sha256[:12]})"
+    line = f"coefficients: {coefficients.source} ({coefficients.family.name}, sha256 {coefficients.source_sha256[:12]})"
+    if not coefficients.converged:
+        line += (
+            "; NOT CONVERGED: written with --allow-unconverged (" + "; ".join(coefficients.unconverged_reasons) + ")"
+        )
+    return line

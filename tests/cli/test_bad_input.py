@@ -179,3 +179,12 @@ def test_as_a_process_no_traceback(module: str, arguments: list[str], needle: st
     assert lines[0].startswith(f"python -m {module}: error: ") and needle in lines[0]
     assert "Traceback" not in done.stderr and files_under(tmp) == before
     assert not (tmp / "results").exists()
+
+
+def test_every_command_that_names_its_coefficients_flags_an_unconverged_file() -> None:
+    from pipeline.cli import describe_coefficients
+
+    coefficients = pipeline.load_coefficients("paper")
+    assert "NOT CONVERGED" not in describe_coefficients(coefficients)
+    flagged = describe_coefficients(coefficients.marked_unconverged(["Test 1 missed P5 by 168 mm"]))
+    assert "NOT CONVERGED" in flagged and "Test 1 missed P5 by 168 mm" in flagged
