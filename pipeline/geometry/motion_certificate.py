@@ -221,15 +221,24 @@ def certify_motion(
     )
 
 
+def interval_lower_bound(da: np.ndarray, db: np.ndarray, speed: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Step 2: the lower bound (d(ta) + d(tb) - V h) / 2 [m] on an interval of length ``h`` [s]
+    with end clearances ``da``, ``db`` [m] (distance error already subtracted) and speed bound ``V`` [m/s]."""
+    return (da + db - speed * h) / 2.0
+
+
+def interval_argmin_offset(da, db, speed, h):
+    """Step 2: where in the interval (offset from ``ta``, clipped to [0, h]) [s] that bound is attained."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        offset = np.where(speed > 0, (da - db + speed * h) / (2.0 * speed), 0.0)
+    return np.clip(offset, 0.0, h)
+
+
 def _interval_bounds(
     speed: np.ndarray, ta: np.ndarray, tb: np.ndarray, da: np.ndarray, db: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-link lower bound (m, 2) [m] on each interval and where it is attained (m, 2) [s],
     given the link point speed bounds ``speed`` (m, 2) [m/s] on the intervals."""
     h = (tb - ta)[:, None]
-    lower = (da + db - speed * h) / 2.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        offset = np.where(speed > 0, (da - db + speed * h) / (2.0 * speed), 0.0)
-    where = ta[:, None] + np.clip(offset, 0.0, h)
     # Where the clearance is negative at an end the bound is only used as "not positive".
-    return lower, where
+    return interval_lower_bound(da, db, speed, h), ta[:, None] + interval_argmin_offset(da, db, speed, h)

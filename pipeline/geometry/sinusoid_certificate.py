@@ -80,6 +80,8 @@ from pipeline.geometry.motion_certificate import (
     DEFAULT_TOLERANCE_M,
     Certificate,
     certify_motion,
+    interval_argmin_offset,
+    interval_lower_bound,
 )
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
@@ -364,7 +366,7 @@ class _AdaptiveCertificate:
         own = np.zeros(ta.size, dtype=bool)  # True where ``speed`` is the interval's own bound
         while ta.size:
             h = tb - ta
-            lower = (da + db - speed * h) / 2.0
+            lower = interval_lower_bound(da, db, speed, h)
             floor = min(observed) - error
             refine = self._refine(lower, floor, tolerance, decide)
             stale = refine & ~own
@@ -372,7 +374,7 @@ class _AdaptiveCertificate:
                 v1, v2 = self.speeds(ta[stale], tb[stale])
                 speed[stale] = np.where(link[stale], v2, v1)
                 own[stale] = True
-                lower = (da + db - speed * h) / 2.0
+                lower = interval_lower_bound(da, db, speed, h)
                 refine = self._refine(lower, floor, tolerance, decide)
             if not refine.any():
                 count = 0
@@ -392,8 +394,8 @@ class _AdaptiveCertificate:
                     candidates = np.where(mask, lower, np.inf)
                     i = int(candidates.argmin())
                     if candidates[i] < best[k][0]:
-                        offset = (da[i] - db[i] + speed[i] * h[i]) / (2.0 * speed[i]) if speed[i] > 0 else 0.0
-                        best[k] = (float(candidates[i]), float(ta[i] + min(max(offset, 0.0), h[i])))
+                        offset = interval_argmin_offset(da[i], db[i], speed[i], h[i])
+                        best[k] = (float(candidates[i]), float(ta[i] + offset))
             if not count:
                 break
             rounds += 1
