@@ -25,9 +25,7 @@ import argparse
 import csv
 import io
 import math
-import os
 import sys
-import tempfile
 import time
 import types
 import warnings
@@ -47,7 +45,7 @@ from pipeline.cli import (
     run_cli,
 )
 from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError
-from pipeline.io.jsonio import dumps
+from pipeline.io.jsonio import dumps, write_bytes_atomic
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.motion.trajectory import PARAMETER_NAMES, PARAMETER_UNITS, JointTrajectory
 from pipeline.online.arm_check import check_arm_matches
@@ -133,28 +131,6 @@ def encode(path: Path, trajectory: JointTrajectory, times: np.ndarray, names: Se
     return text.getvalue().encode("utf-8")
 
 
-def write_bytes_atomic(path: Path, data: bytes) -> None:
-    """Write through a temporary file in the same folder and a rename (never a partial file)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        mode = path.stat().st_mode & 0o777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        mode = 0o666 & ~mask
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface of ``python -m pipeline.generate``."""
     p = Parser(
@@ -213,17 +189,7 @@ def _check_inputs(args: argparse.Namespace) -> Path | None:
     out = Path(args.out)
     if out.suffix.lower() not in FORMATS:
         raise InvalidParameterError("--out", str(out), f"a file name ending in one of {', '.join(FORMATS)}")
-    out = check_output_file(out, "--out")
-    parent = out.absolute().parent
-    if parent.is_dir():  # a folder that refuses files (e.g. /proc) is refused now, not after the work
-        try:
-            fd, probe = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".probe", dir=parent)
-        except OSError as exc:
-            raise InvalidParameterError(
-                "--out", str(out), f"a path in a folder that accepts new files ({exc.strerror})"
-            ) from None
-        os.close(fd)
-        Path(probe).unlink(missing_ok=True)
+    out = check_output_file(out, "--out")  # probes the folder: /proc is refused now, not after the work
     return out
 
 

@@ -69,16 +69,18 @@ def _new_file_mode(path: Path) -> int:
         return 0o666 & ~mask
 
 
-def write_text_atomic(path: str | Path, text: str, overwrite: bool = True) -> bool:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and a rename.
+def write_bytes_atomic(path: str | Path, data: bytes, overwrite: bool = True) -> bool:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename.
 
-    A crash leaves either the old file or the new one, never a half-written one.
+    A crash leaves either the old file or the new one, never a half-written one; the new file
+    keeps the old one's mode (else 0o666 minus the umask).
 
     Returns:
         True if an existing file was replaced.
 
     Raises:
-        OutputExistsError: the file exists and ``overwrite`` is False.
+        OutputExistsError: the path is a folder, its parent is a file, or the file exists and
+            ``overwrite`` is False.
     """
     path = Path(path)
     if path.is_dir():
@@ -92,8 +94,8 @@ def write_text_atomic(path: str | Path, text: str, overwrite: bool = True) -> bo
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
             handle.flush()
             os.fsync(handle.fileno())
         os.chmod(tmp, mode)
@@ -102,6 +104,11 @@ def write_text_atomic(path: str | Path, text: str, overwrite: bool = True) -> bo
         Path(tmp).unlink(missing_ok=True)
         raise
     return existed
+
+
+def write_text_atomic(path: str | Path, text: str, overwrite: bool = True) -> bool:
+    """:func:`write_bytes_atomic` of ``text`` in UTF-8."""
+    return write_bytes_atomic(path, text.encode("utf-8"), overwrite)
 
 
 def write_json_atomic(path: str | Path, data: Any, overwrite: bool = True) -> bool:
