@@ -24,8 +24,7 @@ from pipeline.model.scene import Scene
 from pipeline.motion.families import EXACT_ENDPOINTS, endpoint_context
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import PARAMETER_NAMES, joint_angles
-from pipeline.offline.coefficients import Coefficients, fit_coefficients, load_coefficients, paper_data_path
-from pipeline.offline.doe import DoeData, load_doe
+from pipeline.offline.coefficients import Coefficients
 from pipeline.online.generator import generate, generate_parameters
 
 D, SPEED = 0.56, 0.2
@@ -44,35 +43,6 @@ def duration_by_hand(L: float, W: float) -> float:
     ).deriv()
     length, _ = quad(lambda x: math.sqrt(1 + quartic(x) ** 2), -x1, x1, epsabs=1e-14, epsrel=1e-13, limit=200)
     return length / SPEED
-
-
-@pytest.fixture(scope="module")
-def paper() -> Coefficients:
-    return load_coefficients("paper")
-
-
-@pytest.fixture(scope="module")
-def exact() -> Coefficients:
-    """Exact-endpoints coefficients fitted on a small synthetic DOE (smooth free parameters)."""
-    base = load_doe(paper_data_path("paper_table2_doe.json"))
-    L, W = base.lengths_m, base.widths_m
-    free = np.column_stack([0.95 + 0.4 * (0.3 - L), 0.45 - 2.0 * (W - 0.1), 1.4 + 2 * L * W, 0.8 + 0.5 * W])
-    doe = DoeData(
-        family=EXACT_ENDPOINTS,
-        lengths_m=L,
-        widths_m=W,
-        parameters=np.zeros((9, 8)),
-        free=free,
-        scene=base.scene,
-        link_lengths_m=base.link_lengths_m,
-        link_radii_m=base.link_radii_m,
-        elbow=1,
-        document={},
-        source="synthetic",
-    )
-    coefficients, fit = fit_coefficients(doe)
-    assert all(r > 0.999999 for r in fit.r_squared.values())  # the synthetic data are exactly quadratic
-    return coefficients
 
 
 # --------------------------------------------------------------------------------------------
