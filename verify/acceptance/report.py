@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+from .range_check import BoundCheck, RangeCheck
 from .results import CaseResult
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -109,11 +110,81 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
             + (f", {s.n_certificate_not_converged} not converged" if s.n_certificate_not_converged else ""),
         )
     )
+    if run.range_check is not None:
+        rows += _map_rows(run.range_check)
     rate = n / run.elapsed_s if run.elapsed_s > 0 else float("inf")
     rows.append(("speed", f"{run.elapsed_s:.1f} s, {rate:.1f} cases/s with {run.jobs} job(s)"))
     if s.n_errors:
         rows.append(("errors", f"{s.n_errors} cases could not be generated"))
     return rows
+
+
+def _bound_text(check: BoundCheck | None, what: str) -> str:
+    if check is None or check.checked == 0:
+        return f"{what}: none checked"
+    worst = "n/a" if check.worst_slack_m is None else f"{check.worst_slack_m * 1e3:.4f} mm"
+    return (
+        f"{what}: {len(check.violations)} violation(s) of {check.checked}, worst slack {worst} "
+        f"(allowed {check.allowed_slack_m * 1e3:.4g} mm)"
+    )
+
+
+def _map_rows(check: RangeCheck) -> list[tuple[str, str]]:
+    """The region map's claims and the cross-check, as summary rows."""
+    m = check.map
+    fractions = ", ".join(f"{name} {100 * value:.2f} %" for name, value in m.area_fraction.items())
+    where = m.path or "given in memory"
+    if not m.belongs:
+        return [
+            (
+                "region map",
+                f"{where} does NOT belong to these coefficients (made for sha256 {m.coefficients_sha256[:12]}); "
+                "not used for the cross-check",
+            )
+        ]
+    rows = [
+        ("region map", f"{where} ({m.cells} cells, belongs to these coefficients): {fractions} of the area"),
+        (
+            "map bounds",
+            f"clearance bound min {_mm(m.clearance_bound_min_m)} in the cell L [{m.worst_cell_L_m[0]:.4f}, "
+            f"{m.worst_cell_L_m[1]:.4f}] m, W [{m.worst_cell_W_m[0]:.4f}, {m.worst_cell_W_m[1]:.4f}] m; "
+            f"endpoint bound max {_mm(m.endpoint_bound_max_m)} (tolerance {_mm(m.endpoint_tolerance_m)})",
+        ),
+    ]
+    skipped = f"{check.n_out_of_range} out of the map's range, {check.n_not_measured} not generated"
+    if check.n_clearance_unconverged:
+        skipped += f", {check.n_clearance_unconverged} certificates not converged"
+    verdict = "PASS" if check.passed else f"FAIL ({len(check.violations)} case(s) contradict the map)"
+    rows += [
+        ("map check", f"{verdict}: {check.n_cases} cases ({skipped})"),
+        ("  clearance", _bound_text(check.certified, "certified >= map bound")),
+        ("  sampled", _bound_text(check.sampled, "sampled (Coal) >= map bound")),
+        ("  endpoints", _bound_text(check.endpoint, "endpoint error <= map bound")),
+    ]
+    return rows
+
+
+def _map_violation_lines(run: SweepRun, list_failures: int | None) -> list[str]:
+    check = run.range_check
+    if check is None or check.passed:
+        return []
+    by_index = {c.index: c for c in run.cases}
+    violations = check.violations if list_failures is None else check.violations[:list_failures]
+    lines = [f"REGION MAP CONTRADICTED by {len(check.violations)} case(s):"]
+    region_map = check.region_map
+    for index in violations:
+        case = by_index[index]
+        cell = "" if region_map is None else _cell_text(region_map.bounds_at(case.L_m, case.W_m))
+        lines.append("  " + _case_line(case) + cell)
+    if len(violations) < len(check.violations):
+        lines.append(f"  ... and {len(check.violations) - len(violations)} more (all are in --json)")
+    return lines
+
+
+def _cell_text(bounds: tuple[float, float, str] | None) -> str:
+    if bounds is None:
+        return ""
+    return f" -- map: clearance >= {_mm(bounds[0])}, endpoint <= {_mm(bounds[1])} ({bounds[2]})"
 
 
 def format_summary(run: SweepRun, list_failures: int | None = None) -> str:
@@ -136,16 +207,22 @@ def format_summary(run: SweepRun, list_failures: int | None = None) -> str:
         lines += ["  " + _case_line(c) for c in shown]
         if len(shown) < len(failing):
             lines.append(f"  ... and {len(failing) - len(shown)} more (all are in --json)")
-        lines.append("verdict: FAIL")
+    map_lines = _map_violation_lines(run, list_failures)
+    lines += map_lines
+    if failing or map_lines:
+        lines.append("verdict: FAIL" + (" (the region map is contradicted)" if map_lines else ""))
     else:
-        lines.append("verdict: PASS (every case passed)")
+        lines.append(
+            "verdict: PASS (every case passed"
+            + (", the region map holds)" if run.range_check is not None and run.range_check.checked else ")")
+        )
     return "\n".join(lines)
 
 
 def format_comparison(runs: Sequence[SweepRun]) -> str:
     """The runs' summaries side by side (same cases)."""
     tables = [dict(_summary_rows(run)) for run in runs]
-    keys = [k for k, _ in _summary_rows(runs[0])]
+    keys = list(dict.fromkeys(k for table in tables for k in table))  # every run's rows, in order
     width = max(len(k) for k in keys)
     column = max(44, *(len(run.label) for run in runs))
     lines = [

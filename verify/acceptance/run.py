@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import DataFileError
 from pipeline.geometry.link_reach import LinkReach
 from pipeline.io.jsonio import json_safe
@@ -34,6 +35,7 @@ from pipeline.validation import check_non_negative, check_positive_int
 
 from .cases import SweepRange, case_study_sizes, sample_cases
 from .metrics import MeasureSettings, check_arm_matches, measure_case
+from .range_check import RangeCheck, check_range
 from .results import CaseResult
 from .summary import SweepSummary, summarize
 
@@ -146,6 +148,7 @@ class SweepRun:
         elapsed_s: Wall time of the sweep [s].
         jobs: Worker processes used.
         settings: How the cases were measured.
+        range_check: The cases against the coefficients' region map (None: no map was given).
     """
 
     label: str
@@ -159,14 +162,15 @@ class SweepRun:
     elapsed_s: float
     jobs: int
     settings: MeasureSettings = field(default_factory=MeasureSettings)
+    range_check: RangeCheck | None = None
 
     def __post_init__(self) -> None:
         check_non_negative("elapsed_s", self.elapsed_s)
 
     @property
     def passed(self) -> bool:
-        """True if every case passed."""
-        return self.summary.all_passed
+        """True if every case passed and no case contradicts the region map."""
+        return self.summary.all_passed and (self.range_check is None or self.range_check.passed)
 
     @property
     def extrapolating(self) -> bool:
@@ -174,7 +178,8 @@ class SweepRun:
         return not self.fitted_range.contains(self.sweep_range)
 
     def to_json(self) -> dict[str, Any]:
-        """{"cases": [...], "summary": {...}, "provenance": {...}, "case_studies": [...], "timing": {...}}."""
+        """{"cases": [...], "summary": {...}, "provenance": {...}, "case_studies": [...], "timing": {...},
+        "region_map": {...} or None, "passed": bool}."""
         return json_safe(
             {
                 "label": self.label,
@@ -187,6 +192,8 @@ class SweepRun:
                     "cases_per_s": len(self.cases) / self.elapsed_s if self.elapsed_s > 0 else None,
                     "jobs": self.jobs,
                 },
+                "region_map": None if self.range_check is None else self.range_check.to_json(),
+                "passed": self.passed,
             }
         )
 
@@ -206,8 +213,12 @@ def run_sweep(
     case_studies: bool = True,
     argv: Sequence[str] | None = None,
     coefficients: Coefficients | None = None,
+    region_map: RegionMap | None = None,
+    region_map_path: str | None = None,
 ) -> SweepRun:
-    """Judge one coefficients set on n seeded cases (or the given ``cases_m``).
+    """Judge one coefficients set on n seeded cases (or the given ``cases_m``), and, if a
+    region map is given, cross-check the cases against it
+    (:func:`verify.acceptance.range_check.check_range`: a contradiction fails the run).
 
     Args:
         source: Coefficients file or the paper's name.
@@ -223,6 +234,9 @@ def run_sweep(
         case_studies: Also measure the four case studies.
         argv: Command line to record in the provenance.
         coefficients: ``source`` already loaded (optional).
+        region_map: The range certificate to check (optional; one of other coefficients is
+            reported as not belonging and not checked).
+        region_map_path: Its file, for the report.
 
     Raises:
         PipelineError: bad coefficients, range or settings, or coefficients fitted for another arm.
@@ -271,6 +285,11 @@ def run_sweep(
         elapsed_s=elapsed,
         jobs=resolve_jobs(jobs),
         settings=settings,
+        range_check=(
+            None
+            if region_map is None
+            else check_range(region_map, coefficients, results, settings, path=region_map_path)
+        ),
     )
 
 
