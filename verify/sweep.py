@@ -5,11 +5,17 @@ For ``n`` obstacle sizes (L, W) drawn uniformly (seeded) from the coefficients' 
 would and measured (:mod:`verify.acceptance`): sampled and certified clearance (Pinocchio + Coal,
 continuous-time certificate), endpoint errors, tracking errors, joint peaks against the URDF.
 
-Exit status: 0 if every case passes, 1 if any case fails (they are listed with their (L, W)),
-2 on bad input (one line on stderr, no traceback), 130 if interrupted.
+Exit status: 0 if every case passes (and agrees with the region map), 1 if any case fails (they
+are listed with their (L, W)), 2 on bad input (one line on stderr, no traceback), 130 if interrupted.
 
 ``--coefficients paper`` judges the paper's own Eq. 9 with the same verifier; ``--compare A B``
 runs both on the same sampled cases and prints them side by side.
+
+The range certificate (``region_map.json``, written by the build beside the coefficients) is
+reported and every sampled case is cross-checked against it
+(:mod:`verify.acceptance.range_check`); a case that contradicts it fails the run. ``--region-map
+FILE`` names another map (the only way for ``paper``), ``--no-region-map`` skips it; a map made
+for other coefficients is reported as not belonging and not checked.
 
 This module only parses the command line and calls the library.
 """
@@ -43,6 +49,7 @@ from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 from verify.acceptance.cases import SweepRange, sample_cases
 from verify.acceptance.metrics import AcceptanceThresholds, MeasureSettings, check_arm_matches
+from verify.acceptance.range_check import find_region_map
 from verify.acceptance.report import format_comparison, format_summary
 from verify.acceptance.run import DEFAULT_CASES, DEFAULT_SEED, SweepRun, run_sweep, source_label
 
@@ -69,6 +76,20 @@ def _add_source_options(parser: argparse.ArgumentParser) -> None:
         help=f"judge two coefficients sources (files or '{PAPER_SOURCE}') on the same cases and print them side "
         "by side; the default range is the intersection of their fitted ranges",
     )
+
+
+def _add_region_map_options(parser: argparse.ArgumentParser) -> None:
+    choice = parser.add_mutually_exclusive_group()
+    choice.add_argument(
+        "--region-map",
+        metavar="FILE",
+        type=Path,
+        default=None,
+        help="region map (python -m pipeline.certify_range) to report and cross-check the cases against "
+        "(default: region_map.json beside the coefficients file, if there is one; none for "
+        f"'{PAPER_SOURCE}')",
+    )
+    choice.add_argument("--no-region-map", action="store_true", help="do not report or cross-check a region map")
 
 
 def _add_sampling_options(parser: argparse.ArgumentParser) -> None:
@@ -180,7 +201,8 @@ def _add_output_options(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         type=Path,
         default=None,
-        help="write PNG plots (clearance and endpoint error over (L, W), the four case studies) into DIR",
+        help="write PNG plots (clearance and endpoint error over (L, W), the four case studies, and the region "
+        "map if it belongs to the coefficients) into DIR",
     )
     parser.add_argument(
         "--meshcat",
@@ -219,6 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     _add_source_options(parser)
+    _add_region_map_options(parser)
     _add_sampling_options(parser)
     _add_threshold_options(parser)
     _add_output_options(parser)
@@ -268,6 +291,8 @@ def _validate_args(args: argparse.Namespace) -> None:
         check_positive_int("--list-failures", args.list_failures, minimum=0)
     if args.range is not None:
         _check_range(args.range)
+    if args.region_map is not None and not args.region_map.is_file():
+        raise InvalidParameterError("--region-map", str(args.region_map), "an existing region map file")
     check_output_file(args.json, "--json")
     check_output_file(args.html, "--html")
     check_output_folder(args.plots, "--plots")
@@ -374,6 +399,7 @@ def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
     for coefficient_set in coefficients:
         check_arm_matches(coefficient_set, arm)
         print(describe_coefficients(coefficient_set), flush=True)
+    maps = [(None, None) if args.no_region_map else find_region_map(c, args.region_map) for c in coefficients]
     chosen = _chosen_range(args, sources, coefficients)
     cases = sample_cases(chosen or SweepRange.from_fitted(coefficients[0].fitted_range_m), args.n, args.seed)
     runs = [
@@ -390,8 +416,12 @@ def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
             cases_m=cases,
             argv=["python", "-m", "verify.sweep", *argv],
             coefficients=coefficient_set,
+            region_map=region_map,
+            region_map_path=region_map_path,
         )
-        for source, label, coefficient_set in zip(sources, _labels(sources), coefficients, strict=True)
+        for source, label, coefficient_set, (region_map, region_map_path) in zip(
+            sources, _labels(sources), coefficients, maps, strict=True
+        )
     ]
     for run in runs:
         print(format_summary(run, args.list_failures))
@@ -401,7 +431,7 @@ def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
     _write_outputs(args, runs)
     if viewer is not None:
         _show(viewer, runs, coefficients, args)
-    return EXIT_OK if all(run.passed for run in runs) else EXIT_FAILED
+    return EXIT_OK if all(run.passed for run in runs) else EXIT_FAILED  # a contradicted map fails its run
 
 
 def _work_or_error(args: argparse.Namespace, argv: Sequence[str]) -> int:

@@ -1,6 +1,8 @@
 """PNG plots of a sweep (matplotlib, Agg backend): clearance and endpoint error over the (L, W)
-plane, and the paper's four case studies redone like its Fig. 5 (arm snapshots, obstacle,
-desired and actual end-effector paths). All lengths are converted to mm only for display.
+plane, the paper's four case studies redone like its Fig. 5 (arm snapshots, obstacle,
+desired and actual end-effector paths), and the region map (the range certificate's leaves
+coloured by status, shaded by their clearance bound, with the sampled cases over it). All
+lengths are converted to mm only for display.
 """
 
 from __future__ import annotations
@@ -16,9 +18,12 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.colors import Normalize, TwoSlopeNorm
-from matplotlib.patches import FancyBboxPatch, Rectangle
+from matplotlib.cm import ScalarMappable
+from matplotlib.collections import PolyCollection
+from matplotlib.colors import LinearSegmentedColormap, Normalize, TwoSlopeNorm
+from matplotlib.patches import FancyBboxPatch, Patch, Rectangle
 
+from pipeline.certify.region_map import STATUSES, RegionMap
 from pipeline.exceptions import PipelineError
 from pipeline.geometry.clearance import link_segments
 from pipeline.model.arm import PlanarArm, load_planar_arm
@@ -29,6 +34,7 @@ from pipeline.offline.coefficients import load_coefficients
 from pipeline.online.generator import generate
 
 from .cases import DOE_L_M, DOE_W_M, SweepRange
+from .map_leaves import STATUS_SHADES, leaf_drawing
 from .results import CaseResult
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -140,6 +146,105 @@ def plot_map(
     return path
 
 
+def _status_colorbars(
+    fig: plt.Figure, slots: Sequence[plt.Axes], ranges: dict[str, tuple[float, float] | None]
+) -> None:
+    """One horizontal colour bar per status present, in ``slots``: its shade against its
+    clearance bound [mm]; unused slots are hidden."""
+    present = [name for name in STATUSES if ranges.get(name) is not None]
+    for slot, name in zip(slots, present, strict=False):
+        lo, hi = (v * 1e3 for v in ranges[name])
+        cmap = LinearSegmentedColormap.from_list(name, list(STATUS_SHADES[name]))
+        bar = fig.colorbar(
+            ScalarMappable(Normalize(lo, hi if hi > lo else lo + 1e-9), cmap), cax=slot, orientation="horizontal"
+        )
+        bar.ax.set_title(f"{name.replace('_', '-')}: clearance bound [mm]", fontsize=8)
+        bar.ax.tick_params(labelsize=7)
+    for slot in slots[len(present) :]:
+        slot.axis("off")
+
+
+def _map_figure(bars: int) -> tuple[plt.Figure, plt.Axes, plt.Axes, list[plt.Axes]]:
+    """The map's figure: the (L, W) axes on the left; on the right a legend panel above ``bars``
+    colour-bar slots."""
+    fig = plt.figure(figsize=(10.5, 5.6))
+    grid = fig.add_gridspec(
+        2 * bars + 1, 2, width_ratios=(3.2, 1.0), height_ratios=(4.0, *([0.35, 1.0] * bars)), wspace=0.08
+    )
+    ax = fig.add_subplot(grid[:, 0])
+    legend_panel = fig.add_subplot(grid[0, 1])
+    legend_panel.axis("off")
+    slots = [fig.add_subplot(grid[2 + 2 * k - 1, 1]) for k in range(bars)]
+    return fig, ax, legend_panel, slots
+
+
+def plot_region_map(
+    region_map: RegionMap,
+    cases: Sequence[CaseResult],
+    path: Path,
+    *,
+    title: str,
+    violations: Sequence[int] = (),
+) -> Path:
+    """The region map over (L, W) [shown in mm]: each leaf a rectangle coloured by its status and
+    shaded by its clearance bound (:mod:`verify.acceptance.map_leaves`), the sampled cases as
+    dots, the cases that contradict the map (``violations``: case indices) as red crosses, and
+    the leaf of smallest clearance bound outlined; the legend gives each status's area fraction."""
+    drawing = leaf_drawing(region_map)
+    r = drawing.rectangles_m * 1e3
+    quads = np.stack([r[:, [0, 2]], r[:, [1, 2]], r[:, [1, 3]], r[:, [0, 3]]], axis=1)
+    fig, ax, legend_panel, slots = _map_figure(sum(v is not None for v in drawing.bound_range_m.values()))
+    ax.add_collection(PolyCollection(quads, facecolors=drawing.rgb, edgecolors="face", linewidths=0.2))
+    area = region_map.area
+    handles: list = [
+        Patch(
+            color=STATUS_SHADES[name][0],
+            label=f"{name.replace('_', '-')}: {100 * area[region_map.status == k].sum():.2f} %",
+        )
+        for k, name in enumerate(STATUSES)
+    ]
+    lw = np.array([[c.L_m, c.W_m] for c in cases]).reshape(-1, 2) * 1e3
+    handles.append(ax.scatter(lw[:, 0], lw[:, 1], s=4, color="black", linewidths=0, label=f"sampled cases ({len(lw)})"))
+    bad = set(violations)
+    if bad:
+        v = np.array([[c.L_m, c.W_m] for c in cases if c.index in bad]) * 1e3
+        handles.append(
+            ax.scatter(v[:, 0], v[:, 1], marker="x", s=50, color="red", label=f"contradict the map ({len(v)})")
+        )
+    worst = region_map.cell(int(np.argmin(region_map.clearance_bound_m)))
+    (l0, l1), (w0, w1) = (np.array(worst.length_range_m) * 1e3), (np.array(worst.width_range_m) * 1e3)
+    handles.append(
+        ax.add_patch(
+            Rectangle((l0, w0), l1 - l0, w1 - w0, fill=False, edgecolor="magenta", linewidth=2.0, label="worst cell")
+        )
+    )
+    ax.annotate(
+        f"worst cell: clearance bound {worst.clearance_bound_m * 1e3:.2f} mm",
+        xy=((l0 + l1) / 2, (w0 + w1) / 2),
+        xytext=(0.3, 0.78),
+        textcoords="axes fraction",
+        fontsize=8,
+        ha="center",
+        bbox={"boxstyle": "round", "facecolor": "white", "alpha": 0.85},
+        arrowprops={"arrowstyle": "->", "color": "magenta", "lw": 1.5},
+    )
+    (a, b), (c, d) = region_map.length_range_m, region_map.width_range_m
+    ax.set_xlim(a * 1e3, b * 1e3)
+    ax.set_ylim(c * 1e3, d * 1e3)
+    ax.set_xlabel("obstacle length L [mm]")
+    ax.set_ylabel("obstacle width W [mm]")
+    ax.set_title(title, fontsize=10)
+    legend_panel.legend(
+        handles=handles, loc="upper left", fontsize=8, title="area of the fitted range", title_fontsize=8
+    )
+    _status_colorbars(fig, slots, drawing.bound_range_m)
+    fig.subplots_adjust(left=0.07, right=0.97, top=0.93, bottom=0.1)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=_DPI)
+    plt.close(fig)
+    return path
+
+
 def draw_case_study(ax: plt.Axes, study: CaseStudy, arm: PlanarArm, *, snapshots: int = 7, title: str = "") -> None:
     """Draw one case like the paper's Fig. 5: obstacle, desired and actual paths, arm snapshots."""
     obstacle, trajectory = study.obstacle, study.trajectory
@@ -212,7 +317,8 @@ def _mm(value: float | None) -> str:
 
 
 def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None) -> list[Path]:
-    """Write clearance_map.png, endpoint_error_map.png and case_studies.png for ``run`` into ``directory``.
+    """Write clearance_map.png, endpoint_error_map.png, case_studies.png and, if the run checked a
+    region map that belongs to its coefficients, region_map.png for ``run`` into ``directory``.
 
     The case studies' trajectories are regenerated from the run's coefficients (as an online
     user would); cases that cannot be generated are left out of the figure.
@@ -244,6 +350,18 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
             case_studies=run.case_studies,
         ),
     ]
+    check = run.range_check
+    if check is not None and check.region_map is not None:
+        written.append(
+            plot_region_map(
+                check.region_map,
+                run.cases,
+                directory / "region_map.png",
+                title=f"{run.label}: region map ({check.map.cells} cells; darker = smaller clearance bound) "
+                f"and {len(run.cases)} cases",
+                violations=check.violations,
+            )
+        )
     if run.case_studies:
         coefficients = load_coefficients(run.source)
         arm = load_planar_arm(urdf_path)
