@@ -338,15 +338,16 @@ def _show(
             return generate(chosen, length_m, width_m, out_of_range="ignore")
 
         cases = run.cases
+        region_map = None if run.range_check is None else run.range_check.region_map  # None unless it belongs
         if args.html is not None:
             path = args.html if len(runs) == 1 else args.html.with_name(f"{args.html.stem}_{k + 1}{args.html.suffix}")
-            viewer.sweep_html(cases, regenerate, path, arm=arm)
+            viewer.sweep_html(cases, regenerate, path, arm=arm, region_map=region_map)
             print(f"wrote {path} ({run.label})")
         if args.meshcat and k == 0:
             if len(runs) > 1:
                 print(f"Meshcat shows the first run only ({run.label})")
             try:
-                viewer.show_sweep(cases, regenerate, arm=arm)
+                viewer.show_sweep(cases, regenerate, arm=arm, region_map=region_map)
             except KeyboardInterrupt:
                 pass
 

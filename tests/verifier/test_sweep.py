@@ -143,17 +143,18 @@ def test_viewer_flags_fail_clearly_when_the_viewer_is_unavailable(capsys, monkey
 
 
 def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: Path) -> None:
-    """--html calls verify.viewer.sweep_view.sweep_html(cases, regenerate, path, arm=...) after the sweep."""
+    """--html calls verify.viewer.sweep_view.sweep_html(cases, regenerate, path, arm=..., region_map=...) after
+    the sweep (no region map for the paper's Eq. 9 unless --region-map names one)."""
     calls = []
 
     class FakeViewer:
         @staticmethod
-        def sweep_html(cases, regenerate, path, *, arm=None):
+        def sweep_html(cases, regenerate, path, *, arm=None, region_map=None):
             generated = regenerate(cases[0].L_m, cases[0].W_m)
-            calls.append((cases, generated, path, arm))
+            calls.append((cases, generated, path, arm, region_map))
 
         @staticmethod
-        def show_sweep(cases, regenerate, *, arm=None):  # pragma: no cover - not called here
+        def show_sweep(cases, regenerate, *, arm=None, region_map=None):  # pragma: no cover - not called here
             raise AssertionError("--meshcat was not given")
 
     real_import = sweep.importlib.import_module
@@ -165,8 +166,8 @@ def test_html_flag_hands_the_cases_to_the_viewer(capsys, monkeypatch, tmp_path: 
     page = tmp_path / "view.html"
     status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "2", *FAST, "--html", str(page))
     assert status in (EXIT_OK, EXIT_FAILED) and len(calls) == 1
-    cases, generated, path, arm = calls[0]
-    assert path == page and arm is not None and len(cases) == 2
+    cases, generated, path, arm, region_map = calls[0]
+    assert path == page and arm is not None and len(cases) == 2 and region_map is None
     assert isinstance(cases[0], CaseResult) and cases[0].certified_clearance_m is not None  # typed, not dicts
     assert generated.obstacle.length_m == cases[0].L_m
     assert f"wrote {page}" in out

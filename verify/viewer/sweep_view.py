@@ -2,7 +2,10 @@
 
 Left, the map: every sampled (L, W) is a dot coloured by its clearance (red at 0 mm or
 less, through yellow, to green at the sweep's largest clearance; grey if unknown), failed
-cases are crossed out in black, and the worst cases are tagged "A" and "B". To its right,
+cases are crossed out in black, and the worst cases are tagged "A" and "B". Given a region map
+(the range certificate), its leaves are drawn under the dots, coloured by status and shaded by
+their clearance bound as in the sweep's PNG (:mod:`verify.acceptance.map_leaves`: one mesh with
+vertex colours), and its worst leaf is outlined in magenta. To its right,
 each worst case (A: lowest certified clearance, B: largest endpoint error; one panel if
 they coincide) is regenerated and drawn as in :mod:`verify.viewer.trajectory_view`: arm,
 obstacle, both paths, constraint points, minimum clearance, and the motion in the page's
@@ -24,8 +27,10 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from pipeline.certify.region_map import STATUSES, RegionMap
 from pipeline.exceptions import InvalidParameterError, PipelineError
 from pipeline.model.arm import PlanarArm, load_planar_arm
+from verify.acceptance.map_leaves import leaf_drawing
 from verify.acceptance.results import CaseResult
 
 from ._meshcat import meshcat, mg, mtf
@@ -246,6 +251,75 @@ def _cross(vis: meshcat.Visualizer, center_m: np.ndarray, size_m: float, materia
         vis[name].set_transform(mtf.translation_matrix(center_m) @ mtf.rotation_matrix(angle, [0, 0, 1]))
 
 
+@dataclass(frozen=True)
+class MapPlacement:
+    """Where (L, W) [m] lands in the map's plotting square (lower-left corner at the origin).
+
+    Attributes:
+        length_span_m, width_span_m: The (lo, hi) of L and W mapped onto the square [m].
+        inset_m: Border between the square's edge and the span [m].
+        size_m: Side of the square [m].
+    """
+
+    length_span_m: tuple[float, float]
+    width_span_m: tuple[float, float]
+    inset_m: float
+    size_m: float
+
+    def xy(self, length_m: np.ndarray | float, width_m: np.ndarray | float) -> np.ndarray:
+        """Scene (x, y) [m] of each (L, W) [m], shape (..., 2)."""
+        (l0, l1), (w0, w1) = self.length_span_m, self.width_span_m
+        inner = self.size_m - 2 * self.inset_m
+        x = self.inset_m + (np.asarray(length_m, dtype=float) - l0) / (l1 - l0) * inner
+        y = self.inset_m + (np.asarray(width_m, dtype=float) - w0) / (w1 - w0) * inner
+        return np.stack([x, y], axis=-1)
+
+
+def _placement(points: Sequence[SweepPoint], layout: MapLayout, region_map: RegionMap | None) -> MapPlacement:
+    """The spans of the cases (and of the region map's range, if given) on the square."""
+    lengths = [p.L_m for p in points] + (list(region_map.length_range_m) if region_map is not None else [])
+    widths = [p.W_m for p in points] + (list(region_map.width_range_m) if region_map is not None else [])
+
+    def span(values: list[float]) -> tuple[float, float]:
+        lo, hi = min(values), max(values)
+        return (lo - 0.01, hi + 0.01) if hi - lo < 1e-9 else (lo, hi)
+
+    return MapPlacement(span(lengths), span(widths), 2 * layout.dot_radius_m, layout.size_m)
+
+
+def region_map_mesh(region_map: RegionMap, placement: MapPlacement, z_m: float = 0.001) -> mg.TriangularMeshGeometry:
+    """The map's leaves as one flat mesh at height ``z_m`` [m]: two triangles per leaf, its four
+    corners coloured by the leaf's status and clearance bound (vertex colours)."""
+    drawing = leaf_drawing(region_map)
+    r = drawing.rectangles_m
+    corners = np.stack([placement.xy(r[:, a], r[:, b]) for a, b in ((0, 2), (1, 2), (1, 3), (0, 3))], axis=1)
+    n = r.shape[0]
+    vertices = np.concatenate([corners.reshape(4 * n, 2), np.full((4 * n, 1), z_m)], axis=1)
+    first = 4 * np.arange(n)[:, None]
+    faces = np.concatenate([first + [0, 1, 2], first + [0, 2, 3]], axis=0)
+    return mg.TriangularMeshGeometry(vertices, faces, color=np.repeat(drawing.rgb, 4, axis=0))
+
+
+def _draw_region_map(vis: meshcat.Visualizer, region_map: RegionMap, placement: MapPlacement) -> str:
+    """Leaves under the dots, the worst leaf outlined in magenta; returns the title's map line."""
+    vis["leaves"].set_object(
+        region_map_mesh(region_map, placement), mg.MeshBasicMaterial(color=0xFFFFFF, vertexColors=True)
+    )
+    worst_leaf = int(np.argmin(region_map.clearance_bound_m))
+    worst = region_map.cell(worst_leaf)
+    (l0, l1), (w0, w1) = worst.length_range_m, worst.width_range_m
+    ring = placement.xy(np.array([l0, l1, l1, l0, l0]), np.array([w0, w0, w1, w1, w0]))
+    ring = np.concatenate([ring, np.full((5, 1), 0.002)], axis=1)
+    material = mg.MeshBasicMaterial(color=0xFF00FF)
+    for k in range(4):
+        vis["worst_cell"][str(k)].set_object(tube_mesh(ring[k : k + 2], 0.002, sides=6), material)
+    area = region_map.area
+    fractions = ", ".join(
+        f"{name.replace('_', '-')} {100 * area[region_map.status == k].sum():.1f} %" for k, name in enumerate(STATUSES)
+    )
+    return f"region map: {fractions}; worst cell (magenta) {worst.clearance_bound_m * 1e3:.2f} mm"
+
+
 def draw_map(
     vis: meshcat.Visualizer,
     cases: Sequence[SweepCase],
@@ -253,33 +327,28 @@ def draw_map(
     style: ViewStyle,
     layout: MapLayout,
     origin_m: tuple[float, float] = (0.0, 0.0),
+    region_map: RegionMap | None = None,
 ) -> tuple[float, float, float, float]:
-    """Draw the (L, W) map with its lower-left plotting corner at ``origin_m`` [m]; return
-    the bounds (x_min, x_max, y_min, y_max) [m] of what was drawn."""
+    """Draw the (L, W) map with its lower-left plotting corner at ``origin_m`` [m], over the
+    region map's leaves if given; return the bounds (x_min, x_max, y_min, y_max) [m] of what was drawn."""
     points = sweep_points(cases)
     root = vis["sweep_map"]
     root.set_transform(mtf.translation_matrix([origin_m[0], origin_m[1], 0.0]))
     size, dot = layout.size_m, layout.dot_radius_m
+    placement = _placement(points, layout, region_map)
     lengths = np.array([p.L_m for p in points])
     widths = np.array([p.W_m for p in points])
     clearances = np.array([p.clearance_m for p in points])
     top = float(np.nanmax(clearances)) if np.isfinite(clearances).any() else 0.0
-
-    def span(values: np.ndarray) -> tuple[float, float]:
-        lo, hi = float(values.min()), float(values.max())
-        return (lo - 0.01, hi + 0.01) if hi - lo < 1e-9 else (lo, hi)
-
-    (l0, l1), (w0, w1) = span(lengths), span(widths)
-    inner = size - 4 * dot
+    (l0, l1), (w0, w1) = placement.length_span_m, placement.width_span_m
 
     def place(length: float, width: float) -> np.ndarray:
-        return np.array(
-            [2 * dot + (length - l0) / (l1 - l0) * inner, 2 * dot + (width - w0) / (w1 - w0) * inner, 0.004]
-        )
+        return np.array([*placement.xy(length, width), 0.004])
 
     frame = np.array([[0, 0, 0], [size, 0, 0], [size, size, 0], [0, size, 0], [0, 0, 0]], dtype=float)
     for k in range(4):
         root["frame"][str(k)].set_object(tube_mesh(frame[k : k + 2], 0.0015, sides=6), style.material(0x333333))
+    map_line = _draw_region_map(root["region_map"], region_map, placement) if region_map is not None else None
     failure = style.material(style.palette.failure)
     for k, point in enumerate(points):
         node = root["cases"][f"{k:04d}_L{lengths[k]:.4f}_W{widths[k]:.4f}"]
@@ -302,6 +371,8 @@ def draw_map(
         title = (
             f"sweep: {len(cases)} cases, {failed} failed (x)\ncolour: clearance 0 (red) to {top * 1e3:.1f} mm (green)"
         )
+        if map_line is not None:
+            title += "\n" + map_line
         draw_label(root["title"], title, [size / 2, size + 0.03 + label_height_m(title) / 2, 0.02], style)
         bounds = [-0.06, size, -0.06, size + 0.03 + label_height_m(title)]
     return (bounds[0] + origin_m[0], bounds[1] + origin_m[0], bounds[2] + origin_m[1], bounds[3] + origin_m[1])
@@ -314,8 +385,10 @@ def draw_sweep_view(
     style: ViewStyle,
     arm: PlanarArm | None = None,
     layout: MapLayout | None = None,
+    region_map: RegionMap | None = None,
 ) -> RenderedView:
-    """Draw the map and the worst cases side by side, animate them, frame the camera.
+    """Draw the map (over the region map's leaves, if given) and the worst cases side by side,
+    animate them, frame the camera.
 
     A worst case whose trajectory cannot be regenerated (a PipelineError) is shown as a
     label with the error instead.
@@ -325,7 +398,7 @@ def draw_sweep_view(
     layout = layout if layout is not None else MapLayout()
     regenerate = _regenerator(trajectory_for)
     worst = worst_cases(points)
-    map_bounds = draw_map(vis, points, worst, style, layout)
+    map_bounds = draw_map(vis, points, worst, style, layout, region_map=region_map)
     cursor = map_bounds[1] + layout.gap_m
     y_min, y_max = map_bounds[2], map_bounds[3]
     x_max = map_bounds[1]
@@ -361,10 +434,13 @@ def sweep_page(
     arm: PlanarArm | None = None,
     style: ViewStyle | None = None,
     server_config: ServerConfig | None = None,
+    region_map: RegionMap | None = None,
 ) -> tuple[str, RenderedView]:
     """The self-contained HTML page of the sweep view and what it shows."""
     style = style if style is not None else ViewStyle(aspect=2.0)
-    return export_html(lambda vis: draw_sweep_view(vis, cases, trajectory_for, style, arm), server_config)
+    return export_html(
+        lambda vis: draw_sweep_view(vis, cases, trajectory_for, style, arm, region_map=region_map), server_config
+    )
 
 
 def sweep_html(
@@ -374,6 +450,7 @@ def sweep_html(
     *,
     arm: PlanarArm | None = None,
     style: ViewStyle | None = None,
+    region_map: RegionMap | None = None,
 ) -> RenderedView:
     """Write the sweep view as one self-contained HTML file (opens offline).
 
@@ -385,8 +462,9 @@ def sweep_html(
         html_path: Output file; its directory is created.
         arm: The arm; default the project's URDF.
         style: Look of the scene; default lit, camera framed for a 2:1 window.
+        region_map: The range certificate to draw under the cases (optional).
     """
-    html, view = sweep_page(cases, trajectory_for, arm=arm, style=style)
+    html, view = sweep_page(cases, trajectory_for, arm=arm, style=style, region_map=region_map)
     write_html(html_path, html)
     return view
 
@@ -399,6 +477,7 @@ def show_sweep(
     style: ViewStyle | None = None,
     hold_s: float | None = None,
     out: TextIO | None = None,
+    region_map: RegionMap | None = None,
 ) -> RenderedView:
     """Serve the sweep view live on a loopback Meshcat server, print its URL, and wait
     (``hold_s`` seconds, or until Ctrl-C / SIGTERM if None); the server is then stopped.
@@ -407,7 +486,7 @@ def show_sweep(
     """
     style = style if style is not None else ViewStyle(aspect=2.0)
     with MeshcatServer() as server:
-        view = draw_sweep_view(server.visualizer(), cases, trajectory_for, style, arm)
+        view = draw_sweep_view(server.visualizer(), cases, trajectory_for, style, arm, region_map=region_map)
         serve_until_interrupted(server, hold_s, out)
     return view
 
@@ -420,6 +499,7 @@ def screenshot_sweep(
     arm: PlanarArm | None = None,
     browser: BrowserConfig | None = None,
     style: ViewStyle | None = None,
+    region_map: RegionMap | None = None,
 ) -> RenderedView:
     """Screenshot of the sweep page in headless Chromium, after the animations played."""
     browser = browser if browser is not None else BrowserConfig(width_px=1400, height_px=600)
@@ -437,5 +517,9 @@ def screenshot_sweep(
 
     longest = max((g.trajectory.duration_s for g in generated.values()), default=0.0)
     return screenshot_page(
-        lambda vis, s: draw_sweep_view(vis, cases, cached, s, arm), png_path, browser, style or ViewStyle(), longest
+        lambda vis, s: draw_sweep_view(vis, cases, cached, s, arm, region_map=region_map),
+        png_path,
+        browser,
+        style or ViewStyle(),
+        longest,
     )
