@@ -328,3 +328,121 @@ def test_the_coefficients_in_use_are_named_first(capsys) -> None:
     status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST)
     assert status in (EXIT_OK, EXIT_FAILED)
     assert out.splitlines()[0].startswith("coefficients: paper (paper, sha256 ")
+
+
+# --------------------------------------------------------------------------------------------
+# The region map (range certificate): reported, cross-checked, drawn.
+
+
+@pytest.fixture(scope="module")
+def paper_map_file(tmp_path_factory) -> Path:
+    """The paper's Eq. 9 certified at a coarse setting (256 leaves, about 2 s), as a file."""
+    from pipeline.certify import RangeCertificateConfig, certify_range
+    from pipeline.certify.region_map import save_region_map
+    from pipeline.offline.coefficients import load_coefficients
+
+    path = tmp_path_factory.mktemp("map") / "paper_map.json"
+    save_region_map(
+        certify_range(load_coefficients("paper"), RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8)), path
+    )
+    return path
+
+
+def _edited_map(source: Path, target: Path, edit) -> Path:
+    document = json.loads(source.read_text())
+    edit(document)
+    target.write_text(json.dumps(document))
+    return target
+
+
+def test_the_map_is_reported_checked_written_and_drawn(capsys, tmp_path: Path, paper_map_file: Path) -> None:
+    out_file, plots = tmp_path / "sweep.json", tmp_path / "plots"
+    status, out, _ = run_main(
+        capsys,
+        "--coefficients",
+        "paper",
+        "--n",
+        "6",
+        *FAST,
+        "--region-map",
+        str(paper_map_file),
+        "--json",
+        str(out_file),
+        "--plots",
+        str(plots),
+    )
+    data = json.loads(out_file.read_text())
+    report = data["region_map"]
+    assert report["belongs_to_coefficients"] is True and report["path"] == str(paper_map_file)
+    assert set(report["area_fraction"]) == {"margin", "collision_free", "infeasible", "undecided"}
+    check = report["cross_check"]
+    assert check["checked"] and check["passed"] and check["violations"] == [] and check["n_cases"] == 6
+    assert check["certified_clearance"]["checked"] == check["endpoint_error"]["checked"] == 6
+    assert data["passed"] == data["summary"]["all_passed"]  # the map holds: the verdict is the cases'
+    assert status == (EXIT_OK if data["passed"] else EXIT_FAILED)
+    for text in ("region map", "belongs to these coefficients", "map bounds", "map check       PASS"):
+        assert text in out
+    assert f"clearance bound min {report['clearance_bound_min_m'] * 1e3:.3f} mm" in out
+    png = plots / "region_map.png"
+    assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote {png}" in out
+
+
+def test_a_contradicted_map_fails_the_run(capsys, tmp_path: Path, paper_map_file: Path) -> None:
+    def raise_all(document: dict) -> None:
+        bounds = document["cells"]["clearance_bound_m"]
+        document["cells"]["clearance_bound_m"] = [0.2 for _ in bounds]  # 20 cm: above every clearance
+
+    wrong = _edited_map(paper_map_file, tmp_path / "wrong.json", raise_all)
+    out_file = tmp_path / "sweep.json"
+    status, out, _ = run_main(
+        capsys, "--coefficients", "paper", "--n", "3", *FAST, "--region-map", str(wrong), "--json", str(out_file)
+    )
+    data = json.loads(out_file.read_text())
+    assert status == EXIT_FAILED and data["passed"] is False
+    assert data["region_map"]["cross_check"]["violations"] == [0, 1, 2]
+    assert "REGION MAP CONTRADICTED by 3 case(s)" in out and "the region map is contradicted" in out
+    assert "map: clearance >= 200.000 mm" in out
+
+
+def test_a_map_of_other_coefficients_is_reported_not_used(capsys, tmp_path: Path, paper_map_file: Path) -> None:
+    def other(document: dict) -> None:
+        document["coefficients"]["sha256"] = "ab" * 32
+        document["cells"]["clearance_bound_m"] = [0.2 for _ in document["cells"]["clearance_bound_m"]]
+
+    stale = _edited_map(paper_map_file, tmp_path / "other.json", other)
+    out_file = tmp_path / "sweep.json"
+    status, out, _ = run_main(
+        capsys, "--coefficients", "paper", "--n", "2", *FAST, "--region-map", str(stale), "--json", str(out_file)
+    )
+    data = json.loads(out_file.read_text())
+    assert "does NOT belong to these coefficients (made for sha256 abababababab)" in out
+    assert (
+        data["region_map"]["belongs_to_coefficients"] is False and data["region_map"]["cross_check"]["checked"] is False
+    )
+    assert data["passed"] == data["summary"]["all_passed"] and status in (EXIT_OK, EXIT_FAILED)
+
+
+def test_the_map_beside_the_coefficients_is_found_and_can_be_skipped(capsys, tmp_path: Path, paper_map_file) -> None:
+    from pipeline.offline.coefficients import load_coefficients, save_coefficients
+
+    source = tmp_path / "coefficients.json"
+    save_coefficients(load_coefficients("paper"), source)  # the same bytes as the paper's: the map belongs
+    (tmp_path / "region_map.json").write_bytes(paper_map_file.read_bytes())
+    status, out, _ = run_main(capsys, "--coefficients", str(source), "--n", "1", *FAST)
+    assert f"region map      {tmp_path / 'region_map.json'} (256 cells, belongs" in out
+    status, out, _ = run_main(capsys, "--coefficients", str(source), "--n", "1", *FAST, "--no-region-map")
+    assert "region map" not in out and status in (EXIT_OK, EXIT_FAILED)
+    status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST)  # Eq. 9: no default map
+    assert "region map" not in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--region-map", "/nonexistent/map.json"], "--region-map"),
+        (["--region-map", "m.json", "--no-region-map"], "not allowed with"),
+    ],
+)
+def test_bad_region_map_options_are_one_line_and_status_2(capsys, argv: list[str], message: str) -> None:
+    status, out, err = run_main(capsys, "--coefficients", "paper", *argv)
+    assert status == EXIT_USAGE and out == "" and message in err and "Traceback" not in err
