@@ -390,3 +390,77 @@ def test_a_case_result_and_its_json_form_are_the_same_point(arm):
         )
     assert worst_cases([measured, failed]) == worst_cases([measured.to_json(), failed.to_json()])
     assert sweep_points(sweep_points([measured])) == sweep_points([measured])
+
+
+# ------------------------------------------------------------------ the region map in the sweep view
+
+
+def small_region_map():
+    """Three quadrants of depth 1 and four leaves of depth 2 in the fourth, over the paper's range."""
+    from pipeline.certify.region_map import RegionMap
+
+    return RegionMap(
+        family="paper",
+        coefficients_source="paper",
+        coefficients_sha256="ab" * 32,
+        length_range_m=(0.2, 0.3),
+        width_range_m=(0.08, 0.12),
+        margin_m=0.01,
+        endpoint_tolerance_m=0.002,
+        depth=np.array([1, 1, 1, 2, 2, 2, 2]),
+        index_l=np.array([0, 1, 0, 2, 3, 2, 3]),
+        index_w=np.array([0, 0, 1, 2, 2, 3, 3]),
+        clearance_bound_m=np.array([0.012, 0.020, 0.008, 0.009, 0.011, 0.003, 0.015]),
+        endpoint_bound_m=np.full(7, 0.001),
+        endpoint_clearance_upper_m=np.full(7, 0.05),
+        status=np.array([0, 0, 1, 1, 0, 2, 0]),
+    )
+
+
+def test_region_map_mesh_puts_each_case_inside_its_own_leaf():
+    from verify.acceptance.map_leaves import leaf_drawing
+    from verify.viewer.sweep_view import MapLayout, _placement, region_map_mesh, sweep_points
+
+    region_map = small_region_map()
+    placement = _placement(sweep_points(SWEEP), MapLayout(), region_map)
+    mesh = region_map_mesh(region_map, placement)
+    n = region_map.depth.size
+    assert mesh.vertices.shape == (4 * n, 3) and mesh.faces.shape == (2 * n, 3)
+    assert_allclose(mesh.color, np.repeat(leaf_drawing(region_map).rgb, 4, axis=0), atol=1e-6)  # float32
+    corners = mesh.vertices.reshape(n, 4, 3)
+    # The triangles cover the plotting square without overlap: their areas add up to it.
+    tri = mesh.vertices[mesh.faces]
+    u, v = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    areas = 0.5 * np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])
+    inner = placement.size_m - 2 * placement.inset_m
+    assert areas.sum() == pytest.approx(inner**2, rel=1e-6)
+    rng = np.random.default_rng(5)
+    for length, width in zip(rng.uniform(0.2, 0.3, 50), rng.uniform(0.08, 0.12, 50), strict=True):
+        leaf = int(region_map.leaf_indices(length, width))
+        x, y = placement.xy(length, width)
+        box = corners[leaf]
+        assert box[:, 0].min() - 1e-6 <= x <= box[:, 0].max() + 1e-6
+        assert box[:, 1].min() - 1e-6 <= y <= box[:, 1].max() + 1e-6
+
+
+def test_sweep_page_draws_the_region_map_under_the_cases(arm):
+    from pipeline.offline.coefficients import load_coefficients
+    from verify.viewer.sweep_view import sweep_page
+
+    region_map = small_region_map()
+    html, _ = sweep_page(
+        SWEEP, load_coefficients("paper"), arm=arm, style=ViewStyle.for_pixels(aspect=2.0), region_map=region_map
+    )
+    commands = page_commands(html)
+    objects = {c["path"]: c["object"] for c in commands if c["type"] == "set_object"}
+    leaves = objects["/meshcat/sweep_map/region_map/leaves"]
+    assert leaves["materials"][0]["vertexColors"] == 2  # three.js: per-vertex colours
+    attributes = leaves["geometries"][0]["data"]["attributes"]
+    position = np.frombuffer(attributes["position"]["array"].data, dtype=np.float32).reshape(-1, 3)
+    assert position.shape == (4 * 7, 3) and "color" in attributes
+    assert np.all(position[:, 2] < 0.004)  # under the case dots' centres (4 mm up): seen from above, dots on top
+    assert sum(p.startswith("/meshcat/sweep_map/region_map/worst_cell/") for p in objects) == 4
+    dots = [p for p in objects if p.startswith("/meshcat/sweep_map/cases/") and p.endswith("/dot")]
+    assert len(dots) == len(SWEEP)
+    plain, _ = sweep_page(SWEEP, load_coefficients("paper"), arm=arm, style=ViewStyle.for_pixels(aspect=2.0))
+    assert "region_map" not in {c["path"].split("/")[3] for c in page_commands(plain) if c["path"].count("/") > 3}

@@ -300,16 +300,18 @@ def region_map_mesh(region_map: RegionMap, placement: MapPlacement, z_m: float =
     return mg.TriangularMeshGeometry(vertices, faces, color=np.repeat(drawing.rgb, 4, axis=0))
 
 
-def _draw_region_map(vis: meshcat.Visualizer, region_map: RegionMap, placement: MapPlacement) -> str:
-    """Leaves under the dots, the worst leaf outlined in magenta; returns the title's map line."""
+def _draw_region_map(vis: meshcat.Visualizer, region_map: RegionMap, placement: MapPlacement, min_half_m: float) -> str:
+    """Leaves under the dots, and the worst leaf outlined in magenta above them (the outline at
+    least ``2 min_half_m`` [m] across, so that a tiny leaf stays visible); returns the title's map line."""
     vis["leaves"].set_object(
         region_map_mesh(region_map, placement), mg.MeshBasicMaterial(color=0xFFFFFF, vertexColors=True)
     )
-    worst_leaf = int(np.argmin(region_map.clearance_bound_m))
-    worst = region_map.cell(worst_leaf)
+    worst = region_map.cell(int(np.argmin(region_map.clearance_bound_m)))
     (l0, l1), (w0, w1) = worst.length_range_m, worst.width_range_m
-    ring = placement.xy(np.array([l0, l1, l1, l0, l0]), np.array([w0, w0, w1, w1, w0]))
-    ring = np.concatenate([ring, np.full((5, 1), 0.002)], axis=1)
+    lo, hi = placement.xy(l0, w0), placement.xy(l1, w1)
+    center, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, min_half_m)
+    corners = center + half * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [-1, -1]])
+    ring = np.concatenate([corners, np.full((5, 1), 0.02)], axis=1)
     material = mg.MeshBasicMaterial(color=0xFF00FF)
     for k in range(4):
         vis["worst_cell"][str(k)].set_object(tube_mesh(ring[k : k + 2], 0.002, sides=6), material)
@@ -348,7 +350,9 @@ def draw_map(
     frame = np.array([[0, 0, 0], [size, 0, 0], [size, size, 0], [0, size, 0], [0, 0, 0]], dtype=float)
     for k in range(4):
         root["frame"][str(k)].set_object(tube_mesh(frame[k : k + 2], 0.0015, sides=6), style.material(0x333333))
-    map_line = _draw_region_map(root["region_map"], region_map, placement) if region_map is not None else None
+    map_line = None
+    if region_map is not None:
+        map_line = _draw_region_map(root["region_map"], region_map, placement, 1.5 * dot)
     failure = style.material(style.palette.failure)
     for k, point in enumerate(points):
         node = root["cases"][f"{k:04d}_L{lengths[k]:.4f}_W{widths[k]:.4f}"]
