@@ -164,18 +164,67 @@ def _status_colorbars(
         slot.axis("off")
 
 
-def _map_figure(bars: int) -> tuple[plt.Figure, plt.Axes, plt.Axes, list[plt.Axes]]:
-    """The map's figure: the (L, W) axes on the left; on the right a legend panel above ``bars``
-    colour-bar slots."""
-    fig = plt.figure(figsize=(10.5, 5.6))
-    grid = fig.add_gridspec(
-        2 * bars + 1, 2, width_ratios=(3.2, 1.0), height_ratios=(4.0, *([0.35, 1.0] * bars)), wspace=0.08
-    )
-    ax = fig.add_subplot(grid[:, 0])
-    legend_panel = fig.add_subplot(grid[0, 1])
+#: The map's zoom panel is drawn when the leaves below the margin fit in this fraction of the area.
+ZOOM_AREA_FRACTION = 0.3
+
+
+def _map_figure(bars: int, zoom: bool) -> tuple[plt.Figure, list[plt.Axes], plt.Axes, list[plt.Axes]]:
+    """The map's figure: the (L, W) axes on the left (and a zoom panel under them if ``zoom``);
+    on the right a legend panel above ``bars`` colour-bar slots."""
+    fig = plt.figure(figsize=(10.5, 8.0 if zoom else 5.6))
+    outer = fig.add_gridspec(1, 2, width_ratios=(3.2, 1.0), wspace=0.1)
+    left = outer[0].subgridspec(2, 1, height_ratios=(4.0, 2.2), hspace=0.3) if zoom else None
+    axes = [fig.add_subplot(left[0]), fig.add_subplot(left[1])] if left is not None else [fig.add_subplot(outer[0])]
+    right = outer[1].subgridspec(2 * bars + 1, 1, height_ratios=(4.0, *([0.35, 1.0] * bars)))
+    legend_panel = fig.add_subplot(right[0])
     legend_panel.axis("off")
-    slots = [fig.add_subplot(grid[2 + 2 * k - 1, 1]) for k in range(bars)]
-    return fig, ax, legend_panel, slots
+    slots = [fig.add_subplot(right[2 * k + 1]) for k in range(bars)]
+    return fig, axes, legend_panel, slots
+
+
+def _zoom_box_mm(region_map: RegionMap, rectangles_mm: np.ndarray) -> tuple[float, float, float, float] | None:
+    """(L lo, L hi, W lo, W hi) [mm] around the leaves not certified to keep the margin, padded by
+    a tenth of its size, if that box covers at most :data:`ZOOM_AREA_FRACTION` of the range."""
+    below = region_map.status != STATUSES.index("margin")
+    if not below.any():
+        return None
+    r = rectangles_mm[below]
+    box = np.array([r[:, 0].min(), r[:, 1].max(), r[:, 2].min(), r[:, 3].max()])
+    full = np.array([*region_map.length_range_m, *region_map.width_range_m]) * 1e3
+    if (box[1] - box[0]) * (box[3] - box[2]) > ZOOM_AREA_FRACTION * (full[1] - full[0]) * (full[3] - full[2]):
+        return None
+    pad_l, pad_w = 0.1 * (box[1] - box[0]), 0.1 * (box[3] - box[2])
+    box += [-pad_l, pad_l, -pad_w, pad_w]
+    return (max(box[0], full[0]), min(box[1], full[1]), max(box[2], full[2]), min(box[3], full[3]))
+
+
+def _draw_leaves_and_cases(
+    ax: plt.Axes, region_map: RegionMap, quads_mm: np.ndarray, rgb: np.ndarray, cases_mm: np.ndarray, bad_mm: np.ndarray
+) -> list:
+    """Leaves, cases, contradicting cases and the worst leaf on ``ax``; returns the legend handles."""
+    ax.add_collection(PolyCollection(quads_mm, facecolors=rgb, edgecolors="face", linewidths=0.2))
+    handles = [ax.scatter(cases_mm[:, 0], cases_mm[:, 1], s=4, color="black", linewidths=0)]
+    handles[0].set_label(f"sampled cases ({len(cases_mm)})")
+    if len(bad_mm):
+        handles.append(ax.scatter(bad_mm[:, 0], bad_mm[:, 1], marker="x", s=50, color="red"))
+        handles[-1].set_label(f"contradict the map ({len(bad_mm)})")
+    worst = region_map.cell(int(np.argmin(region_map.clearance_bound_m)))
+    (l0, l1), (w0, w1) = np.array(worst.length_range_m) * 1e3, np.array(worst.width_range_m) * 1e3
+    handles.append(ax.add_patch(Rectangle((l0, w0), l1 - l0, w1 - w0, fill=False, edgecolor="magenta", linewidth=2.0)))
+    handles[-1].set_label(f"worst cell ({worst.clearance_bound_m * 1e3:.2f} mm)")
+    ax.annotate(
+        f"worst cell: clearance bound {worst.clearance_bound_m * 1e3:.2f} mm",
+        xy=((l0 + l1) / 2, (w0 + w1) / 2),
+        xytext=(0.3, 0.55),
+        textcoords="axes fraction",
+        fontsize=8,
+        ha="center",
+        bbox={"boxstyle": "round", "facecolor": "white", "alpha": 0.85},
+        arrowprops={"arrowstyle": "->", "color": "magenta", "lw": 1.5},
+    )
+    ax.set_xlabel("obstacle length L [mm]")
+    ax.set_ylabel("obstacle width W [mm]")
+    return handles
 
 
 def plot_region_map(
@@ -189,56 +238,43 @@ def plot_region_map(
     """The region map over (L, W) [shown in mm]: each leaf a rectangle coloured by its status and
     shaded by its clearance bound (:mod:`verify.acceptance.map_leaves`), the sampled cases as
     dots, the cases that contradict the map (``violations``: case indices) as red crosses, and
-    the leaf of smallest clearance bound outlined; the legend gives each status's area fraction."""
+    the leaf of smallest clearance bound outlined; the legend gives each status's area fraction.
+    If the leaves below the margin lie in a small part of the range, a second panel zooms on them."""
     drawing = leaf_drawing(region_map)
     r = drawing.rectangles_m * 1e3
     quads = np.stack([r[:, [0, 2]], r[:, [1, 2]], r[:, [1, 3]], r[:, [0, 3]]], axis=1)
-    fig, ax, legend_panel, slots = _map_figure(sum(v is not None for v in drawing.bound_range_m.values()))
-    ax.add_collection(PolyCollection(quads, facecolors=drawing.rgb, edgecolors="face", linewidths=0.2))
+    zoom = _zoom_box_mm(region_map, r)
+    bars = sum(v is not None for v in drawing.bound_range_m.values())
+    fig, axes, legend_panel, slots = _map_figure(bars, zoom is not None)
+    cases_mm = np.array([[c.L_m, c.W_m] for c in cases]).reshape(-1, 2) * 1e3
+    bad = set(violations)
+    bad_mm = np.array([[c.L_m, c.W_m] for c in cases if c.index in bad]).reshape(-1, 2) * 1e3
+    for ax in axes:
+        handles = _draw_leaves_and_cases(ax, region_map, quads, drawing.rgb, cases_mm, bad_mm)
+    full = np.array([*region_map.length_range_m, *region_map.width_range_m]) * 1e3
+    axes[0].set_xlim(full[0], full[1])
+    axes[0].set_ylim(full[2], full[3])
+    axes[0].set_title(title, fontsize=10)
+    if zoom is not None:
+        axes[1].set_xlim(zoom[0], zoom[1])
+        axes[1].set_ylim(zoom[2], zoom[3])
+        axes[1].set_title("zoom on the leaves not certified to keep the margin", fontsize=9)
+        axes[0].add_patch(
+            Rectangle((zoom[0], zoom[2]), zoom[1] - zoom[0], zoom[3] - zoom[2], fill=False, ls="--", ec="white", lw=1.2)
+        )
     area = region_map.area
-    handles: list = [
+    statuses = [
         Patch(
             color=STATUS_SHADES[name][0],
             label=f"{name.replace('_', '-')}: {100 * area[region_map.status == k].sum():.2f} %",
         )
         for k, name in enumerate(STATUSES)
     ]
-    lw = np.array([[c.L_m, c.W_m] for c in cases]).reshape(-1, 2) * 1e3
-    handles.append(ax.scatter(lw[:, 0], lw[:, 1], s=4, color="black", linewidths=0, label=f"sampled cases ({len(lw)})"))
-    bad = set(violations)
-    if bad:
-        v = np.array([[c.L_m, c.W_m] for c in cases if c.index in bad]) * 1e3
-        handles.append(
-            ax.scatter(v[:, 0], v[:, 1], marker="x", s=50, color="red", label=f"contradict the map ({len(v)})")
-        )
-    worst = region_map.cell(int(np.argmin(region_map.clearance_bound_m)))
-    (l0, l1), (w0, w1) = (np.array(worst.length_range_m) * 1e3), (np.array(worst.width_range_m) * 1e3)
-    handles.append(
-        ax.add_patch(
-            Rectangle((l0, w0), l1 - l0, w1 - w0, fill=False, edgecolor="magenta", linewidth=2.0, label="worst cell")
-        )
-    )
-    ax.annotate(
-        f"worst cell: clearance bound {worst.clearance_bound_m * 1e3:.2f} mm",
-        xy=((l0 + l1) / 2, (w0 + w1) / 2),
-        xytext=(0.3, 0.78),
-        textcoords="axes fraction",
-        fontsize=8,
-        ha="center",
-        bbox={"boxstyle": "round", "facecolor": "white", "alpha": 0.85},
-        arrowprops={"arrowstyle": "->", "color": "magenta", "lw": 1.5},
-    )
-    (a, b), (c, d) = region_map.length_range_m, region_map.width_range_m
-    ax.set_xlim(a * 1e3, b * 1e3)
-    ax.set_ylim(c * 1e3, d * 1e3)
-    ax.set_xlabel("obstacle length L [mm]")
-    ax.set_ylabel("obstacle width W [mm]")
-    ax.set_title(title, fontsize=10)
     legend_panel.legend(
-        handles=handles, loc="upper left", fontsize=8, title="area of the fitted range", title_fontsize=8
+        handles=statuses + handles, loc="upper left", fontsize=8, title="area of the fitted range", title_fontsize=8
     )
     _status_colorbars(fig, slots, drawing.bound_range_m)
-    fig.subplots_adjust(left=0.07, right=0.97, top=0.93, bottom=0.1)
+    fig.subplots_adjust(left=0.07, right=0.97, top=0.95, bottom=0.07)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=_DPI)
     plt.close(fig)
