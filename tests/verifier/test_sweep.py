@@ -327,3 +327,29 @@ def test_the_coefficients_in_use_are_named_first(capsys) -> None:
     status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST)
     assert status in (EXIT_OK, EXIT_FAILED)
     assert out.splitlines()[0].startswith("coefficients: paper (paper, sha256 ")
+
+
+def test_decide_mode_gives_the_tight_modes_verdicts() -> None:
+    """The default certificate (decide the margin, tighten below it) answers "collision-free?" and
+    "keeps the margin?" as the tight certificate does, and its bounds below the margin are as tight;
+    every bound is a lower bound of the case's own Coal samples."""
+    cases = sample_cases(SweepRange((0.2, 0.3), (0.08, 0.12)), 40, 5)
+    decide = run_cases("paper", cases, MeasureSettings(), jobs=1)
+    tight = run_cases("paper", cases, MeasureSettings(certificate_mode="tight"), jobs=1)
+    assert any(not r.certificate.keeps_margin for r in tight) and any(r.certificate.keeps_margin for r in tight)
+    for d, t in zip(decide, tight, strict=True):
+        assert (d.certificate.collision_free, d.certificate.keeps_margin, d.passed) == (
+            t.certificate.collision_free,
+            t.certificate.keeps_margin,
+            t.passed,
+        )
+        assert d.certified_clearance_m <= d.clearance_m and t.certified_clearance_m <= t.clearance_m
+        if d.certificate.tight:
+            assert d.certified_clearance_m == pytest.approx(t.certified_clearance_m, abs=1e-12)
+        else:
+            assert d.certificate.keeps_margin and d.certified_clearance_m <= t.certified_clearance_m + 2e-5
+
+
+def test_certificate_mode_is_checked() -> None:
+    with pytest.raises(InvalidParameterError, match="certificate_mode"):
+        MeasureSettings(certificate_mode="loose")

@@ -68,7 +68,12 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
             "clearance",
             f"certified min {_mm(s.certified_clearance.min)}, median "
             f"{_mm(s.certified_clearance.median)}; sampled min {_mm(s.sampled_clearance.min)}, median "
-            f"{_mm(s.sampled_clearance.median)}",
+            f"{_mm(s.sampled_clearance.median)}"
+            + (
+                " (decide mode: a bound is tight only where the margin is not kept)"
+                if run.settings.certify and run.settings.certificate_mode == "decide"
+                else ""
+            ),
         ),
         (
             "endpoint error",
@@ -98,13 +103,15 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
     rows.append(
         (
             "sampling",
-            f"{_samples(s.time_samples_range)} time samples per case "
+            f"{_samples(s.time_samples_range)} clearance samples per case"
             + (
-                "(fixed by --samples)"
-                if run.settings.time_samples is not None
-                else f"({run.settings.resolution_m * 1e3:g} mm motion resolution)"
+                " (the certificate's)"
+                if run.settings.certify
+                else f" ({run.settings.resolution_m * 1e3:g} mm motion resolution)"
+                if run.settings.time_samples is None
+                else " (fixed by --samples)"
             )
-            + ", certificate tolerance "
+            + f", certificate {run.settings.certificate_mode}, tolerance "
             f"{run.settings.tolerance_m * 1e3:g} mm, {s.certificate_evaluations_total} clearance evaluations"
             + (f", {s.n_certificate_not_converged} not converged" if s.n_certificate_not_converged else ""),
         )
