@@ -18,6 +18,7 @@ so both give the same T to the last bit.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -96,8 +97,6 @@ class QuarticPath:
     speed_m_s: float
     coefficients: np.ndarray = field(init=False)
     _slope_coefficients: tuple[float, ...] = field(init=False, repr=False)
-    _edges_x: np.ndarray = field(init=False, repr=False)
-    _edges_s: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         points = np.array(self.points_m, dtype=float)
@@ -111,14 +110,20 @@ class QuarticPath:
         coefficients.setflags(write=False)
         object.__setattr__(self, "coefficients", coefficients)
         object.__setattr__(self, "_slope_coefficients", tuple(np.polyder(coefficients).tolist()))
-        edges = np.linspace(points[0, 0], points[-1, 0], _PANELS + 1)
+
+    @cached_property
+    def _symmetric(self) -> bool:
+        return bool(self.coefficients[1] == 0.0 and self.coefficients[3] == 0.0)
+
+    @cached_property
+    def _panels(self) -> tuple[np.ndarray, np.ndarray]:
+        """The 64 panel edges in x (from P1 down to P5) and the arc length at each [m], built on first use."""
+        edges = np.linspace(self.points_m[0, 0], self.points_m[-1, 0], _PANELS + 1)
         panel_lengths = self._integrate(edges[1:], edges[:-1])
         cumulative = np.concatenate([[0.0], np.cumsum(panel_lengths)])
-        if coefficients[1] == 0.0 and coefficients[3] == 0.0:
-            # Symmetric: the total is the generator's closed-form rule (the same T to the last bit).
-            cumulative[-1] = symmetric_quartic_length_m(float(points[0, 0]), coefficients[0], coefficients[2])
-        object.__setattr__(self, "_edges_x", edges)
-        object.__setattr__(self, "_edges_s", cumulative)
+        if self._symmetric:
+            cumulative[-1] = self.length_m
+        return edges, cumulative
 
     @property
     def start_x_m(self) -> float:
@@ -132,8 +137,11 @@ class QuarticPath:
 
     @property
     def length_m(self) -> float:
-        """Total arc length from P1 to P5 [m]."""
-        return float(self._edges_s[-1])
+        """Total arc length from P1 to P5 [m]: for the symmetric quartic the generator's closed-form
+        rule (the same T to the last bit), else the sum of the 64 panels."""
+        if self._symmetric:
+            return symmetric_quartic_length_m(self.start_x_m, self.coefficients[0], self.coefficients[2])
+        return float(self._panels[1][-1])
 
     @property
     def duration_s(self) -> float:
@@ -167,7 +175,8 @@ class QuarticPath:
         # Panels run from P1 (largest x) downward; find the panel edge at or above x.
         step = (self.start_x_m - self.end_x_m) / _PANELS
         index = np.clip(np.floor((self.start_x_m - x) / step).astype(int), 0, _PANELS - 1)
-        return self._edges_s[index] + self._integrate(self._edges_x[index], x)
+        edges_x, edges_s = self._panels
+        return edges_s[index] + self._integrate(edges_x[index], x)
 
     def x_at_arc_length(self, s_m: np.ndarray) -> np.ndarray:
         """Inverse of :meth:`arc_length` by Newton's method [m]; s is clipped to [0, S_total].
@@ -177,7 +186,8 @@ class QuarticPath:
         1e-16 m), after at most eight.
         """
         s = np.clip(np.asarray(s_m, dtype=float), 0.0, self.length_m)
-        x = np.interp(s, self._edges_s, self._edges_x)
+        edges_x, edges_s = self._panels
+        x = np.interp(s, edges_s, edges_x)
         for _ in range(8):
             step = (self.arc_length(x) - s) / self._speed_factor(x)
             x = np.clip(x + step, self.end_x_m, self.start_x_m)
@@ -193,6 +203,26 @@ class QuarticPath:
         """Desired end-effector position (x, y) [m] at time t [s]; shape (..., 2)."""
         x = self.x_at_arc_length(np.asarray(t_s, dtype=float) * self.speed_m_s)
         return np.stack([x, self.y(x)], -1)
+
+    def uniform_samples(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """n path points uniform in x from P1 to P5 and their times t = S(x) / v, the arc length
+        summed segment by segment (10-point Gauss-Legendre on each of at least 64 segments, no
+        panel table, no inversion).
+
+        The same points as :meth:`samples` (any n >= 2), with times equal to its own to rounding.
+
+        Returns:
+            (times [s] shape (n,), positions [m] shape (n, 2)).
+        """
+        check_positive_int("n", n, minimum=2)
+        x = np.linspace(self.start_x_m, self.end_x_m, n)
+        # At least the panel table's 64 segments over the span (each sample gap split evenly).
+        split = -(-_PANELS // (n - 1))
+        fine = x if split == 1 else np.linspace(self.start_x_m, self.end_x_m, (n - 1) * split + 1)
+        lengths = np.empty(fine.size)
+        lengths[0] = 0.0
+        np.cumsum(self._integrate(fine[:-1], fine[1:]), out=lengths[1:])
+        return lengths[::split] / self.speed_m_s, np.stack([x, self.y(x)], -1)
 
     def samples(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The paper's n path points, uniform in x from P1 to P5.

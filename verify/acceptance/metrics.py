@@ -329,10 +329,10 @@ def endpoint_errors(trajectory: JointTrajectory, path: QuarticPath, arm: PlanarA
 def tracking_errors(trajectory: JointTrajectory, path: QuarticPath, arm: PlanarArm, samples: int) -> Tracking:
     """Max and RMS distance between the end effector and the desired path at matched times [m].
 
-    The path points are ``samples`` points uniform in x from P1 to P5 (:meth:`QuarticPath.samples`),
-    each with its time t = S(x) / v, so one forward arc length gives the matched times (no inversion).
+    The path points are ``samples`` points uniform in x from P1 to P5, each with its time
+    t = S(x) / v (:meth:`QuarticPath.uniform_samples`: one forward arc length, no inversion).
     """
-    times, desired = path.samples(samples)
+    times, desired = path.uniform_samples(samples)
     times = np.clip(times, 0.0, trajectory.duration_s)  # S(x_end) / v is T up to rounding
     deviation = np.linalg.norm(arm.end_effector_planar(trajectory.q(times)) - desired, axis=-1)
     return Tracking(max_m=float(np.max(deviation)), rms_m=float(np.sqrt(np.mean(deviation**2))))
