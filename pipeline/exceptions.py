@@ -197,10 +197,6 @@ class NoCertifiedTrajectoryError(PipelineError):
         )
 
 
-class ViewerError(PipelineError):
-    """The Meshcat viewer or the headless browser could not start, serve or render."""
-
-
 class UnconvergedCoefficientsWarning(UserWarning):
     """A coefficients file was written by a build that did not converge (``--allow-unconverged``):
     its DOE optima or its regression missed the build's thresholds (the file lists which)."""

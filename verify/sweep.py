@@ -40,7 +40,7 @@ from pipeline.cli import (
     run_cli,
 )
 from pipeline.exceptions import InvalidParameterError, PipelineError
-from pipeline.geometry.motion_certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_RESOLUTION_M, DEFAULT_TOLERANCE_M
+from pipeline.geometry.motion_certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_TOLERANCE_M
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.io.output_paths import check_output_file, check_output_folder
 from pipeline.model.arm import load_planar_arm
@@ -48,7 +48,13 @@ from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 from verify.acceptance.cases import SweepRange, sample_cases
-from verify.acceptance.metrics import AcceptanceThresholds, MeasureSettings, check_arm_matches
+from verify.acceptance.metrics import (
+    CERTIFICATE_MODES,
+    TRACKING_RESOLUTION_M,
+    AcceptanceThresholds,
+    MeasureSettings,
+    check_arm_matches,
+)
 from verify.acceptance.range_check import find_region_map
 from verify.acceptance.report import format_comparison, format_summary
 from verify.acceptance.run import DEFAULT_CASES, DEFAULT_SEED, SweepRun, run_sweep, source_label
@@ -115,15 +121,22 @@ def _add_sampling_options(parser: argparse.ArgumentParser) -> None:
         "--samples",
         type=int,
         default=None,
-        help="time samples per case [samples] (>= 2) (default: enough that no link point moves more than "
-        "--resolution between samples)",
+        help="path samples per case for the tracking error [samples] (>= 2) (default: one per --resolution "
+        "of path length); the certificate chooses its own samples",
     )
     parser.add_argument(
         "--resolution",
         type=float,
-        default=DEFAULT_RESOLUTION_M,
+        default=TRACKING_RESOLUTION_M,
         metavar="M",
-        help="motion resolution of the default time sampling [m]",
+        help="spacing of the tracking error's path samples [m]",
+    )
+    parser.add_argument(
+        "--certificate",
+        choices=CERTIFICATE_MODES,
+        default=CERTIFICATE_MODES[0],
+        help="'decide': certify whether each case keeps --margin, tightening the bound only where it does "
+        "not (fast); 'tight': every bound within --tolerance of the sampled minimum",
     )
     parser.add_argument(
         "--tolerance",
@@ -265,6 +278,7 @@ def _settings_from_args(args: argparse.Namespace) -> MeasureSettings:
     return MeasureSettings(
         resolution_m=args.resolution,
         time_samples=args.samples,
+        certificate_mode=args.certificate,
         tolerance_m=args.tolerance,
         max_evaluations=args.max_evaluations,
         thresholds=thresholds,

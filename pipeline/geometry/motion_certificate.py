@@ -33,7 +33,7 @@ A motion is *certified collision-free* only if the certified clearance is ``> 0`
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -154,7 +154,6 @@ def certify_motion(
         return values
 
     values = evaluate(times)
-    sampled_row = int(np.argmin(np.min(values, axis=1)))
     sampled_link = np.min(values, axis=0)
     evaluations = n
     observed = sampled_link.copy()  # per-link minimum over every evaluated time [m]
@@ -197,25 +196,73 @@ def certify_motion(
     all_lb = np.concatenate(done_lb)
     all_t = np.concatenate(done_t)
     rows = np.argmin(all_lb, axis=0)
-    interval_lb = all_lb[rows, [0, 1]]
-    link_bounds = np.minimum(interval_lb, observed - distance_error_m)
-    link_times = np.where(interval_lb <= observed - distance_error_m, all_t[rows, [0, 1]], observed_time)
-    bound_link = int(np.argmin(link_bounds))
-    observed_link = int(np.argmin(observed))
-    return Certificate(
-        certified_clearance_m=float(link_bounds[bound_link]),
-        certified_link_clearance_m=(float(link_bounds[0]), float(link_bounds[1])),
-        sampled_clearance_m=float(np.min(sampled_link)),
-        sampled_link_clearance_m=(float(sampled_link[0]), float(sampled_link[1])),
-        sampled_time_s=float(times[sampled_row]),
-        min_observed_clearance_m=float(observed[observed_link]),
-        min_observed_time_s=float(observed_time[observed_link]),
-        bound_time_s=float(link_times[bound_link]),
-        bound_link=bound_link + 1,
+    sampled_rows = np.argmin(values, axis=0)
+    return conclude(
+        interval_bound_m=all_lb[rows, [0, 1]],
+        interval_time_s=all_t[rows, [0, 1]],
+        observed_m=observed,
+        observed_time_s=observed_time,
+        sampled_m=sampled_link,
+        sampled_time_s=times[sampled_rows],
+        distance_error_m=distance_error_m,
+        tolerance_m=tolerance_m,
         initial_samples=n,
         evaluations=evaluations,
         refinement_rounds=rounds,
         converged=converged,
+    )
+
+
+def conclude(
+    *,
+    interval_bound_m: Sequence[float],
+    interval_time_s: Sequence[float],
+    observed_m: Sequence[float],
+    observed_time_s: Sequence[float],
+    sampled_m: Sequence[float],
+    sampled_time_s: Sequence[float],
+    distance_error_m: float,
+    tolerance_m: float,
+    initial_samples: int,
+    evaluations: int,
+    refinement_rounds: int,
+    converged: bool,
+) -> Certificate:
+    """The :class:`Certificate` from a refinement's per-link results (every argument a pair: link 1, link 2).
+
+    Each link's bound is the lower of its lowest settled interval bound and its lowest evaluated
+    clearance minus the distance error, attained where that one is; the certified clearance is
+    the lower link's. Shared by :func:`certify_motion` and the adaptive sinusoid route.
+
+    Args:
+        interval_bound_m, interval_time_s: Lowest settled interval bound per link [m] and where [s].
+        observed_m, observed_time_s: Lowest evaluated clearance per link [m] and when [s].
+        sampled_m, sampled_time_s: The same over the initial samples only [m], [s].
+        distance_error_m, tolerance_m, initial_samples, evaluations, refinement_rounds, converged:
+            As in :class:`Certificate`.
+    """
+    floor = [float(observed_m[k]) - distance_error_m for k in (0, 1)]
+    bounds = [min(float(interval_bound_m[k]), floor[k]) for k in (0, 1)]
+    where = [
+        float(interval_time_s[k]) if interval_bound_m[k] <= floor[k] else float(observed_time_s[k]) for k in (0, 1)
+    ]
+    k = 0 if bounds[0] <= bounds[1] else 1
+    seen = 0 if observed_m[0] <= observed_m[1] else 1
+    sampled = 0 if sampled_m[0] <= sampled_m[1] else 1
+    return Certificate(
+        certified_clearance_m=bounds[k],
+        certified_link_clearance_m=(bounds[0], bounds[1]),
+        sampled_clearance_m=float(sampled_m[sampled]),
+        sampled_link_clearance_m=(float(sampled_m[0]), float(sampled_m[1])),
+        sampled_time_s=float(sampled_time_s[sampled]),
+        min_observed_clearance_m=float(observed_m[seen]),
+        min_observed_time_s=float(observed_time_s[seen]),
+        bound_time_s=where[k],
+        bound_link=k + 1,
+        initial_samples=int(initial_samples),
+        evaluations=int(evaluations),
+        refinement_rounds=int(refinement_rounds),
+        converged=bool(converged),
         distance_error_m=float(distance_error_m),
         tolerance_m=float(tolerance_m),
     )

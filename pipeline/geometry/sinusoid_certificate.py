@@ -80,6 +80,7 @@ from pipeline.geometry.motion_certificate import (
     DEFAULT_TOLERANCE_M,
     Certificate,
     certify_motion,
+    conclude,
     interval_argmin_offset,
     interval_lower_bound,
 )
@@ -430,27 +431,19 @@ class _AdaptiveCertificate:
             link = np.concatenate([point_link, link])
             speed = np.concatenate([speed[owner], speed])
             own = np.zeros(ta.size, dtype=bool)
-        bounds = [min(best[k][0], observed[k] - error) for k in (0, 1)]
-        where = [best[k][1] if best[k][0] <= observed[k] - error else observed_time[k] for k in (0, 1)]
-        k = 0 if bounds[0] <= bounds[1] else 1
-        seen = 0 if observed[0] <= observed[1] else 1
-        sampled = 0 if sampled_link[0] <= sampled_link[1] else 1
-        return Certificate(
-            certified_clearance_m=float(bounds[k]),
-            certified_link_clearance_m=(float(bounds[0]), float(bounds[1])),
-            sampled_clearance_m=float(sampled_link[sampled]),
-            sampled_link_clearance_m=(float(sampled_link[0]), float(sampled_link[1])),
-            sampled_time_s=sampled_time[sampled],
-            min_observed_clearance_m=observed[seen],
-            min_observed_time_s=observed_time[seen],
-            bound_time_s=float(where[k]),
-            bound_link=k + 1,
+        return conclude(
+            interval_bound_m=(best[0][0], best[1][0]),
+            interval_time_s=(best[0][1], best[1][1]),
+            observed_m=observed,
+            observed_time_s=observed_time,
+            sampled_m=sampled_link,
+            sampled_time_s=sampled_time,
+            distance_error_m=error,
+            tolerance_m=tolerance,
             initial_samples=initial,
             evaluations=evaluations,
             refinement_rounds=rounds,
             converged=converged,
-            distance_error_m=float(error),
-            tolerance_m=float(tolerance),
         )
 
 

@@ -86,6 +86,16 @@ class PlanarArm:
         pin.framesForwardKinematics(self.model, data, np.asarray(q, dtype=float))
         return data.oMf[self.ee_frame_id].translation.copy()
 
+    def end_effector_positions(self, q: np.ndarray) -> np.ndarray:
+        """End-effector positions [m] in the base frame, shape (m, 3), for joint angles ``q`` (m, 2)
+        [rad], via Pinocchio (one ``Data`` for all of them)."""
+        data = self.model.createData()
+        out = []
+        for row in np.asarray(q, dtype=float).reshape(-1, self.model.nq):
+            pin.framesForwardKinematics(self.model, data, row)
+            out.append(data.oMf[self.ee_frame_id].translation.copy())
+        return np.array(out).reshape(-1, 3)
+
     def end_effector_planar(self, q: np.ndarray) -> np.ndarray:
         """End-effector (x, y) [m] in the motion plane by the paper's Eq. 2 (closed form)."""
         q = np.asarray(q, dtype=float)

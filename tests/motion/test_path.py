@@ -213,6 +213,30 @@ def test_samples_are_uniform_in_x() -> None:
     assert_allclose(path.position_at_time(times), positions, rtol=0, atol=1e-12)
 
 
+@settings(max_examples=30, deadline=None)
+@given(size=obstacle_sizes, n=st.integers(2, 900))
+def test_uniform_samples_equal_samples_and_quad(size: tuple[float, float], n: int) -> None:
+    """The segment-by-segment arc length gives the panel route's points and times (and quad's)."""
+    path = path_for(*size)
+    times, positions = path.uniform_samples(n)
+    x = np.linspace(path.start_x_m, path.end_x_m, n)
+    assert_allclose(positions, np.stack([x, path.y(x)], -1), rtol=0, atol=0)
+    assert_allclose(times, path.time_at_x(x), rtol=0, atol=1e-14)
+    assert times[0] == 0.0 and np.all(np.diff(times) > 0)
+    assert times[-1] * path.speed_m_s == pytest.approx(path.length_m, abs=1e-13)
+    middle = n // 2
+    assert times[middle] * path.speed_m_s == pytest.approx(quad_arc_length(path, x[middle], path.start_x_m), abs=1e-13)
+
+
+def test_the_panel_table_is_built_only_when_needed() -> None:
+    path = path_for(0.25, 0.10)
+    path.uniform_samples(50)
+    _ = path.length_m, path.duration_s
+    assert "_panels" not in vars(path)  # the symmetric length is closed form
+    path.arc_length(0.1)
+    assert "_panels" in vars(path)
+
+
 @pytest.mark.parametrize("n", [6, 0, -3, 7.0, True])
 def test_samples_needs_at_least_seven_points(n: object) -> None:
     with pytest.raises(InvalidParameterError):

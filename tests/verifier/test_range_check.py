@@ -4,8 +4,9 @@ endpoint bound lowered below the measured error, edited in the map's JSON) are c
 case; a map of other coefficients is reported as not belonging and not checked.
 
 The map is the paper's Eq. 9 certified at a coarse setting (256 leaves, about 2 s); the cases
-are measured with 200 time samples. Per-case expectations are computed through the scalar
-route (:meth:`RegionMap.cell_at`), independently of the vectorised ``cells_at`` the check uses.
+are measured with every certificate tight (and, in one test, in the sweep's default decide
+mode). Per-case expectations are computed through the scalar route (:meth:`RegionMap.cell_at`),
+independently of the vectorised ``cells_at`` the check uses.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from verify.acceptance.range_check import (
 from verify.acceptance.results import failed_case
 from verify.acceptance.run import run_cases
 
-SETTINGS = MeasureSettings(time_samples=200)
+SETTINGS = MeasureSettings(time_samples=200, certificate_mode="tight")  # every bound tight: every case compared
 COARSE = RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8)
 #: Ten cases inside the fitted range (0.2..0.3 x 0.08..0.12 m) and one outside it.
 CASES_M = np.array(
@@ -93,6 +94,7 @@ def test_the_true_map_holds_on_every_case(region_map, paper, cases) -> None:
     check = check_range(region_map, paper, cases, SETTINGS)
     assert check.map.belongs and check.checked and check.passed and check.violations == ()
     assert check.n_cases == 11 and check.n_out_of_range == 1 and check.n_not_measured == 0
+    assert check.n_certificate_decided == check.n_certificate_unconverged == 0
     assert check.certified.checked == check.sampled.checked == check.endpoint.checked == 10
     inside = [c for c in cases if c.L_m <= 0.3]
     certified = min(c.certified_clearance_m - leaf_of(region_map, c)[0] for c in inside)
@@ -204,3 +206,30 @@ def test_find_region_map_beside_a_coefficients_file(tmp_path, paper) -> None:
     assert find_region_map(load_coefficients("paper")) == (None, None)  # Eq. 9 has no file beside it
     named, where = find_region_map(changed, beside)  # named explicitly: loaded whether it belongs or not
     assert where == str(beside) and not named.belongs_to(changed)
+
+
+def test_in_decide_mode_only_tight_bounds_are_compared(region_map, paper, cases) -> None:
+    """Decide mode: a case above the margin only gets a bound >= the margin, not comparable with the
+    map's; the sampled check still covers it."""
+    settings = MeasureSettings(time_samples=200)
+    assert settings.certificate_mode == "decide"
+    decided = run_cases("paper", CASES_M, settings, coefficients=paper)
+    loose = [c for c in decided if c.L_m <= 0.3 and not c.certificate.tight]
+    assert loose and len(loose) < 10  # both kinds among the ten cases in range
+    check = check_range(region_map, paper, decided, settings)
+    assert check.passed and check.n_certificate_decided == len(loose)
+    assert check.certified.checked == 10 - len(loose) and check.sampled.checked == 10
+    # A bound between a loose case's certified value and its sampled minimum is no contradiction,
+    # one above the sampled minimum (plus Coal's error) is.
+    target = loose[0]
+    leaf = leaf_number(region_map, target)
+    middle = (target.certified_clearance_m + target.clearance_m) / 2
+    assert target.clearance_m - middle > SAMPLED_SLACK_M  # the decided bound lies well below the samples
+    for bound, violated in ((middle, False), (target.clearance_m + 1e-3, True)):
+
+        def set_bound(document: dict, bound: float = bound) -> None:
+            document["cells"]["clearance_bound_m"][leaf] = bound
+
+        result = check_range(edited(region_map, set_bound), paper, decided, settings)
+        assert target.index not in result.certified.violations
+        assert (target.index in result.sampled.violations) is violated

@@ -377,7 +377,9 @@ def test_the_map_is_reported_checked_written_and_drawn(capsys, tmp_path: Path, p
     assert set(report["area_fraction"]) == {"margin", "collision_free", "infeasible", "undecided"}
     check = report["cross_check"]
     assert check["checked"] and check["passed"] and check["violations"] == [] and check["n_cases"] == 6
-    assert check["certified_clearance"]["checked"] == check["endpoint_error"]["checked"] == 6
+    assert check["endpoint_error"]["checked"] == check["sampled_clearance"]["checked"] == 6
+    # Decide mode (the default): only the bounds below the margin are tight enough to compare.
+    assert check["certified_clearance"]["checked"] + check["n_certificate_decided"] == 6
     assert data["passed"] == data["summary"]["all_passed"]  # the map holds: the verdict is the cases'
     assert status == (EXIT_OK if data["passed"] else EXIT_FAILED)
     for text in ("region map", "belongs to these coefficients", "map bounds", "map check       PASS"):
@@ -446,3 +448,29 @@ def test_the_map_beside_the_coefficients_is_found_and_can_be_skipped(capsys, tmp
 def test_bad_region_map_options_are_one_line_and_status_2(capsys, argv: list[str], message: str) -> None:
     status, out, err = run_main(capsys, "--coefficients", "paper", *argv)
     assert status == EXIT_USAGE and out == "" and message in err and "Traceback" not in err
+
+
+def test_decide_mode_gives_the_tight_modes_verdicts() -> None:
+    """The default certificate (decide the margin, tighten below it) answers "collision-free?" and
+    "keeps the margin?" as the tight certificate does, and its bounds below the margin are as tight;
+    every bound is a lower bound of the case's own Coal samples."""
+    cases = sample_cases(SweepRange((0.2, 0.3), (0.08, 0.12)), 40, 5)
+    decide = run_cases("paper", cases, MeasureSettings(), jobs=1)
+    tight = run_cases("paper", cases, MeasureSettings(certificate_mode="tight"), jobs=1)
+    assert any(not r.certificate.keeps_margin for r in tight) and any(r.certificate.keeps_margin for r in tight)
+    for d, t in zip(decide, tight, strict=True):
+        assert (d.certificate.collision_free, d.certificate.keeps_margin, d.passed) == (
+            t.certificate.collision_free,
+            t.certificate.keeps_margin,
+            t.passed,
+        )
+        assert d.certified_clearance_m <= d.clearance_m and t.certified_clearance_m <= t.clearance_m
+        if d.certificate.tight:
+            assert d.certified_clearance_m == pytest.approx(t.certified_clearance_m, abs=1e-12)
+        else:
+            assert d.certificate.keeps_margin and d.certified_clearance_m <= t.certified_clearance_m + 2e-5
+
+
+def test_certificate_mode_is_checked() -> None:
+    with pytest.raises(InvalidParameterError, match="certificate_mode"):
+        MeasureSettings(certificate_mode="loose")

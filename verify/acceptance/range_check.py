@@ -7,19 +7,20 @@ lower bound ``b_c`` on the clearance of both links over all of [0, T] and an upp
 its own (:mod:`verify.acceptance.metrics`), so each case tests the map's claim for its cell:
 
 **Clearance.** The per-query certificate of a case (``MeasureSettings``: the adaptive sinusoid
-certificate in *tolerance mode*, ``tolerance_m`` = 1e-5 m by default, Coal's distances with error
-``e`` = :data:`COAL_DISTANCE_ERROR_M`) is also only a lower bound, so ``certified >= b_c`` need
-not hold exactly: both certificates bound the same true minimum ``c`` from below. What does hold
-is this. A converged certificate in tolerance mode has refined every interval until its bound is
-within ``tolerance_m`` of the smallest Coal sample minus ``e``, and that sample is at least
-``c - e``; hence ``certified >= c - tolerance_m - 2 e >= b_c - tolerance_m - 2 e``. The check is
-therefore ``certified + tolerance_m + 2 e + FLOAT_SLACK_M >= b_c`` (:func:`clearance_slack_m`),
-for converged certificates only: one that ran out of its evaluation budget may be looser than
-``tolerance_m`` and is not checked (counted in ``n_clearance_unconverged``). A certificate in
-*decide mode* (``decide_above_m``) is only tight below its threshold; this module does not
-handle it. The **sampled** clearance needs no such care: a Coal sample is at least ``c - e``,
-so ``sampled + e + FLOAT_SLACK_M >= b_c`` must hold for every measured case whatever the
-certificate did; it is checked too.
+certificate with Coal's distances, error ``e`` = :data:`COAL_DISTANCE_ERROR_M`, refinement
+tolerance ``tolerance_m``, 1e-5 m by default) is also only a lower bound, so ``certified >= b_c``
+need not hold exactly: both certificates bound the same true minimum ``c`` from below. What does
+hold is this. A converged certificate in *tolerance mode* has refined every interval until its
+bound is within ``tolerance_m`` of the smallest Coal sample minus ``e``, and that sample is at
+least ``c - e``; hence ``certified >= c - tolerance_m - 2 e >= b_c - tolerance_m - 2 e``. The
+check is therefore ``certified + tolerance_m + 2 e + FLOAT_SLACK_M >= b_c``
+(:func:`clearance_slack_m`), and only on *tight* bounds (``CertifiedClearance.tight``): in the
+sweep's default *decide mode* a case whose clearance keeps the margin only gets a bound >= the
+margin, which may lie anywhere below ``c`` and says nothing about ``b_c`` (such cases are counted
+in ``n_certificate_decided``); a certificate that ran out of its evaluation budget (or did not
+run) is not checked either (``n_certificate_unconverged``). The **sampled** clearance needs no
+such care: every Coal sample is at least ``c - e``, so ``sampled + e + FLOAT_SLACK_M >= b_c``
+must hold for every measured case whatever the certificate did; it is checked on every case.
 
 **Endpoints.** The case's endpoint errors are Pinocchio's forward kinematics of the URDF, exact
 up to rounding, and ``b_e`` is a rigorous upper bound, so ``max(start, end) <= b_e +
@@ -169,8 +170,10 @@ class RangeCheck:
         n_cases: Cases of the sweep.
         n_out_of_range: Cases outside the map's range (not checked).
         n_not_measured: Cases in range whose trajectory could not be generated.
-        n_clearance_unconverged: Cases whose per-query certificate did not converge (or did not
-            run): their certified clearance is not checked.
+        n_certificate_decided: Measured cases in range whose certificate only decided that the
+            margin is kept (decide mode, bound not tight): their certified clearance is not checked.
+        n_certificate_unconverged: Measured cases in range whose certificate did not converge (or
+            did not run): their certified clearance is not checked.
         certified: certified clearance + slack >= the map's clearance bound.
         sampled: sampled (Coal) clearance + Coal's error >= the map's clearance bound.
         endpoint: max endpoint error <= the map's endpoint bound + rounding.
@@ -181,7 +184,8 @@ class RangeCheck:
     n_cases: int
     n_out_of_range: int
     n_not_measured: int
-    n_clearance_unconverged: int
+    n_certificate_decided: int
+    n_certificate_unconverged: int
     certified: BoundCheck | None
     sampled: BoundCheck | None
     endpoint: BoundCheck | None
@@ -223,7 +227,8 @@ class RangeCheck:
                 "n_cases": self.n_cases,
                 "n_out_of_range": self.n_out_of_range,
                 "n_not_measured": self.n_not_measured,
-                "n_clearance_unconverged": self.n_clearance_unconverged,
+                "n_certificate_decided": self.n_certificate_decided,
+                "n_certificate_unconverged": self.n_certificate_unconverged,
                 "certified_clearance": None if self.certified is None else self.certified.to_json(),
                 "sampled_clearance": None if self.sampled is None else self.sampled.to_json(),
                 "endpoint_error": None if self.endpoint is None else self.endpoint.to_json(),
@@ -233,18 +238,22 @@ class RangeCheck:
 
 
 def _case_columns(cases: Sequence[CaseResult]) -> dict[str, np.ndarray]:
-    """Per case: index, L, W [m], and the measured numbers [m] (NaN where absent)."""
+    """Per case: index, L, W [m], and the measured numbers [m] (NaN where absent; the certified
+    clearance only where it is tight and converged), and whether the certificate only decided."""
 
     def column(values: list[float | None]) -> np.ndarray:
         return np.array([np.nan if v is None else v for v in values], dtype=float)
 
     certificates = [c.certificate for c in cases]
     return {
+        "decided": np.array([k is not None and k.converged and not k.tight for k in certificates], dtype=bool),
         "index": np.array([c.index for c in cases], dtype=np.int64),
         "L": np.array([c.L_m for c in cases], dtype=float),
         "W": np.array([c.W_m for c in cases], dtype=float),
         "measured": np.array([c.measurement is not None for c in cases], dtype=bool),
-        "certified": column([None if k is None or not k.converged else k.certified_clearance_m for k in certificates]),
+        "certified": column(
+            [k.certified_clearance_m if k is not None and k.converged and k.tight else None for k in certificates]
+        ),
         "sampled": column([c.clearance_m for c in cases]),
         "endpoint": column([c.endpoint_error_m for c in cases]),
     }
@@ -265,26 +274,29 @@ def check_range(
         region_map: The map.
         coefficients: The sweep's coefficients (the map is used only if it belongs to them).
         cases: The sweep's cases.
-        settings: How the cases were measured (the certificate's tolerance).
+        settings: How the cases were measured (the certificate's tolerance; in decide mode only
+            the tight bounds are compared).
         path: The map's file, for the report.
     """
     report = MapReport.of(region_map, coefficients, path)
     if not report.belongs:
-        return RangeCheck(report, len(cases), 0, 0, 0, None, None, None)
+        return RangeCheck(report, len(cases), 0, 0, 0, 0, None, None, None)
     col = _case_columns(cases)
     cells = region_map.cells_at(col["L"], col["W"])
     inside = cells["leaf"] >= 0
     measured = inside & col["measured"]
-    converged = measured & np.isfinite(col["certified"])
+    tight = measured & np.isfinite(col["certified"])
+    decided = measured & col["decided"]
     bound_c, bound_e = cells["clearance_bound_m"], cells["endpoint_bound_m"]
     return RangeCheck(
         map=report,
         n_cases=len(cases),
         n_out_of_range=int(np.count_nonzero(~inside)),
         n_not_measured=int(np.count_nonzero(inside & ~col["measured"])),
-        n_clearance_unconverged=int(np.count_nonzero(measured & ~converged)),
+        n_certificate_decided=int(np.count_nonzero(decided)),
+        n_certificate_unconverged=int(np.count_nonzero(measured & ~tight & ~decided)),
         certified=BoundCheck.of(
-            col["certified"][converged] - bound_c[converged], col["index"][converged], clearance_slack_m(settings)
+            col["certified"][tight] - bound_c[tight], col["index"][tight], clearance_slack_m(settings)
         ),
         sampled=BoundCheck.of(col["sampled"][measured] - bound_c[measured], col["index"][measured], SAMPLED_SLACK_M),
         endpoint=BoundCheck.of(bound_e[measured] - col["endpoint"][measured], col["index"][measured], ENDPOINT_SLACK_M),

@@ -69,7 +69,12 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
             "clearance",
             f"certified min {_mm(s.certified_clearance.min)}, median "
             f"{_mm(s.certified_clearance.median)}; sampled min {_mm(s.sampled_clearance.min)}, median "
-            f"{_mm(s.sampled_clearance.median)}",
+            f"{_mm(s.sampled_clearance.median)}"
+            + (
+                " (decide mode: a bound is tight only where the margin is not kept)"
+                if run.settings.certify and run.settings.certificate_mode == "decide"
+                else ""
+            ),
         ),
         (
             "endpoint error",
@@ -99,13 +104,15 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
     rows.append(
         (
             "sampling",
-            f"{_samples(s.time_samples_range)} time samples per case "
+            f"{_samples(s.time_samples_range)} clearance samples per case"
             + (
-                "(fixed by --samples)"
-                if run.settings.time_samples is not None
-                else f"({run.settings.resolution_m * 1e3:g} mm motion resolution)"
+                " (the certificate's)"
+                if run.settings.certify
+                else f" ({run.settings.resolution_m * 1e3:g} mm motion resolution)"
+                if run.settings.time_samples is None
+                else " (fixed by --samples)"
             )
-            + ", certificate tolerance "
+            + f", certificate {run.settings.certificate_mode}, tolerance "
             f"{run.settings.tolerance_m * 1e3:g} mm, {s.certificate_evaluations_total} clearance evaluations"
             + (f", {s.n_certificate_not_converged} not converged" if s.n_certificate_not_converged else ""),
         )
@@ -152,8 +159,10 @@ def _map_rows(check: RangeCheck) -> list[tuple[str, str]]:
         ),
     ]
     skipped = f"{check.n_out_of_range} out of the map's range, {check.n_not_measured} not generated"
-    if check.n_clearance_unconverged:
-        skipped += f", {check.n_clearance_unconverged} certificates not converged"
+    if check.n_certificate_decided:
+        skipped += f"; {check.n_certificate_decided} certificates only decided the margin: sampled check only"
+    if check.n_certificate_unconverged:
+        skipped += f"; {check.n_certificate_unconverged} certificates not converged"
     verdict = "PASS" if check.passed else f"FAIL ({len(check.violations)} case(s) contradict the map)"
     rows += [
         ("map check", f"{verdict}: {check.n_cases} cases ({skipped})"),

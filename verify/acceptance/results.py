@@ -38,6 +38,9 @@ class CertifiedClearance:
         converged: Whether the refinement reached its tolerance.
         collision_free: The bound is > 0.
         keeps_margin: The bound is >= the safety margin of the thresholds.
+        tight: The bound is within the certificate's tolerance of the sampled minimum (tolerance
+            mode); False where the certificate only decided that the clearance keeps the margin
+            (the bound is then >= the margin but may lie well below the true minimum).
     """
 
     certified_clearance_m: float
@@ -48,6 +51,7 @@ class CertifiedClearance:
     converged: bool
     collision_free: bool
     keeps_margin: bool
+    tight: bool = True
 
     def __post_init__(self) -> None:
         check_finite("certified_clearance_m", self.certified_clearance_m)
@@ -59,10 +63,12 @@ class Clearance:
     """Link-obstacle clearance of one trajectory.
 
     Attributes:
-        sampled_m: Minimum over the time samples (Coal's exact distance) [m].
-        sampled_link_m: That minimum per link [m].
+        sampled_m: Minimum over the time samples (Coal's exact distance) [m]: the certificate's
+            samples when it was computed, else uniform samples.
+        sampled_link_m: The minimum per link [m] (with the certificate: over its initial grid).
         sampled_time_s: Where the sampled minimum is [s].
-        time_samples: Number of uniform time samples over [0, T].
+        time_samples: Number of time samples over [0, T] (the certificate's clearance evaluations
+            when it was computed, else uniform samples).
         certified: The certificate, or None if it was not computed.
     """
 

@@ -9,6 +9,7 @@ The only package of the project that imports Meshcat (the modules below import i
 * :mod:`verify.viewer.trajectory_view`: one trajectory live, as HTML, or as a screenshot.
 * :mod:`verify.viewer.sweep_view`: a sweep's (L, W) map and its worst cases.
 * :mod:`verify.viewer.browser`: headless-Chromium screenshots of exported pages.
+* :mod:`verify.viewer.errors`: :class:`ViewerError`, the viewer's exception.
 * :mod:`verify.viewer._meshcat`: the one place Meshcat is imported (its import-time
   DeprecationWarning silenced).
 """

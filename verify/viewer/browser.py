@@ -19,7 +19,7 @@ from pathlib import Path
 
 from pipeline.validation import check_positive, check_positive_int
 
-from .server import ViewerError
+from .errors import ViewerError
 
 #: Executable names tried, in order, when none is configured.
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, TextIO
 if TYPE_CHECKING:  # pragma: no cover
     from ._meshcat import meshcat
 
-from pipeline.exceptions import ViewerError
+from .errors import ViewerError
 
 #: Code run by the server's child process: the host is its first argument.
 _CHILD_CODE = """
