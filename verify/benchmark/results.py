@@ -164,6 +164,8 @@ class BenchSettings:
         check_positive("--ompl-resolution", self.ompl_resolution)
         if self.run_build_levels is not None:
             check_positive_int("--run-build", self.run_build_levels, minimum=3)
+        if self.region_map is not None and not Path(self.region_map).is_file():
+            raise InvalidParameterError("--region-map", str(self.region_map), "an existing region map file")
 
 
 @dataclass(frozen=True)
