@@ -60,7 +60,7 @@ def _add_method_options(parser: argparse.ArgumentParser, defaults: BenchSettings
         default=None,
         help="region map (range certificate) of the coefficients for (a*) (default: region_map.json beside the "
         "coefficients; if there is none, e.g. for 'paper', the coefficients are certified in-process first, "
-        "about 10-60 s, reported); a map of other coefficients is refused",
+        "which takes tens of seconds and is reported); a map of other coefficients is refused",
     )
     parser.add_argument(
         "--slow-repeats",
