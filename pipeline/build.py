@@ -283,15 +283,6 @@ def _certify_range(result: BuildResult, args: argparse.Namespace, out: TextIO) -
     )
 
 
-def build(args: argparse.Namespace, out: TextIO | None = None) -> int:
-    """Deprecated: the entry point before :func:`pipeline.offline.build.run_build` existed, kept
-    for callers that fake an argv (``verify/bench_methods.py`` times a reduced build with a tiny
-    PSO). It writes the files even if the build did not converge, marked ``"converged": false``
-    as with ``--allow-unconverged``, as it did before the convergence check. Call ``run_build``.
-    """
-    return run(argparse.Namespace(**{**vars(args), "allow_unconverged": True, "no_range_map": True}), out)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point: parse ``argv``, run, one line per usage error; returns the exit status."""
     return run_cli(parser(), run, argv)

@@ -1,9 +1,9 @@
 """The benchmark: ``python -m verify.bench``.
 
 On the same ``--n`` random obstacles it times side by side the regression generator (per query
-and batched), the generator with certification, the PSO re-run online and OMPL's RRT-Connect
-(:mod:`verify.benchmark`), and prints the medians, their ratios and how many answers are
-certified collision-free.
+and batched), the generator with the range certificate (per query and batched), the generator
+with certification, the PSO re-run online and OMPL's RRT-Connect (:mod:`verify.benchmark`), and
+prints the medians, their ratios and how many answers are certified collision-free.
 
 Exit status: 0 on success, 2 on bad input (one line on stderr), 130 if interrupted.
 
@@ -51,7 +51,16 @@ def _add_method_options(parser: argparse.ArgumentParser, defaults: BenchSettings
         "--repeats",
         type=int,
         default=defaults.repeats,
-        help="timed passes over the obstacles for (a) and (a') [passes]",
+        help="timed passes over the obstacles for (a), (a'), (a*) and (a*') [passes]",
+    )
+    parser.add_argument(
+        "--region-map",
+        type=Path,
+        metavar="FILE",
+        default=None,
+        help="region map (range certificate) of the coefficients for (a*) (default: region_map.json beside the "
+        "coefficients; if there is none, e.g. for 'paper', the coefficients are certified in-process first, "
+        "which takes tens of seconds and is reported); a map of other coefficients is refused",
     )
     parser.add_argument(
         "--slow-repeats",
@@ -150,7 +159,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description=(
             "Time, on the same random obstacles in one run: (a) the regression generator per query and "
-            "batched, (b) the generator with certification, (c) re-running the PSO online, (d) OMPL "
+            "batched, (a*) the same with the range certificate's bounds (region map), (b) the generator "
+            "with certification, (c) re-running the PSO online, (d) OMPL "
             "RRT-Connect with a Coal validity checker, then our certificate of its path. Prints median "
             "time per query, ratios to (a) and (b), the fraction of answers certified collision-free, the "
             "build time and the sweep rate. Ratios measured in one run on this machine, not absolute claims."
@@ -183,6 +193,7 @@ def settings_from_args(args: argparse.Namespace) -> BenchSettings:
         build_timing=args.build_timing,
         run_build_levels=args.run_build,
         urdf=args.urdf,
+        region_map=args.region_map,
     )
 
 

@@ -1,30 +1,62 @@
 """The benchmark's command line (verify.bench) and library (verify.benchmark): it runs on tiny
 settings and writes the JSON schema, reports build timing files, skips OMPL cleanly when it is
-missing, and gives one clear line and exit status 2 on bad input. No timing is asserted: these machines are noisy."""
+missing, and gives one clear line and exit status 2 on bad input. Row (a*) (the generator with the
+range certificate) answers with the map's certified clearance and the generator's own parameters,
+takes the map beside the coefficients, a named one, or certifies them in-process, and refuses a map
+of other coefficients. No timing is asserted: these machines are noisy."""
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 import math
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, default_config
+from pipeline.certify.range_certificate import RangeCertificateConfig
+from pipeline.certify.region_map import load_region_map, save_region_map
 from pipeline.cli import EXIT_OK, EXIT_USAGE, HelpFormatter
-from pipeline.exceptions import EndpointConstraintWarning
+from pipeline.exceptions import DataFileError, EndpointConstraintWarning
 from pipeline.io.jsonio import write_json_atomic
+from pipeline.offline.coefficients import Coefficients, load_coefficients, save_coefficients
+from pipeline.online.generator import RANGE_SOURCE, generate
+from verify.acceptance.cases import SweepRange, sample_cases
 from verify.bench import build_parser, main
+from verify.benchmark import methods as bench_methods
 from verify.benchmark import ompl_planner as planner
+from verify.benchmark import range_map as bench_range_map
 from verify.benchmark import results as bench_results
 from verify.benchmark import run as bench_run
 
+
+def coarse_config(coefficients: Coefficients) -> RangeCertificateConfig:
+    """The build's certificate settings on coarser cells (a few seconds): on the paper's Eq. 9 it
+    still certifies the whole fitted range collision-free (no undecided cell)."""
+    return default_config(coefficients, min_cell=1 / 32, boundary_cell=1 / 16)
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A coefficients file (the paper's Eq. 9, written as the build writes its coefficients, marked so
+    that its sha256 differs from the paper's file) with its region map beside it, as
+    ``python -m pipeline.build`` leaves them; returns the coefficients file."""
+    folder = tmp_path_factory.mktemp("built")
+    path = folder / "coefficients.json"
+    save_coefficients(dataclasses.replace(load_coefficients("paper"), extra={"note": "test_bench fixture"}), path)
+    coefficients = load_coefficients(path)
+    region_map = bench_range_map.certify_range(coefficients, coarse_config(coefficients))
+    save_region_map(region_map, folder / DEFAULT_MAP_NAME)
+    return path
+
+
 #: Tiny settings: 3 obstacles, a 4-particle 2-iteration PSO without polish on one of them.
 TINY = [
-    "--coefficients",
-    "paper",
     "--n",
     "3",
     "--repeats",
@@ -70,9 +102,9 @@ def run_main(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, 
 
 
 @pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[int, str, dict]:
-    """One tiny benchmark run, with a build timing file to report and a tiny 3 x 3 build run by the
-    benchmark; (status, stdout, JSON)."""
+def tiny_run(tmp_path_factory: pytest.TempPathFactory, built: Path) -> tuple[int, str, dict]:
+    """One tiny benchmark run of the built coefficients (their map beside them), with a build timing
+    file to report and a tiny 3 x 3 build run by the benchmark; (status, stdout, JSON)."""
     folder = tmp_path_factory.mktemp("bench")
     timing = folder / "build_timing.json"
     write_json_atomic(
@@ -91,7 +123,19 @@ def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[int, str, dict]:
     # regression to converge; it is timed here, not judged.
     with contextlib.redirect_stdout(stdout), warnings.catch_warnings():
         warnings.simplefilter("ignore", EndpointConstraintWarning)
-        status = main([*TINY, "--build-timing", str(timing), "--run-build", "3", "--json", str(out_json)])
+        status = main(
+            [
+                "--coefficients",
+                str(built),
+                *TINY,
+                "--build-timing",
+                str(timing),
+                "--run-build",
+                "3",
+                "--json",
+                str(out_json),
+            ]
+        )
     return status, stdout.getvalue(), json.loads(out_json.read_text())
 
 
@@ -112,13 +156,25 @@ def test_tiny_run_prints_the_table_and_writes_the_json_schema(tiny_run: tuple[in
     status, out, data = tiny_run
     assert status == EXIT_OK
     assert data["format"] == bench_results.FORMAT
-    for key in ("command", "coefficients", "settings", "margin_m", "cases", "methods", "sweep", "build", "machine"):
+    for key in (
+        "command",
+        "coefficients",
+        "settings",
+        "margin_m",
+        "cases",
+        "methods",
+        "a_range",
+        "ratios",
+        "sweep",
+        "build",
+        "machine",
+    ):
         assert key in data
-    assert data["command"].startswith("python -m verify.bench --coefficients paper")
+    assert data["command"].startswith("python -m verify.bench --coefficients ")
     assert len(data["cases"]) == 3
     keys = [m["key"] for m in data["methods"]]
-    expected = ["a", "a_batch", "b", "c"] + (["d", "d_cert"] if planner.ompl_available() else [])
-    assert keys == expected
+    expected = ["a", "a_batch", "a_range", "a_range_batch", "b", "c"]
+    assert keys == expected + (["d", "d_cert"] if planner.ompl_available() else [])
     for method in data["methods"]:
         for key in METHOD_KEYS:
             assert key in method, (method["key"], key)
@@ -128,10 +184,12 @@ def test_tiny_run_prints_the_table_and_writes_the_json_schema(tiny_run: tuple[in
             assert 0.0 <= method["certified_fraction"] <= 1.0
             assert method["keeps_margin"] <= method["certified_collision_free"] <= method["answered"]
         assert method["label"] in out
-    a, b = data["methods"][0], data["methods"][2]
+    methods = {m["key"]: m for m in data["methods"]}
+    a, b = methods["a"], methods["b"]
     assert math.isclose(a["ratio_to_a"], 1.0) and math.isclose(b["ratio_to_b"], 1.0)
     assert a["timed_runs"] == 3 * 3  # 3 passes over 3 obstacles
-    c = data["methods"][3]
+    assert methods["a_range"]["timed_runs"] == 3 * 3 and methods["a_range_batch"]["timed_runs"] == 3
+    c = methods["c"]
     assert c["obstacles"] == 1 and c["extra"]["pso"]["swarm_size"] == 4 and c["extra"]["polish"] is False
     # (b) answers only with a certificate that keeps the margin.
     if b["answered"]:
@@ -150,14 +208,119 @@ def test_tiny_run_prints_the_table_and_writes_the_json_schema(tiny_run: tuple[in
     assert "not absolute claims" in out
 
 
+def test_a_range_row_certifies_every_in_range_query_of_a_clean_map(tiny_run: tuple[int, str, dict]) -> None:
+    _, out, data = tiny_run
+    summary = data["a_range"]
+    for key in ("median_us", "batched_us_per_obstacle", "certified_fraction", "margin_fraction", "ratio_to_d"):
+        assert key in summary
+    assert summary["median_us"] > 0 and summary["batched_us_per_obstacle"] > 0
+    # The fixture's map certifies its whole range collision-free, and every obstacle is in range.
+    assert summary["region_map"]["certified_collision_free_fraction"] == 1.0
+    assert summary["in_range_queries"] == 3
+    assert summary["certified_fraction"] == 1.0
+    assert 0.0 <= summary["margin_fraction"] <= 1.0
+    assert summary["same_parameters_as_a"] is True
+    assert summary["region_map"]["origin"] == "beside" and summary["region_map"]["certify_s"] is None
+    assert summary["region_map"]["path"].endswith(DEFAULT_MAP_NAME)
+    methods = {m["key"]: m for m in data["methods"]}
+    for key in ("a_range", "a_range_batch"):
+        assert methods[key]["certified_fraction"] == 1.0 and methods[key]["extra"]["same_parameters_as_a"]
+    ratios = data["ratios"]
+    if planner.ompl_available():
+        d = methods["d"]["median_s"]
+        assert math.isclose(summary["ratio_to_d"], d / methods["a_range"]["median_s"], rel_tol=1e-12)
+        assert math.isclose(ratios["d_over_a_range"], summary["ratio_to_d"], rel_tol=1e-12)
+        assert math.isclose(ratios["d_over_a"], d / methods["a"]["median_s"], rel_tol=1e-12)
+        assert "(d) / (a*) = " in out
+    else:
+        assert summary["ratio_to_d"] is None and ratios["d_over_a_range"] is None
+    assert "(a*) range certificate: median" in out and "certified clearance > 0 on 100%" in out
+    assert "beside the coefficients" in out
+
+
+def test_a_range_answers_are_the_generators_with_the_maps_bounds(built: Path) -> None:
+    coefficients = load_coefficients(built)
+    region_map = load_region_map(built.with_name(DEFAULT_MAP_NAME))
+    cases = sample_cases(SweepRange.from_fitted(coefficients.fitted_range_m), 20, 3)
+    _, answers = bench_methods.bench_generator(coefficients, cases, 1, region_map)
+    _, batch = bench_methods.bench_range_batched(coefficients, cases, region_map, 1)
+    for i, (length, width) in enumerate(cases):
+        plain = generate(coefficients, float(length), float(width))
+        answer = answers[i]
+        assert answer.trajectory.parameters == plain.trajectory.parameters  # the same numbers, bit for bit
+        assert answer.duration_s == plain.duration_s
+        np.testing.assert_allclose(batch.parameters[i], plain.trajectory.array, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(batch.durations_s[i], plain.duration_s, rtol=1e-12, atol=0.0)
+        cell = region_map.cell_at(float(length), float(width))
+        assert answer.certificate_source == RANGE_SOURCE
+        assert answer.certified_clearance_m == cell.clearance_bound_m == batch.certified_clearance_m[i]
+    counts = bench_methods.range_counts(answers, coefficients.scene.margin_m)
+    batch_counts = bench_methods.batch_range_counts(batch, coefficients.scene.margin_m)
+    assert counts == batch_counts
+    assert counts.in_range == counts.certified == 20
+    expected_margin = sum(a.certified_clearance_m >= coefficients.scene.margin_m for a in answers)
+    assert counts.keeps_margin == expected_margin
+
+
+def test_range_counts_leave_out_extrapolated_and_refused_queries(built: Path) -> None:
+    coefficients = load_coefficients(built)
+    region_map = load_region_map(built.with_name(DEFAULT_MAP_NAME))
+    inside = generate(coefficients, 0.25, 0.10, region_map=region_map)
+    outside = generate(coefficients, 0.305, 0.10, region_map=region_map, out_of_range="ignore")
+    assert outside.extrapolated and outside.certificate_source is None
+    counts = bench_methods.range_counts([inside, outside, None], 0.01)
+    assert (counts.in_range, counts.certified) == (1, 1)
+    assert counts.clearance_min_m == inside.certified_clearance_m
+
+
+def test_a_foreign_region_map_is_refused_with_one_line(capsys: pytest.CaptureFixture[str], built: Path) -> None:
+    foreign = built.with_name(DEFAULT_MAP_NAME)  # certifies the built file, not the paper's Eq. 9
+    status, out, err = run_main(
+        capsys, "--coefficients", "paper", "--region-map", str(foreign), "--n", "2", "--pso-cases", "0", "--no-ompl"
+    )
+    assert status == EXIT_USAGE and "median/query" not in out  # refused before any timing
+    assert str(foreign) in err and "--region-map certifies coefficients sha256" in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not load_region_map(foreign).belongs_to(load_coefficients("paper"))
+    with pytest.raises(DataFileError) as info:
+        bench_range_map.bench_region_map(load_coefficients("paper"), foreign)
+    assert info.value.path == foreign
+
+
+def test_a_named_region_map_is_used(built: Path) -> None:
+    coefficients = load_coefficients(built)
+    chosen = bench_range_map.bench_region_map(coefficients, built.with_name(DEFAULT_MAP_NAME))
+    assert chosen.origin == "file" and chosen.certify_s is None
+    assert "named by --region-map" in chosen.describe()
+
+
+def test_without_a_map_the_coefficients_are_certified_in_process(built: Path, tmp_path: Path) -> None:
+    # A stale map beside other coefficients: the benchmark certifies them itself and says why.
+    other = dataclasses.replace(load_coefficients(built), extra={"note": "other coefficients"})
+    path = tmp_path / "coefficients.json"
+    save_coefficients(other, path)
+    (tmp_path / DEFAULT_MAP_NAME).write_bytes(built.with_name(DEFAULT_MAP_NAME).read_bytes())
+    coefficients = load_coefficients(path)
+    messages: list[str] = []
+    chosen = bench_range_map.bench_region_map(
+        coefficients, None, config=coarse_config(coefficients), log=messages.append
+    )
+    assert chosen.origin == "certified" and chosen.path is None
+    assert chosen.region_map.belongs_to(coefficients)
+    assert chosen.certify_s is not None and chosen.certify_s > 0
+    assert "certifies other coefficients" in chosen.reason and "in-process" in messages[0]
+    assert "certified in-process in" in chosen.describe() and chosen.to_json()["origin"] == "certified"
+    assert "no region map exists for 'paper'" in bench_range_map._missing_reason(load_coefficients("paper"))
+
+
 def test_missing_ompl_skips_d_with_a_clear_line(
-    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path, built: Path
 ) -> None:
     monkeypatch.setattr(planner, "ompl_available", lambda: False)
     status, out, _ = run_main(
         capsys,
         "--coefficients",
-        "paper",
+        str(built),
         "--n",
         "2",
         "--repeats",
@@ -193,6 +356,7 @@ def test_missing_ompl_skips_d_with_a_clear_line(
         (["--run-build", "2"], "--run-build"),
         (["--json", "/proc/x"], "--json"),
         (["--json", "/etc/passwd/x.json"], "--json"),
+        (["--region-map", "no/such/region_map.json"], "no/such/region_map.json"),
     ],
 )
 def test_bad_input_gives_one_line_and_status_2(

@@ -1,10 +1,10 @@
-"""The methods the benchmark times side by side: (a) the generator, (a') batched, (b) certify-or-repair,
-(c) PSO online, (d) OMPL RRT-Connect, and the sweep rate and build time."""
+"""The methods the benchmark times side by side: (a) the generator, (a') batched, (a*) the generator with
+the range certificate (per query and batched), (b) certify-or-repair, (c) PSO online, (d) OMPL
+RRT-Connect, and the sweep rate and build time."""
 
 from __future__ import annotations
 
 import contextlib
-import io
 import math
 import tempfile
 import time
@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import DataFileError, NoCertifiedTrajectoryError, PipelineError
 from pipeline.geometry.polyline_certificate import certify_path
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
@@ -22,8 +23,10 @@ from pipeline.io.jsonio import read_json
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory
+from pipeline.offline.build import BuildConfig, run_build
 from pipeline.offline.experiment import SolverConfig, solve_experiment
-from pipeline.online.generator import generate, generate_parameters
+from pipeline.online.batch import GeneratedBatch, generate_batch
+from pipeline.online.generator import RANGE_SOURCE, generate, generate_parameters
 from pipeline.online.repair import generate_certified
 from verify.acceptance.metrics import MeasureSettings
 from verify.acceptance.run import run_cases
@@ -45,14 +48,16 @@ def _timed(function: Callable[[], Any]) -> tuple[float, Any]:
     return time.perf_counter() - started, value
 
 
-def bench_generator(coefficients: Any, cases: np.ndarray, repeats: int) -> tuple[list[float], list[Any]]:
-    """(a): time ``generate`` one query at a time, ``repeats`` passes over the cases.
+def bench_generator(
+    coefficients: Any, cases: np.ndarray, repeats: int, region_map: RegionMap | None = None
+) -> tuple[list[float], list[Any]]:
+    """(a), and (a*) with ``region_map``: time ``generate`` one query at a time, ``repeats`` passes over the cases.
 
     Returns:
         (time of every call [s], the generated trajectories of the last pass, None where it raised).
     """
     for _ in range(WARMUP_CALLS):
-        generate(coefficients, float(cases[0, 0]), float(cases[0, 1]))
+        generate(coefficients, float(cases[0, 0]), float(cases[0, 1]), region_map=region_map)
     times: list[float] = []
     answers: list[Any] = [None] * len(cases)
     clock = time.perf_counter
@@ -60,7 +65,7 @@ def bench_generator(coefficients: Any, cases: np.ndarray, repeats: int) -> tuple
         for i, (length, width) in enumerate(cases):
             started = clock()
             try:
-                answers[i] = generate(coefficients, float(length), float(width))
+                answers[i] = generate(coefficients, float(length), float(width), region_map=region_map)
             except PipelineError:
                 answers[i] = None
             times.append(clock() - started)
@@ -78,6 +83,63 @@ def bench_batched(coefficients: Any, cases: np.ndarray, repeats: int) -> tuple[l
         elapsed, parameters = _timed(lambda: generate_parameters(coefficients, lengths, widths))
         times.append(elapsed / len(cases))
     return times, np.asarray(parameters)
+
+
+def bench_range_batched(
+    coefficients: Any, cases: np.ndarray, region_map: RegionMap, repeats: int
+) -> tuple[list[float], GeneratedBatch]:
+    """(a*) batched: time ``generate_batch(..., region_map=...)`` over all cases at once (parameters, T and
+    the range certificate's bounds per obstacle); returns (time per obstacle [s] of each pass, the last batch)."""
+    lengths, widths = np.ascontiguousarray(cases[:, 0]), np.ascontiguousarray(cases[:, 1])
+    for _ in range(max(2, WARMUP_CALLS // 4)):
+        generate_batch(coefficients, lengths, widths, region_map=region_map)
+    times = []
+    batch = None
+    for _ in range(repeats):
+        elapsed, batch = _timed(lambda: generate_batch(coefficients, lengths, widths, region_map=region_map))
+        times.append(elapsed / len(cases))
+    return times, batch
+
+
+@dataclass(frozen=True)
+class RangeCounts:
+    """What the range certificate answered for the in-range queries of (a*).
+
+    Attributes:
+        in_range: Queries inside the fitted range (where the map answers) [queries].
+        certified: Of those, answered with ``certificate_source == "range"`` and a certified
+            clearance > 0 [queries].
+        keeps_margin: Of those, certified clearance >= the margin [queries].
+        clearance_min_m: Smallest certified clearance among them [m] (None if none).
+    """
+
+    in_range: int
+    certified: int
+    keeps_margin: int
+    clearance_min_m: float | None
+
+
+def range_counts(answers: Sequence[Any], margin_m: float) -> RangeCounts:
+    """Count (a*)'s answers (from :func:`bench_generator` with a region map; None where it raised)
+    by their range certificate: in range, certified collision-free, keeping ``margin_m`` [m]."""
+    in_range = [a for a in answers if a is not None and not a.extrapolated]
+    clearances = [
+        a.certified_clearance_m
+        for a in in_range
+        if a.certificate_source == RANGE_SOURCE and a.certified_clearance_m is not None
+    ]
+    certified, keeps = certificate_counts(clearances, margin_m)
+    return RangeCounts(len(in_range), certified, keeps, min(clearances) if clearances else None)
+
+
+def batch_range_counts(batch: GeneratedBatch, margin_m: float) -> RangeCounts:
+    """:func:`range_counts` of a :class:`GeneratedBatch` carrying the map's bounds (NaN where it has none)."""
+    answered = np.array([e is None for e in batch.error], dtype=bool)
+    in_range = answered & ~batch.extrapolated
+    bounds = batch.certified_clearance_m
+    clearances = [] if bounds is None else [float(c) for c in bounds[in_range] if math.isfinite(c)]
+    certified, keeps = certificate_counts(clearances, margin_m)
+    return RangeCounts(int(np.count_nonzero(in_range)), certified, keeps, min(clearances) if clearances else None)
 
 
 def bench_certified(
@@ -303,38 +365,40 @@ def read_build_timing(path: Path) -> dict[str, Any] | None:
         raise DataFileError(path, f"not a build timing file ({type(exc).__name__}: {exc})") from None
 
 
-def run_reduced_build(levels: int, config: SolverConfig, seed: int, urdf: Path | None) -> dict[str, Any]:
-    """Run ``python -m pipeline.build`` with ``levels`` levels per factor (>= 3) into a temporary
-    folder, with the PSO settings of (c); its build_timing.json, summarised.
+def run_reduced_build(
+    levels: int, config: SolverConfig, seed: int, urdf: Path | None, coefficients: Any
+) -> dict[str, Any]:
+    """Run the build (:func:`pipeline.offline.build.run_build`) with ``levels`` levels per factor (>= 3)
+    into a temporary folder, with the PSO and objective settings of (c) and the coefficients' scene and
+    fitted range; its build_timing.json, summarised. The files are written even if the reduced
+    build does not converge (a tiny PSO rarely does): it is timed here, not judged.
 
     Raises:
         PipelineError: the build failed.
     """
-    from pipeline import build
-
+    fitness = config.fitness
     with tempfile.TemporaryDirectory(prefix="bench-build-") as folder:
-        argv = [
-            "--out",
-            folder,
-            "--quiet",
-            "--seed",
-            str(seed),
-            "--levels",
-            str(levels),
-            "--family",
-            config.family.name,
-            "--swarm-size",
-            str(config.pso.swarm_size),
-            "--iterations",
-            str(config.pso.iterations),
-            "--restarts",
-            str(config.pso.restarts),
-        ]
-        if not config.polish:
-            argv.append("--no-polish")
-        if urdf is not None:
-            argv += ["--urdf", str(urdf)]
-        build.build(build.parser().parse_args(argv), out=io.StringIO())
+        run_build(
+            BuildConfig(
+                out_folder=Path(folder),
+                seed=seed,
+                levels=levels,
+                length_range_m=tuple(coefficients.fitted_range_m["L"]),
+                width_range_m=tuple(coefficients.fitted_range_m["W"]),
+                family=config.family,
+                urdf_path=urdf,
+                scene=coefficients.scene,
+                swarm_size=config.pso.swarm_size,
+                iterations=config.pso.iterations,
+                restarts=config.pso.restarts,
+                polish=config.polish,
+                n_points=fitness.n_points,
+                endpoint_weight=fitness.endpoint_weight,
+                penalty_weight=fitness.penalty_weight,
+                margin_buffer_m=fitness.margin_buffer_m,
+                allow_unconverged=True,
+            )
+        )
         summary = read_build_timing(Path(folder) / "build_timing.json")
     if summary is None:
         raise DataFileError(Path(folder) / "build_timing.json", "the build run by the benchmark wrote no timing file")

@@ -1,5 +1,6 @@
 """The benchmark's printed table: medians per query, ratios to the generator alone (a) and to the
-generator with certification (b), and the fraction of answers certified collision-free."""
+generator with certification (b), the ratios of OMPL (d) to (a), (a*) and (b), and the fraction of
+answers certified collision-free."""
 
 from __future__ import annotations
 
@@ -34,7 +35,9 @@ def _format_fraction(fraction: float) -> str:
 
 def format_report(report: BenchReport) -> str:
     """The table and notes printed on stdout."""
-    lines = _header_lines(report) + _table_lines(report) + _rate_lines(report) + _note_lines(report)
+    lines = (
+        _header_lines(report) + _table_lines(report) + _ratio_lines(report) + _rate_lines(report) + _note_lines(report)
+    )
     lines.append(f"Total benchmark wall time: {report.elapsed_s:.1f} s.")
     return "\n".join(lines)
 
@@ -78,6 +81,32 @@ def _table_lines(report: BenchReport) -> list[str]:
         lines.append(f"({key}) skipped: {reason}")
     lines.append("")
     return lines
+
+
+def _ratio_lines(report: BenchReport) -> list[str]:
+    """The ratios of medians per query, measured side by side in this run, and (a*) in the issue's terms."""
+    ratios = report.ratios()
+    names = (("d_over_a", "(d) / (a)"), ("d_over_a_range", "(d) / (a*)"), ("d_over_b", "(d) / (b)"))
+    shown = [f"{text} = {_format_ratio(ratios[key])}" for key, text in names if ratios[key] is not None]
+    if ratios["b_over_a_range"] is not None:
+        shown.append(f"(b) / (a*) = {_format_ratio(ratios['b_over_a_range'])}")
+    lines = [f"Ratios of the medians per query (this run): {', '.join(shown)}."] if shown else []
+    summary = report.a_range_summary()
+    if summary is not None:
+        batched = summary["batched_us_per_obstacle"]
+        certified = _format_fraction(_nan(summary["certified_fraction"]))
+        margin = _format_fraction(_nan(summary["margin_fraction"]))
+        lines.append(
+            f"(a*) range certificate: median {summary['median_us']:.3g} us per query, "
+            + (f"{batched:.3g} us per obstacle batched, " if batched is not None else "")
+            + f"certified clearance > 0 on {certified} and >= the margin on {margin} of "
+            f"{summary['in_range_queries']} in-range queries."
+        )
+    return lines + [""] if lines else lines
+
+
+def _nan(value: float | None) -> float:
+    return math.nan if value is None else value
 
 
 def _rate_lines(report: BenchReport) -> list[str]:
@@ -131,6 +160,8 @@ def _note_lines(report: BenchReport) -> list[str]:
             "Its path joins the start and goal configurations "
             "(IK of P1 and P5); it does not track the desired path."
         )
+    if report.range_map is not None:
+        lines.append(f"  (a*) region map: {report.range_map['description']}.")
     lines += [
         "  vs (a), vs (b): median time per query divided by that of (a) and of (b).",
         "  answered: queries that returned a trajectory or path; cert. free: answers whose certified clearance "

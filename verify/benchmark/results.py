@@ -31,7 +31,7 @@ class MethodResult:
     """Timings and answer quality of one method.
 
     Attributes:
-        key: Short key: "a", "a_batch", "b", "c", "d", "d_cert".
+        key: Short key: "a", "a_batch", "a_range", "a_range_batch", "b", "c", "d", "d_cert".
         label: Row label of the table.
         obstacles: Distinct obstacles queried.
         times_s: Every timed run, as time per query [s].
@@ -120,6 +120,8 @@ class BenchSettings:
         build_timing: build_timing.json to report (None: skip).
         run_build_levels: If set, also run a reduced build with this many levels per factor.
         urdf: URDF of the arm (None: the project's).
+        region_map: Region map of the coefficients for (a*) (None: the one beside them, else
+            certified in-process).
     """
 
     n: int = DEFAULT_N
@@ -139,6 +141,7 @@ class BenchSettings:
     build_timing: Path | None = Path(DEFAULT_BUILD_TIMING)
     run_build_levels: int | None = None
     urdf: Path | None = None
+    region_map: Path | None = None
 
     def __post_init__(self) -> None:
         check_positive_int("--n", self.n)
@@ -161,6 +164,8 @@ class BenchSettings:
         check_positive("--ompl-resolution", self.ompl_resolution)
         if self.run_build_levels is not None:
             check_positive_int("--run-build", self.run_build_levels, minimum=3)
+        if self.region_map is not None and not Path(self.region_map).is_file():
+            raise InvalidParameterError("--region-map", str(self.region_map), "an existing region map file")
 
 
 @dataclass(frozen=True)
@@ -176,6 +181,7 @@ class BenchReport:
         skipped: Method key -> why it was skipped.
         sweep: Sweep rates (None if not run).
         build: Build timing (None if none was found or run).
+        range_map: Where (a*)'s region map came from (:meth:`BenchRegionMap.to_json`; None if (a*) did not run).
         machine: Python, platform, CPU count, package versions.
         command: The command line.
         elapsed_s: Wall time of the whole benchmark [s].
@@ -189,6 +195,7 @@ class BenchReport:
     skipped: dict[str, str]
     sweep: dict[str, Any] | None
     build: dict[str, Any] | None
+    range_map: dict[str, Any] | None
     machine: dict[str, Any]
     command: str
     elapsed_s: float
@@ -196,6 +203,40 @@ class BenchReport:
     def method(self, key: str) -> MethodResult | None:
         """The result of method ``key``, or None if it was not run."""
         return next((m for m in self.methods if m.key == key), None)
+
+    def ratios(self) -> dict[str, float | None]:
+        """(d) / (a), (d) / (a*), (d) / (b) and (b) / (a*): medians per query measured in this run (None
+        where a method did not run)."""
+
+        def ratio(numerator: str, denominator: str) -> float | None:
+            top, bottom = self.method(numerator), self.method(denominator)
+            return None if top is None or bottom is None else top.median_s / bottom.median_s
+
+        return {
+            "d_over_a": ratio("d", "a"),
+            "d_over_a_range": ratio("d", "a_range"),
+            "d_over_b": ratio("d", "b"),
+            "b_over_a_range": ratio("b", "a_range"),
+        }
+
+    def a_range_summary(self) -> dict[str, Any] | None:
+        """The (a*) row in the issue's terms (None if it did not run): median per query and batched
+        time per obstacle [us], the fractions of in-range queries answered with a certified clearance
+        (> 0) and with one >= the margin, and the ratio (d) / (a*)."""
+        row, batch = self.method("a_range"), self.method("a_range_batch")
+        if row is None:
+            return None
+        in_range = row.extra["in_range_queries"]
+        return {
+            "median_us": row.median_s * 1e6,
+            "batched_us_per_obstacle": None if batch is None else batch.median_s * 1e6,
+            "certified_fraction": row.certified / in_range if in_range else None,
+            "margin_fraction": row.keeps_margin / in_range if in_range else None,
+            "ratio_to_d": self.ratios()["d_over_a_range"],
+            "in_range_queries": in_range,
+            "same_parameters_as_a": row.extra["same_parameters_as_a"],
+            "region_map": self.range_map,
+        }
 
     def to_json(self) -> dict[str, Any]:
         """The --json document."""
@@ -212,6 +253,8 @@ class BenchReport:
             "margin_m": self.margin_m,
             "cases": [[float(length), float(width)] for length, width in self.cases_m],
             "methods": [m.to_json(reference_a, reference_b) for m in self.methods],
+            "a_range": self.a_range_summary(),
+            "ratios": self.ratios(),
             "skipped": dict(self.skipped),
             "sweep": self.sweep,
             "build": self.build,

@@ -6,6 +6,11 @@ in one run on this machine, it times side by side:
 * **(a)** the regression generator alone (:func:`pipeline.online.generator.generate`), one query at a
   time, and **(a')** batched (:func:`pipeline.online.generator.generate_parameters` over all obstacles,
   time divided by their number);
+* **(a*)** the generator with the range certificate (``generate(..., region_map=...)``: the same
+  parameters, plus the certified clearance and endpoint bounds of the map's cell), one query at a
+  time and batched (:func:`pipeline.online.batch.generate_batch` with the map, per obstacle); the
+  map is the one beside the coefficients, ``--region-map``'s, or certified in-process
+  (:mod:`verify.benchmark.range_map`);
 * **(b)** the generator with certification (:func:`pipeline.online.repair.generate_certified`:
   certify, repair if needed, or refuse);
 * **(c)** re-running the PSO online for that (L, W) (:func:`pipeline.offline.experiment.solve_experiment`,
@@ -15,7 +20,8 @@ in one run on this machine, it times side by side:
   (:mod:`verify.benchmark.ompl_planner`), alone and **(d+)** followed by our certificate of its
   piecewise-linear path.
 
-It reports per method the median time per query, its ratio to (a) and to (b), the fraction of
+It reports per method the median time per query, its ratio to (a) and to (b), the ratios of (d) to
+(a), (a*) and (b), the fraction of
 queries answered and the fraction of the answers that are **certified collision-free** by our
 certificates (a rigorous lower bound on the clearance over the whole continuous motion > 0) or
 keep the margin. It also reports the build's time and Coal query count (``results/build_timing.json``
@@ -53,16 +59,20 @@ from verify.acceptance.metrics import check_arm_matches
 
 from . import ompl_planner as planner
 from .methods import (
+    batch_range_counts,
     bench_batched,
     bench_certified,
     bench_generator,
     bench_ompl,
     bench_pso,
+    bench_range_batched,
     bench_sweep,
     certificate_counts,
+    range_counts,
     read_build_timing,
     run_reduced_build,
 )
+from .range_map import BenchRegionMap, bench_region_map
 from .results import BenchReport, BenchSettings, MethodResult
 
 # --------------------------------------------------------------------------------------------
@@ -140,8 +150,8 @@ class _Context:
     log: Callable[[str], None]
 
 
-def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, Any]]:
-    """(a), (a') and the sweep rate (whose certified pass also certifies (a)'s answers)."""
+def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, Any], list[Any]]:
+    """(a), (a') and the sweep rate (whose certified pass also certifies (a)'s answers); and (a)'s answers."""
     cases, margin, settings = ctx.cases, ctx.margin_m, ctx.settings
     ctx.log("timing (a) the regression generator, one query at a time ...")
     times_a, answers = bench_generator(ctx.coefficients, cases, settings.repeats)
@@ -163,10 +173,7 @@ def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, A
     )
     ctx.log("timing (a') the regression generator, batched ...")
     times_batch, parameters = bench_batched(ctx.coefficients, cases, settings.repeats)
-    same = all(
-        answer is not None and np.allclose(row, answer.trajectory.array, rtol=1e-12, atol=1e-12)
-        for row, answer in zip(parameters, answers, strict=True)
-    )
+    same = _same_parameters(list(parameters), answers)
     if same:
         certified_batch, keeps_batch = certified_a, keeps_a
     else:
@@ -184,7 +191,7 @@ def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, A
         + ("; same parameters as (a)" if same else ""),
         extra={"same_parameters_as_a": same},
     )
-    return [method_a, method_batch], sweep_info
+    return [method_a, method_batch], sweep_info, answers
 
 
 def _certify_batch(ctx: _Context, parameters: np.ndarray, answers: list[Any]) -> tuple[int, int]:
@@ -195,6 +202,56 @@ def _certify_batch(ctx: _Context, parameters: np.ndarray, answers: list[Any]) ->
             trajectory = JointTrajectory(tuple(row), answer.duration_s)
             clearances.append(certify_trajectory(trajectory, ctx.arm, answer.obstacle).certified_clearance_m)
     return certificate_counts(clearances, ctx.margin_m)
+
+
+def _same_parameters(rows: Any, answers_a: list[Any]) -> bool:
+    """True if every row of parameters equals (a)'s answer for that obstacle to 1e-12 (both answered)."""
+    return all(
+        row is not None and answer is not None and np.allclose(row, answer.trajectory.array, rtol=1e-12, atol=1e-12)
+        for row, answer in zip(rows, answers_a, strict=True)
+    )
+
+
+def _range_methods(ctx: _Context, bench_map: BenchRegionMap, answers_a: list[Any]) -> list[MethodResult]:
+    """(a*) per query and batched: the generator with the range certificate's bounds."""
+    cases, margin, settings, region_map = ctx.cases, ctx.margin_m, ctx.settings, bench_map.region_map
+    ctx.log("timing (a*) the generator with the range certificate, one query at a time ...")
+    times, answers = bench_generator(ctx.coefficients, cases, settings.repeats, region_map)
+    counts = range_counts(answers, margin)
+    same = _same_parameters([None if a is None else a.trajectory.array for a in answers], answers_a)
+    common = {"obstacles": len(cases), "queries": len(cases), "answered": sum(a is not None for a in answers)}
+    per_query = MethodResult(
+        key="a_range",
+        label="(a*) generator with range certificate",
+        times_s=tuple(times),
+        certified=counts.certified,
+        keeps_margin=counts.keeps_margin,
+        note=f"generate(coefficients, L, W, region_map=m), each call timed; passes: {settings.repeats}; "
+        f"{counts.certified} of {counts.in_range} in-range queries answered with a certified clearance > 0, "
+        f"{counts.keeps_margin} >= the margin; parameters " + ("equal (a)'s" if same else "DIFFER from (a)'s"),
+        extra={
+            "in_range_queries": counts.in_range,
+            "same_parameters_as_a": same,
+            "certified_clearance_min_m": counts.clearance_min_m,
+        },
+        **common,
+    )
+    ctx.log("timing (a*') the generator with the range certificate, batched ...")
+    times_batch, batch = bench_range_batched(ctx.coefficients, cases, region_map, settings.repeats)
+    counts_batch = batch_range_counts(batch, margin)
+    same_batch = _same_parameters(list(batch.parameters), answers_a)
+    batched = MethodResult(
+        key="a_range_batch",
+        label=f"(a*') range-certified, batched (n = {len(cases)})",
+        times_s=tuple(times_batch),
+        certified=counts_batch.certified,
+        keeps_margin=counts_batch.keeps_margin,
+        note="generate_batch(coefficients, L[:], W[:], region_map=m) / n: parameters, T and the map's bounds "
+        "per obstacle" + ("; same parameters as (a)" if same_batch else "; parameters DIFFER from (a)'s"),
+        extra={"in_range_queries": counts_batch.in_range, "same_parameters_as_a": same_batch},
+        **common,
+    )
+    return [per_query, batched]
 
 
 def _certified_method(ctx: _Context) -> MethodResult:
@@ -268,7 +325,8 @@ def _build_info(ctx: _Context, timing: dict[str, Any] | None, config: SolverConf
     if settings.run_build_levels is not None:
         levels = settings.run_build_levels
         ctx.log(f"running a reduced build ({levels} x {levels} levels) ...")
-        return {"file": timing, "reduced": run_reduced_build(levels, config, settings.seed, settings.urdf)}
+        reduced = run_reduced_build(levels, config, settings.seed, settings.urdf, ctx.coefficients)
+        return {"file": timing, "reduced": reduced}
     if timing is not None:
         return {"file": timing, "reduced": None}
     if settings.build_timing is not None:
@@ -298,7 +356,8 @@ def run_bench(
         coefficients: ``source`` already loaded (optional).
 
     Raises:
-        DataFileError: missing or malformed coefficients / build timing file.
+        DataFileError: missing or malformed coefficients / build timing file / region map, or a
+            ``settings.region_map`` that certifies other coefficients.
         InvalidParameterError: coefficients fitted for another arm, or bad settings.
     """
     started = time.perf_counter()
@@ -311,7 +370,9 @@ def run_bench(
     # Build timing first (a missing or malformed file is reported before minutes of work).
     timing = read_build_timing(settings.build_timing) if settings.build_timing is not None else None
     config, pso_source = solver_config(coefficients, settings)
-    methods, sweep_info = _sweep_and_generator(ctx)
+    bench_map = bench_region_map(coefficients, settings.region_map, log=log)
+    methods, sweep_info, answers_a = _sweep_and_generator(ctx)
+    methods.extend(_range_methods(ctx, bench_map, answers_a))
     methods.append(_certified_method(ctx))
     skipped: dict[str, str] = {}
     if settings.pso_cases > 0:
@@ -336,6 +397,7 @@ def run_bench(
         skipped=skipped,
         sweep=sweep_info,
         build=build_info,
+        range_map=bench_map.to_json(),
         machine=machine,
         command=command,
         elapsed_s=time.perf_counter() - started,
