@@ -48,6 +48,13 @@ def _add_method_options(parser: argparse.ArgumentParser, defaults: BenchSettings
         "--seed", type=int, default=defaults.seed, help="seed of the obstacles, PSO and OMPL (>= 0) (default: 0)"
     )
     parser.add_argument(
+        "--batch-size",
+        type=int,
+        default=defaults.batch_size,
+        help="obstacles per call of the batched rows (a') and (a*'): the --n obstacles cycled to this many "
+        "[obstacles] (values below --n count as --n)",
+    )
+    parser.add_argument(
         "--repeats",
         type=int,
         default=defaults.repeats,
@@ -179,6 +186,7 @@ def settings_from_args(args: argparse.Namespace) -> BenchSettings:
         n=args.n,
         seed=args.seed,
         repeats=args.repeats,
+        batch_size=args.batch_size,
         slow_repeats=args.slow_repeats,
         pso_cases=args.pso_cases,
         pso_swarm_size=args.pso_swarm_size,

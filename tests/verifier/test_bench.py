@@ -22,7 +22,7 @@ from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, default_conf
 from pipeline.certify.range_certificate import RangeCertificateConfig
 from pipeline.certify.region_map import load_region_map, save_region_map
 from pipeline.cli import EXIT_OK, EXIT_USAGE, HelpFormatter
-from pipeline.exceptions import DataFileError, EndpointConstraintWarning
+from pipeline.exceptions import DataFileError, EndpointConstraintWarning, InvalidParameterError
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.offline.coefficients import Coefficients, load_coefficients, save_coefficients
 from pipeline.online.generator import RANGE_SOURCE, generate
@@ -402,3 +402,18 @@ def test_another_arm_is_refused_naming_both(capsys: pytest.CaptureFixture[str], 
     status, _, err = run_main(capsys, "--coefficients", "paper", "--urdf", str(double_pendulum_urdf), "--quiet")
     assert status == EXIT_USAGE and "0.3, 0.35" in err and "0.1, 0.2" in err and "--urdf" in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_batched_rows_cycle_the_obstacles_and_count_only_the_first_n(built: Path) -> None:
+    coefficients = load_coefficients(built)
+    region_map = load_region_map(built.with_name(DEFAULT_MAP_NAME))
+    cases = sample_cases(SweepRange.from_fitted(coefficients.fitted_range_m), 7, 4)
+    cycled = bench_run._batch_cases(cases, 30)
+    assert cycled.shape == (30, 2) and np.array_equal(cycled[7:14], cases) and np.array_equal(cycled[28:], cases[:2])
+    assert bench_run._batch_cases(cases, 3).shape == (7, 2)  # never fewer than the obstacles
+    _, batch = bench_methods.bench_range_batched(coefficients, cycled, region_map, 1)
+    margin = coefficients.scene.margin_m
+    assert bench_methods.batch_range_counts(batch, margin, 7).in_range == 7
+    assert bench_methods.batch_range_counts(batch, margin).in_range == 30
+    with pytest.raises(InvalidParameterError, match="batch-size"):
+        bench_results.BenchSettings(batch_size=0)

@@ -132,11 +132,13 @@ def range_counts(answers: Sequence[Any], margin_m: float) -> RangeCounts:
     return RangeCounts(len(in_range), certified, keeps, min(clearances) if clearances else None)
 
 
-def batch_range_counts(batch: GeneratedBatch, margin_m: float) -> RangeCounts:
-    """:func:`range_counts` of a :class:`GeneratedBatch` carrying the map's bounds (NaN where it has none)."""
-    answered = np.array([e is None for e in batch.error], dtype=bool)
-    in_range = answered & ~batch.extrapolated
-    bounds = batch.certified_clearance_m
+def batch_range_counts(batch: GeneratedBatch, margin_m: float, first: int | None = None) -> RangeCounts:
+    """:func:`range_counts` of a :class:`GeneratedBatch` carrying the map's bounds (NaN where it has none),
+    over its ``first`` obstacles (all if None)."""
+    count = len(batch.error) if first is None else first
+    answered = np.array([e is None for e in batch.error[:count]], dtype=bool)
+    in_range = answered & ~batch.extrapolated[:count]
+    bounds = None if batch.certified_clearance_m is None else batch.certified_clearance_m[:count]
     clearances = [] if bounds is None else [float(c) for c in bounds[in_range] if math.isfinite(c)]
     certified, keeps = certificate_counts(clearances, margin_m)
     return RangeCounts(int(np.count_nonzero(in_range)), certified, keeps, min(clearances) if clearances else None)

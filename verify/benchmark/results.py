@@ -18,6 +18,8 @@ DEFAULT_BUILD_TIMING = "results/build_timing.json"
 DEFAULT_N = 50
 DEFAULT_SEED = 0
 DEFAULT_REPEATS = 200
+#: Obstacles per call of the batched rows (a') and (a*') [obstacles]: the bench's obstacles, cycled.
+DEFAULT_BATCH_SIZE = 1000
 DEFAULT_SLOW_REPEATS = 3
 DEFAULT_PSO_CASES = 3
 DEFAULT_OMPL_TIME_S = 1.0
@@ -106,6 +108,8 @@ class BenchSettings:
         n: Random obstacles [cases].
         seed: Seed of the obstacle sampler, the PSO and OMPL.
         repeats: Timed passes over all obstacles for (a) and (a').
+        batch_size: Obstacles per call of the batched rows (a') and (a*'): the n obstacles cycled to
+            this many (at least n), so that a call's fixed cost is spread as a batch user's is.
         slow_repeats: Timed passes over all obstacles for (b) and (d).
         pso_cases: Obstacles (the first ones) on which (c) re-runs the PSO; 0 skips (c).
         pso_swarm_size, pso_iterations, pso_restarts: PSO settings of (c) and --run-build; None: the
@@ -127,6 +131,7 @@ class BenchSettings:
     n: int = DEFAULT_N
     seed: int = DEFAULT_SEED
     repeats: int = DEFAULT_REPEATS
+    batch_size: int = DEFAULT_BATCH_SIZE
     slow_repeats: int = DEFAULT_SLOW_REPEATS
     pso_cases: int = DEFAULT_PSO_CASES
     pso_swarm_size: int | None = None
@@ -147,6 +152,7 @@ class BenchSettings:
         check_positive_int("--n", self.n)
         check_positive_int("--seed", self.seed, minimum=0)
         check_positive_int("--repeats", self.repeats)
+        check_positive_int("--batch-size", self.batch_size)
         check_positive_int("--slow-repeats", self.slow_repeats)
         check_positive_int("--pso-cases", self.pso_cases, minimum=0)
         if self.pso_cases > self.n:

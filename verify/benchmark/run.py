@@ -172,7 +172,9 @@ def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, A
         note=f"generate(coefficients, L, W), each call timed; passes over the obstacles: {settings.repeats}",
     )
     ctx.log("timing (a') the regression generator, batched ...")
-    times_batch, parameters = bench_batched(ctx.coefficients, cases, settings.repeats)
+    batch_cases = _batch_cases(cases, settings.batch_size)
+    times_batch, parameters = bench_batched(ctx.coefficients, batch_cases, settings.repeats)
+    parameters = parameters[: len(cases)]
     same = _same_parameters(list(parameters), answers)
     if same:
         certified_batch, keeps_batch = certified_a, keeps_a
@@ -180,18 +182,23 @@ def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, A
         certified_batch, keeps_batch = _certify_batch(ctx, parameters, answers)
     method_batch = MethodResult(
         key="a_batch",
-        label=f"(a') regression generator, batched (n = {len(cases)})",
+        label=f"(a') regression generator, batched ({len(batch_cases)} per call)",
         obstacles=len(cases),
         times_s=tuple(times_batch),
         queries=len(cases),
         answered=answered_a,
         certified=certified_batch,
         keeps_margin=keeps_batch,
-        note="generate_parameters(coefficients, L[:], W[:]) / n; parameters only (no path object)"
-        + ("; same parameters as (a)" if same else ""),
+        note=f"generate_parameters(coefficients, L[:], W[:]) / {len(batch_cases)} (the {len(cases)} obstacles "
+        "cycled); parameters only (no path object)" + ("; same parameters as (a)" if same else ""),
         extra={"same_parameters_as_a": same},
     )
     return [method_a, method_batch], sweep_info, answers
+
+
+def _batch_cases(cases: np.ndarray, batch_size: int) -> np.ndarray:
+    """The bench's obstacles cycled to ``batch_size`` rows (at least all of them), for the batched rows."""
+    return np.resize(cases, (max(len(cases), batch_size), 2))
 
 
 def _certify_batch(ctx: _Context, parameters: np.ndarray, answers: list[Any]) -> tuple[int, int]:
@@ -237,17 +244,19 @@ def _range_methods(ctx: _Context, bench_map: BenchRegionMap, answers_a: list[Any
         **common,
     )
     ctx.log("timing (a*') the generator with the range certificate, batched ...")
-    times_batch, batch = bench_range_batched(ctx.coefficients, cases, region_map, settings.repeats)
-    counts_batch = batch_range_counts(batch, margin)
-    same_batch = _same_parameters(list(batch.parameters), answers_a)
+    batch_cases = _batch_cases(cases, settings.batch_size)
+    times_batch, batch = bench_range_batched(ctx.coefficients, batch_cases, region_map, settings.repeats)
+    counts_batch = batch_range_counts(batch, margin, len(cases))
+    same_batch = _same_parameters(list(batch.parameters[: len(cases)]), answers_a)
     batched = MethodResult(
         key="a_range_batch",
-        label=f"(a*') range-certified, batched (n = {len(cases)})",
+        label=f"(a*') range-certified, batched ({len(batch_cases)} per call)",
         times_s=tuple(times_batch),
         certified=counts_batch.certified,
         keeps_margin=counts_batch.keeps_margin,
-        note="generate_batch(coefficients, L[:], W[:], region_map=m) / n: parameters, T and the map's bounds "
-        "per obstacle" + ("; same parameters as (a)" if same_batch else "; parameters DIFFER from (a)'s"),
+        note=f"generate_batch(coefficients, L[:], W[:], region_map=m) / {len(batch_cases)} (the {len(cases)} "
+        "obstacles cycled): parameters, T and the map's bounds per obstacle"
+        + ("; same parameters as (a)" if same_batch else "; parameters DIFFER from (a)'s"),
         extra={"in_range_queries": counts_batch.in_range, "same_parameters_as_a": same_batch},
         **common,
     )
