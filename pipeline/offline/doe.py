@@ -8,9 +8,9 @@ worker processes solve them) or on the order in which they finish.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +18,7 @@ import numpy as np
 
 from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
 from pipeline.io.jsonio import read_json
+from pipeline.io.parallel import item_seeds, process_map
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.scene import Scene
 from pipeline.motion.families import PAPER, TrajectoryFamily, family_from_name
@@ -67,10 +68,12 @@ class Design:
         }
 
 
-def _solve_one(task: tuple) -> ExperimentResult:
+def _solve_in_worker(
+    urdf_path: str, scene: Scene, config: SolverConfig, task: tuple[float, float, np.random.SeedSequence]
+) -> ExperimentResult:
     """One experiment in a worker process (the arm is reloaded there: milliseconds, against
     seconds of PSO)."""
-    urdf_path, length_m, width_m, scene, config, seed_sequence = task
+    length_m, width_m, seed_sequence = task
     arm = load_planar_arm(urdf_path)
     return solve_experiment(arm, length_m, width_m, scene, config, np.random.default_rng(seed_sequence))
 
@@ -84,35 +87,36 @@ def run_doe(
     jobs: int = 1,
     progress: Callable[[ExperimentResult], None] | None = None,
 ) -> list[ExperimentResult]:
-    """Solve every experiment of ``design``; results in design order.
+    """Solve every experiment of ``design``; results in design order, the same for any ``jobs``.
 
     Args:
         arm: The arm (its URDF is reloaded in each worker process when jobs > 1).
         design: The (L, W) grid.
         scene: Scene settings.
         config: Solver settings.
-        seed: Master seed; experiment i uses the i-th spawned child stream.
-        jobs: Worker processes (1 = in this process).
+        seed: Master seed; experiment i uses the i-th spawned child stream
+            (:func:`pipeline.io.parallel.item_seeds`).
+        jobs: Worker processes (1 = in this process); one experiment per worker call
+            (:func:`pipeline.io.parallel.process_map`).
         progress: Called with each result as it completes.
     """
     check_positive_int("jobs", jobs)
     points = design.points()
-    streams = np.random.SeedSequence(seed).spawn(len(points))
-    tasks = [(str(arm.urdf_path), L, W, scene, config, stream) for (L, W), stream in zip(points, streams, strict=True)]
-    results: list[ExperimentResult | None] = [None] * len(tasks)
+    tasks = [(L, W, stream) for (L, W), stream in zip(points, item_seeds(seed, len(points)), strict=True)]
     if jobs == 1:
-        for i, (L, W, stream) in enumerate((t[1], t[2], t[5]) for t in tasks):
-            results[i] = solve_experiment(arm, L, W, scene, config, np.random.default_rng(stream))
+
+        def function(task: tuple[float, float, np.random.SeedSequence]) -> ExperimentResult:
+            return solve_experiment(arm, task[0], task[1], scene, config, np.random.default_rng(task[2]))
+
+    else:
+        function = functools.partial(_solve_in_worker, str(arm.urdf_path), scene, config)
+
+    def report(done: list[ExperimentResult]) -> None:
+        for result in done:
             if progress:
-                progress(results[i])
-        return results  # type: ignore[return-value]
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        futures = {pool.submit(_solve_one, task): i for i, task in enumerate(tasks)}
-        for future in as_completed(futures):
-            results[futures[future]] = future.result()
-            if progress:
-                progress(results[futures[future]])
-    return results  # type: ignore[return-value]
+                progress(result)
+
+    return process_map(function, tasks, jobs=jobs, chunk_size=1, on_done=report)
 
 
 @dataclass(frozen=True)
