@@ -8,7 +8,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -85,9 +84,7 @@ def test_build_refuses_before_any_work(
     before = files_under(tmp)
     arguments = substitute(arguments, tmp)
     argv = [*TINY, "--out", str(tmp / "out"), *arguments]  # a later --out wins
-    started = time.perf_counter()
     status = build.main(argv)
-    assert time.perf_counter() - started < 5.0
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
     assert status == 2, captured.err

@@ -5,7 +5,6 @@ is one line and exit status 2."""
 from __future__ import annotations
 
 import shutil
-import time
 from pathlib import Path
 
 import pytest
@@ -33,10 +32,9 @@ def test_default_coefficients_are_the_builds_file_and_are_named(capsys, tmp_path
 
 
 @pytest.mark.parametrize("flag", ["--html", "--screenshot"])
-def test_output_path_is_checked_before_any_work(capsys, flag: str) -> None:
-    started = time.perf_counter()
+def test_output_path_is_checked_before_any_work(capsys, monkeypatch, flag: str) -> None:
+    monkeypatch.setattr(view, "_run", lambda *a, **k: pytest.fail("the view was built despite a bad output path"))
     status, out, err = run_view(capsys, "--coefficients", "paper", "--L", "0.27", "--W", "0.09", flag, "/proc/x")
-    assert time.perf_counter() - started < 5.0
     assert status == 2 and out == "" and flag in err and len(err.strip().splitlines()) == 1
     assert "Traceback" not in err and ".tmp" not in err
 
