@@ -54,6 +54,8 @@ _SAMPLES_S = 401
 _FD_STEP_RAD = 1e-6
 #: Leaves whose endpoint-pose clearance bound U is below margin + this are not constrained [m].
 _FEASIBLE_SLACK_M = 1e-3
+#: Clearance constraints are given to SLSQP in centimetres, the size of the endpoint slack's terms.
+_CLEARANCE_SCALE = 100.0
 
 
 @dataclass(frozen=True)
@@ -205,6 +207,45 @@ def _targets_at(coefficients: Coefficients, centres: np.ndarray) -> EndpointTarg
     )
 
 
+def _solve_refit(
+    objective,
+    b0: np.ndarray,
+    X_grid: np.ndarray,
+    targets: EndpointTargets,
+    clearance: ClearancePoints,
+    start: Coefficients,
+    floor_m: float,
+    config: CertifiableFitConfig,
+) -> tuple[np.ndarray, bool]:
+    """One SLSQP solve: least squares subject to the endpoint slack at ``targets`` (the
+    endpoint constraint's fit tolerance) and clearance >= ``floor_m`` at the points."""
+    constraints = [
+        {
+            "type": "ineq",
+            "fun": endpoint_slack,
+            "jac": endpoint_slack_jacobian,
+            "args": (X_grid, targets, config.endpoint.fit_tolerance_m),
+        }
+    ]
+    if clearance.points.shape[0]:
+        constraints.append(
+            {
+                "type": "ineq",
+                "fun": lambda b: (clearance_at(b, clearance, start) - floor_m) * _CLEARANCE_SCALE,
+                "jac": lambda b: clearance_jacobian(b, clearance, start) * _CLEARANCE_SCALE,
+            }
+        )
+    result = minimize(
+        objective,
+        b0,
+        jac=True,
+        method="SLSQP",
+        constraints=constraints,
+        options={"maxiter": config.endpoint.max_iterations, "ftol": 1e-12},
+    )
+    return result.x, bool(result.success)
+
+
 def refit(
     start: Coefficients,
     length_m: np.ndarray,
@@ -215,7 +256,9 @@ def refit(
     margin_m: float,
     config: CertifiableFitConfig,
 ) -> tuple[Coefficients, bool]:
-    """One SLSQP refit from ``start`` (module docstring, step 3); returns the coefficients and convergence."""
+    """One refit from ``start`` (module docstring, step 3): clearance >= margin + cushion at the
+    points, or, if SLSQP cannot meet that (the cushion can be out of the family's reach where the
+    margin barely is), >= the margin itself. Returns the coefficients and convergence."""
     X_data = design_matrix(length_m, width_m)
     X_grid = design_matrix(targets.lengths_m, targets.widths_m)
     Y = np.stack([np.asarray(values[name], dtype=float) for name in PARAMETER_NAMES], -1)
@@ -224,36 +267,14 @@ def refit(
         residual = X_data @ b.reshape(6, 8) - Y
         return float(np.sum(residual * residual)), (2.0 * X_data.T @ residual).ravel()
 
-    floor = margin_m + config.cushion_m
-    scale = 1.0 / max(floor, 1e-3)
-    constraints = [
-        {
-            "type": "ineq",
-            "fun": endpoint_slack,
-            "jac": endpoint_slack_jacobian,
-            "args": (X_grid, targets, config.endpoint.tolerance_m),
-        }
-    ]
-    if clearance.points.shape[0]:
-        constraints.append(
-            {
-                "type": "ineq",
-                "fun": lambda b: (clearance_at(b, clearance, start) - floor) * scale,
-                "jac": lambda b: clearance_jacobian(b, clearance, start) * scale,
-            }
-        )
     b0 = np.stack([start.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
-    result = minimize(
-        objective,
-        b0,
-        jac=True,
-        method="SLSQP",
-        constraints=constraints,
-        options={"maxiter": config.endpoint.max_iterations, "ftol": 1e-12},
-    )
-    B = result.x.reshape(6, 8)
+    for cushion_m in dict.fromkeys((config.cushion_m, 0.0)):
+        x, converged = _solve_refit(objective, b0, X_grid, targets, clearance, start, margin_m + cushion_m, config)
+        if converged:
+            break
+    B = x.reshape(6, 8)
     parameters = {name: tuple(float(v) for v in B[:, i]) for i, name in enumerate(PARAMETER_NAMES)}
-    return replace(start, parameters=parameters, source_sha256=""), bool(result.success)
+    return replace(start, parameters=parameters, source_sha256=""), converged
 
 
 def fit_certifiable(
