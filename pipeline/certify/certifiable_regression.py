@@ -61,6 +61,7 @@ from pipeline.offline.regression import coefficient_of_determination, design_mat
 from pipeline.validation import check_non_negative, check_positive_int
 
 _SAMPLES_S = 401
+_CHUNK_LEAVES = 256
 _FD_STEP_RAD = 1e-6
 #: Clearance constraints are given to SLSQP in centimetres, the size of the endpoint slack's terms.
 _CLEARANCE_SCALE = 100.0
@@ -180,23 +181,22 @@ def worst_points(
     centres = model_lo + (np.stack([region_map.index_l, region_map.index_w], -1) + 0.5) * size / (
         2.0 ** region_map.depth[:, None]
     )
-    points, values = [], []
     s = np.linspace(0.0, 1.0, _SAMPLES_S)
-    X = design_matrix(centres[failing, 0], centres[failing, 1])
-    b = np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1)
     data = _clearance_points(coefficients, np.column_stack([centres[failing], np.zeros(len(failing))]))
-    for row in range(len(failing)):
-        params = np.repeat((X[row] @ b)[None], _SAMPLES_S, 0)
-        theta, _ = _theta(params, s * data.duration_s[row])
-        where = np.repeat(data.points[row][None], _SAMPLES_S, 0)
-        clearance = _clearance_of_theta(theta, where, coefficients)
-        k = int(np.argmin(clearance))
-        points.append([*centres[failing[row]], s[k]])
-        values.append(clearance[k])
-    order = np.argsort(values)[:limit]
-    clearance_points = np.array(points)[order] if points else np.empty((0, 3))
+    params = design_matrix(centres[failing, 0], centres[failing, 1]) @ _matrix(coefficients)  # (n, 8)
+    lowest, where = np.empty(len(failing)), np.empty(len(failing), dtype=np.int64)
+    for chunk in range(0, len(failing), _CHUNK_LEAVES):  # vectorised over leaves x samples
+        rows = slice(chunk, chunk + _CHUNK_LEAVES)
+        count = params[rows].shape[0]
+        theta, _ = _theta(np.repeat(params[rows], _SAMPLES_S, 0), (data.duration_s[rows, None] * s).ravel())
+        clearance = _clearance_of_theta(theta, np.repeat(data.points[rows], _SAMPLES_S, 0), coefficients)
+        clearance = clearance.reshape(count, _SAMPLES_S)
+        where[rows] = np.argmin(clearance, axis=1)
+        lowest[rows] = clearance[np.arange(count), where[rows]]
+    order = np.argsort(lowest, kind="stable")[:limit]
+    clearance_points = np.column_stack([centres[failing][order], s[where[order]]])
     loose = np.flatnonzero(region_map.endpoint_bound_m > region_map.endpoint_tolerance_m)
-    loose = loose[np.argsort(-region_map.endpoint_bound_m[loose])][:limit]
+    loose = loose[np.argsort(-region_map.endpoint_bound_m[loose], kind="stable")][:limit]
     return clearance_points, centres[loose]
 
 
