@@ -9,7 +9,8 @@ and keeps the margin along the whole motion) without being proven so. For one ob
     c_j(theta(t_k; p)) >= z  for both links j and K uniform times t_k in [0, T],
     |tip(0) - P1| <= tolerance,  |tip(T) - P5| <= tolerance,
 
-by SLSQP from the regression's parameters at (L, W) (a local search). The trajectory it ends
+by SLSQP from the regression's parameters at (L, W) (a local search, holding 0.999 of the
+tolerance so that its last iterate, checked afterwards, meets the tolerance). The trajectory it ends
 with is then certified in continuous time (``pipeline.geometry.sinusoid_certificate``, analytic
 route), and its endpoint errors are recomputed, so the figure reported is a true lower bound on
 that trajectory's clearance: a *witness* that at least that much is reachable at (L, W) with
@@ -38,6 +39,10 @@ from pipeline.validation import check_positive, check_positive_int
 
 _SEARCH_SAMPLES = 241
 _MAX_ITERATIONS = 300
+#: The search holds this fraction of the tolerance, so that an SLSQP iterate that ends a hair
+#: outside its constraints (it stops on a line-search failure as often as on convergence)
+#: still meets the tolerance itself.
+_INSIDE = 0.999
 
 
 @dataclass(frozen=True)
@@ -50,6 +55,8 @@ class Witness:
         clearance_m: Certified clearance of the trajectory found [m] (a lower bound over [0, T]).
         endpoint_errors_m: |tip(0) - P1| and |tip(T) - P5| of the trajectory found [m].
         parameters: Its 8 parameters (:data:`PARAMETER_NAMES` order).
+        within_tolerance: Both endpoint errors within the tolerance (False only if neither the
+            search nor the coefficients' own trajectory met it: then it is no witness).
     """
 
     length_m: float
@@ -58,6 +65,7 @@ class Witness:
     clearance_m: float
     endpoint_errors_m: tuple[float, float]
     parameters: tuple[float, ...]
+    within_tolerance: bool = True
 
     def to_json(self) -> dict:
         """Plain JSON (lengths in m)."""
@@ -68,6 +76,7 @@ class Witness:
             "clearance_m": self.clearance_m,
             "endpoint_errors_m": list(self.endpoint_errors_m),
             "parameters": dict(zip(PARAMETER_NAMES, self.parameters, strict=True)),
+            "within_tolerance": self.within_tolerance,
         }
 
 
@@ -118,7 +127,7 @@ def best_clearance_at(
 
     def endpoint_rows(x: np.ndarray) -> np.ndarray:
         tips = forward_kinematics(_theta(x[:8], np.array([0.0, duration])), arm.link_lengths_m)
-        return 1.0 - np.sum((tips - ends) ** 2, -1) / tolerance_m**2
+        return 1.0 - np.sum((tips - ends) ** 2, -1) / (_INSIDE * tolerance_m) ** 2
 
     z0 = float(_link_clearances(_theta(start, times), obstacle, arm).min())
     result = minimize(
@@ -145,6 +154,7 @@ def best_clearance_at(
         clearance_m=_certified(found, duration, arm, obstacle),
         endpoint_errors_m=(float(errors[0]), float(errors[1])),
         parameters=tuple(float(v) for v in found),
+        within_tolerance=bool(errors.max() <= tolerance_m),
     )
 
 
@@ -164,4 +174,17 @@ def witnesses_for_map(coefficients: Coefficients, region_map: RegionMap, arm: Pl
     return [
         best_clearance_at(coefficients, arm, float(L), float(W), region_map.endpoint_tolerance_m)
         for L, W in centres[picks]
+    ]
+
+
+def witness_lines(witnesses: list[Witness]) -> list[str]:
+    """One line per witness (mm), or one saying there was no cell to search."""
+    if not witnesses:
+        return ["witnesses: every cell keeps the margin or is proven infeasible"]
+    return [
+        f"witness at L = {w.length_m:.4f} m, W = {w.width_m:.5f} m: the coefficients' trajectory "
+        f"{1e3 * w.regression_clearance_m:.2f} mm, the best one found {1e3 * w.clearance_m:.2f} mm (certified), "
+        f"its endpoint errors {1e3 * w.endpoint_errors_m[0]:.2f} / {1e3 * w.endpoint_errors_m[1]:.2f} mm"
+        + ("" if w.within_tolerance else " (NOT within the tolerance: no witness)")
+        for w in witnesses
     ]
