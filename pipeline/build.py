@@ -30,6 +30,7 @@ from pipeline.certify.certifiable_regression import (
 )
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, certify_and_save, default_config, summary_lines
 from pipeline.certify.region_map import save_region_map
+from pipeline.certify_range import count_argument
 from pipeline.cli import EXIT_FAILED, EXIT_OK, Parser, jobs_count, run_cli
 from pipeline.exceptions import BuildNotConvergedError
 from pipeline.io.jsonio import write_json_atomic
@@ -167,7 +168,7 @@ def parser() -> Parser:
     )
     p.add_argument(
         "--clearance-rounds",
-        type=int,
+        type=count_argument,
         default=DEFAULT_CLEARANCE_ROUNDS,
         metavar="N",
         help="paper family with the endpoint constraint: rounds of the certifiable regression before the map "

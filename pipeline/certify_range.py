@@ -49,7 +49,8 @@ def _metres(text: str) -> float:
     return value
 
 
-def _count(text: str) -> int:
+def count_argument(text: str) -> int:
+    """argparse type: a whole number >= 0."""
     try:
         value = int(text)
     except ValueError:
@@ -95,7 +96,7 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--witnesses",
-        type=_count,
+        type=count_argument,
         default=0,
         metavar="N",
         help="paper family: at N cells that keep neither the margin nor are proven infeasible (spread over them), "
