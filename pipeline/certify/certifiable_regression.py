@@ -426,7 +426,7 @@ def clearance_refit_lines(report: dict) -> list[str]:
         refit = "" if "refit_seconds" not in r else f", refit {r['refit_seconds']:.1f} s"
         stopped = f" ({r['stopped']})" if "stopped" in r else ""
         lines.append(
-            f"certifiable regression round {r['round']}: {fractions}; {r['clearance_points']} clearance points, "
+            f"certifiable regression round {r['round']}: {fractions}; {r['clearance_points']} clearance points held, "
             f"{r['endpoint_targets']} endpoint targets; certificate {r['certify_seconds']:.1f} s{refit}{stopped}"
         )
     return lines
