@@ -5,7 +5,10 @@ A thin command line on :func:`pipeline.offline.build.run_build` (call that from 
 ``DIR/coefficients.json`` atomically (deterministic for a seed: no timestamps, independent of
 --jobs), ``DIR/region_map.json`` (the range certificate of the coefficients, linked by their
 sha256; ``--no-range-map`` skips it) and ``DIR/build_timing.json``; prints our Table 2 and Eq. 9
-beside the paper's, and the range certificate's area fractions.
+beside the paper's, and the range certificate's area fractions. Before the map, a paper-family
+build with the endpoint constraint runs ``--clearance-rounds`` rounds (default 1) of the
+certifiable regression (``pipeline.certify.certifiable_regression``), which rewrites
+``coefficients.json`` with the refit (still deterministic for a seed).
 
 Exit status: 0 written; 1 the build did not converge (nothing written, the failing experiments
 named; ``--allow-unconverged`` writes anyway, marked); 2 bad input (one line, before any work);
