@@ -14,6 +14,7 @@ from pathlib import Path
 
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, certify_and_save, default_config, summary_lines
 from pipeline.certify.range_certificate import DEFAULT_BOUNDARY_CELL, DEFAULT_ENDPOINT_TOLERANCE_M, DEFAULT_MIN_CELL
+from pipeline.certify.reachability import witness_lines, witnesses_for_map
 from pipeline.cli import (
     EXIT_OK,
     Parser,
@@ -24,6 +25,7 @@ from pipeline.cli import (
     run_cli,
 )
 from pipeline.io.jsonio import write_json_atomic
+from pipeline.model.arm import load_planar_arm
 from pipeline.motion.families import PAPER_SOURCE
 
 
@@ -44,6 +46,17 @@ def _metres(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of metres") from None
     if not value >= 0.0 or value == float("inf"):
         raise argparse.ArgumentTypeError(f"{value} must be a finite length >= 0 [m]")
+    return value
+
+
+def count_argument(text: str) -> int:
+    """argparse type: a whole number >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} must be >= 0")
     return value
 
 
@@ -82,6 +95,15 @@ def parser() -> argparse.ArgumentParser:
         f"(default: {DEFAULT_MIN_CELL}; 1/32 for a family that pins the endpoints)",
     )
     p.add_argument(
+        "--witnesses",
+        type=count_argument,
+        default=0,
+        metavar="N",
+        help="paper family: at N cells that keep neither the margin nor are proven infeasible (spread over them), "
+        "search the family for the largest clearance with the endpoint tolerance and certify it (a witness of "
+        "what is reachable; pipeline.certify.reachability) [count] (default: 0)",
+    )
+    p.add_argument(
         "--boundary-cell",
         type=_fraction,
         default=None,
@@ -109,6 +131,10 @@ def _work(args: argparse.Namespace) -> int:
     region_map, digest = certify_and_save(coefficients, config, output)
     print("\n".join(summary_lines(region_map)))
     summary = region_map.summary()
+    if args.witnesses > 0:
+        witnesses = witnesses_for_map(coefficients, region_map, load_planar_arm(), args.witnesses)
+        print("\n".join(witness_lines(witnesses)))
+        summary["witnesses"] = [w.to_json() for w in witnesses]
     if output is not None:
         print(f"wrote {output} (sha256 {digest[:12]}, for coefficients sha256 {coefficients.source_sha256[:12]})")
     if summary_path is not None:

@@ -254,8 +254,11 @@ def fit_coefficients(
         )
     else:
         targets = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.grid_points)
+        check = None
+        if endpoint_constraint.check_points:
+            check = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.check_points)
         fit, report = fit_with_endpoints(
-            doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, endpoint_constraint
+            doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, endpoint_constraint, check
         )
         method = {"regression": "least squares + endpoint constraint", "endpoint_constraint": report}
     quality = {

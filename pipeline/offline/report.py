@@ -62,10 +62,17 @@ def regression_method(quality: Mapping) -> str:
     if report is None:
         return f"regression: {quality.get('regression', 'least squares')} per parameter (the paper's method)"
     status = "" if report["converged"] else " (NOT converged)"
+    check = ""
+    if "check_grid_endpoint_error_max_m" in report:
+        points = report["check_grid_points"]
+        check = (
+            f", {report['check_grid_endpoint_error_max_m'] * 1e3:.3f} mm on a {points}x{points} check grid"
+            f" (held {report['fit_tolerance_m'] * 1e3:.2f} mm, {report['check_points_added']} check points added)"
+        )
     return (
         f"regression: {quality['regression']}{status}: endpoint error on a {report['grid_points']}x"
         f"{report['grid_points']} grid over the fitted range {report['grid_endpoint_error_max_plain_m'] * 1e3:.2f} mm"
-        f" (plain fit) -> {report['grid_endpoint_error_max_m'] * 1e3:.2f} mm (tolerance"
+        f" (plain fit) -> {report['grid_endpoint_error_max_m'] * 1e3:.2f} mm{check} (tolerance"
         f" {report['tolerance_m'] * 1e3:.2f} mm); largest move from a DOE optimum"
         f" {report['max_deviation_from_doe']:.4f} rad or rad/s"
     )

@@ -1,6 +1,7 @@
 """The certifiable regression's pieces (pipeline.certify.certifiable_regression): the clearance
 it constrains against the generator and the analytic route, its Jacobian against finite
-differences, and one refit lifting the clearance at its constraint points."""
+differences, one refit lifting the clearance at its constraint points, and the build's
+file-level round (rewritten coefficients, map linked to them)."""
 
 from __future__ import annotations
 
@@ -13,11 +14,19 @@ from pipeline.certify.certifiable_regression import (
     clearance_at,
     clearance_jacobian,
     refit,
+    refit_file_for_clearance,
 )
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.geometry.clearance import analytic_link_clearance
 from pipeline.model.arm import PlanarArm
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline.coefficients import Coefficients, load_coefficients, paper_data_path
+from pipeline.offline.coefficients import (
+    Coefficients,
+    fit_coefficients,
+    load_coefficients,
+    paper_data_path,
+    save_coefficients,
+)
 from pipeline.offline.doe import load_doe
 from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets
 from pipeline.online.generator import generate
@@ -71,3 +80,26 @@ def test_refit_lifts_the_clearance_at_its_points(eq9: Coefficients) -> None:
     fitted, _ = refit(eq9, doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, data, 0.0105, config)
     after = clearance_at(_matrix(fitted), data, fitted)
     assert np.min(after) >= 0.0105 + config.cushion_m - 1e-6
+
+
+def test_refit_file_rewrites_the_coefficients_and_links_their_map(tmp_path) -> None:
+    """One round on Table 2's endpoint-constrained fit, coarse cells: the file is rewritten with
+    the rounds (no times in it, so it stays reproducible), the map belongs to the file as written
+    and is the certificate of exactly those coefficients, and the margin's area did not shrink."""
+    doe = load_doe(paper_data_path("paper_table2_doe.json"))
+    fitted, _ = fit_coefficients(doe, None, EndpointConstraint())
+    path = tmp_path / "coefficients.json"
+    save_coefficients(fitted, path)
+    certificate = RangeCertificateConfig(min_cell=1 / 32, boundary_cell=1 / 16)
+    config = CertifiableFitConfig(certificate=certificate, max_rounds=1)
+    saved, region_map, report = refit_file_for_clearance(path, doe, config)
+    assert region_map.belongs_to(load_coefficients(path)) and saved.parameters == load_coefficients(path).parameters
+    again = certify_range(saved, certificate)
+    assert np.array_equal(again.status, region_map.status)
+    assert np.allclose(again.clearance_bound_m, region_map.clearance_bound_m, rtol=0, atol=1e-15)
+    block = saved.extra["fit"]["clearance_refit"]
+    assert [r["round"] for r in block["rounds"]] == [r["round"] for r in report["rounds"]]
+    assert not any(key.endswith("_seconds") for r in block["rounds"] for key in r)
+    before, after = report["rounds"][0]["area_fraction"], region_map.summary()["area_fraction"]
+    assert after["margin"] >= before["margin"]
+    assert saved.extra["fit"]["regression"].endswith("clearance constraint generation")

@@ -91,6 +91,8 @@ def test_cli_writes_map_and_summary(tmp_path, capsys) -> None:
         ["paper", "--margin", "-0.01"],
         ["paper", "--min-cell", "2"],
         ["paper", "--jobs", "-1"],
+        ["paper", "--witnesses", "-1"],
+        ["paper", "--witnesses", "two"],
         ["/nonexistent/coefficients.json"],
     ],
 )

@@ -157,7 +157,11 @@ def test_regression_problems() -> None:
     assert regression_problems({"endpoint_constraint": report}) == []
     assert regression_problems({"regression": "least squares"}) == []
     (problem,) = regression_problems({"endpoint_constraint": {**report, "grid_endpoint_error_max_m": 0.675}})
-    assert str(problem) == "regression: endpoint error on the 21x21 grid 675.00 mm > tolerance 2.00 mm"
+    assert str(problem) == "regression: endpoint error on the 21x21 grid 675.0000 mm > tolerance 2.00 mm"
+    checked = {**report, "check_grid_points": 101, "check_grid_endpoint_error_max_m": 0.0020045}
+    (problem,) = regression_problems({"endpoint_constraint": checked})
+    assert str(problem) == "regression: endpoint error on the 101x101 grid 2.0045 mm > tolerance 2.00 mm"
+    assert regression_problems({"endpoint_constraint": {**checked, "check_grid_endpoint_error_max_m": 0.00197}}) == []
     (problem,) = regression_problems({"endpoint_constraint": {**report, "converged": False}})
     assert "SLSQP did not converge" in str(problem)
 
