@@ -275,7 +275,13 @@ def interval_lower_bound(da: np.ndarray, db: np.ndarray, speed: np.ndarray, h: n
 
 
 def interval_argmin_offset(da, db, speed, h):
-    """Step 2: where in the interval (offset from ``ta``, clipped to [0, h]) [s] that bound is attained."""
+    """Step 2: where in the interval (offset from ``ta``, clipped to [0, h]) [s] that bound is attained.
+
+    Elementwise on arrays; on floats (one interval) in plain float arithmetic, the same formula.
+    """
+    if isinstance(speed, float):
+        offset = (da - db + speed * h) / (2.0 * speed) if speed > 0 else 0.0
+        return min(max(offset, 0.0), h)
     with np.errstate(divide="ignore", invalid="ignore"):
         offset = np.where(speed > 0, (da - db + speed * h) / (2.0 * speed), 0.0)
     return np.clip(offset, 0.0, h)

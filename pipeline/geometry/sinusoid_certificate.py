@@ -395,7 +395,7 @@ class _AdaptiveCertificate:
                     candidates = np.where(mask, lower, np.inf)
                     i = int(candidates.argmin())
                     if candidates[i] < best[k][0]:
-                        offset = interval_argmin_offset(da[i], db[i], speed[i], h[i])
+                        offset = interval_argmin_offset(float(da[i]), float(db[i]), float(speed[i]), float(h[i]))
                         best[k] = (float(candidates[i]), float(ta[i] + offset))
             if not count:
                 break

@@ -64,8 +64,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from pipeline.offline.coefficients import Coefficients
 
 
-#: Default spacing of the tracking error's path samples [m] (the max tracking error moves by
-#: about 1e-8 m between 1 mm and 2.6 mm spacing on the default build).
+#: Default spacing of the tracking error's path samples [m] (on 200 cases of the default build the
+#: max tracking error at 2 mm spacing is within 7.6 um of that at 0.1 mm; 1.8 um at 1 mm).
 TRACKING_RESOLUTION_M = 2e-3
 #: How the sweep certifies: decide the margin and tighten below it, or tighten every case.
 CERTIFICATE_MODES: tuple[str, ...] = ("decide", "tight")
