@@ -43,7 +43,7 @@ _INFEASIBILITY_REFINE_M = 1e-3
 _KEY_BITS = 21
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RangeCertificateConfig:
     """Settings of :func:`certify_range`.
 

@@ -303,3 +303,10 @@ def test_infeasible_cells_of_a_fine_map_hold_no_feasible_pose(eq9: Coefficients,
         obstacle = Obstacle.in_scene(L, W, eq9.scene)
         p5 = np.array([-(L / 2 + eq9.scene.start_dx_m), eq9.scene.y1_m])
         assert _best_clearance_near(p5, region_map.endpoint_tolerance_m, obstacle, arm) < region_map.margin_m
+
+
+def test_config_takes_keywords_only() -> None:
+    """RangeCertificateConfig(1 / 16, 1 / 8) once set a 62.5 mm margin silently; now it is refused."""
+    with pytest.raises(TypeError):
+        RangeCertificateConfig(1 / 16, 1 / 8)  # type: ignore[misc]
+    assert RangeCertificateConfig(min_cell=1 / 16).min_cell == 1 / 16

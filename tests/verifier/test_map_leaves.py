@@ -13,28 +13,14 @@ from pipeline.certify.region_map import STATUSES, RegionMap
 from verify.acceptance.map_leaves import STATUS_SHADES, leaf_drawing, leaf_rectangles_m, shade
 
 
-def small_map() -> RegionMap:
-    """Three quadrants of depth 1 and four leaves of depth 2 in the fourth, every status present."""
-    return RegionMap(
-        family="paper",
-        coefficients_source="paper",
-        coefficients_sha256="ab" * 32,
-        length_range_m=(0.2, 0.3),
-        width_range_m=(0.08, 0.12),
-        margin_m=0.01,
-        endpoint_tolerance_m=0.002,
-        depth=np.array([1, 1, 1, 2, 2, 2, 2]),
-        index_l=np.array([0, 1, 0, 2, 3, 2, 3]),
-        index_w=np.array([0, 0, 1, 2, 2, 3, 3]),
-        clearance_bound_m=np.array([0.012, 0.020, 0.008, 0.009, -math.inf, 0.003, 0.015]),
-        endpoint_bound_m=np.full(7, 0.001),
-        endpoint_clearance_upper_m=np.full(7, 0.05),
-        status=np.array([0, 0, 1, 1, 3, 2, 0]),
-    )
+@pytest.fixture
+def small_map(quadrant_map) -> RegionMap:
+    """Every status present, one leaf with no bound (-inf)."""
+    return quadrant_map([0.012, 0.020, 0.008, 0.009, -math.inf, 0.003, 0.015], [0, 0, 1, 1, 3, 2, 0])
 
 
-def test_rectangles_are_the_maps_cells_and_tile_the_range() -> None:
-    region_map = small_map()
+def test_rectangles_are_the_maps_cells_and_tile_the_range(small_map: RegionMap) -> None:
+    region_map = small_map
     rectangles = leaf_rectangles_m(region_map)
     for leaf, (l0, l1, w0, w1) in enumerate(rectangles):
         cell = region_map.cell(leaf)
@@ -44,8 +30,8 @@ def test_rectangles_are_the_maps_cells_and_tile_the_range() -> None:
     assert areas.sum() == pytest.approx(0.1 * 0.04, rel=1e-12)
 
 
-def test_colours_follow_status_and_bound() -> None:
-    drawing = leaf_drawing(small_map())
+def test_colours_follow_status_and_bound(small_map: RegionMap) -> None:
+    drawing = leaf_drawing(small_map)
     dark = {name: np.array(STATUS_SHADES[name][0]) for name in STATUSES}
     light = {name: np.array(STATUS_SHADES[name][1]) for name in STATUSES}
     # margin: bounds 0.012, 0.020, 0.015 -> 0.012 darkest, 0.020 lightest, 0.015 at 3/8 of the way.

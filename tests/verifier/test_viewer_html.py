@@ -395,33 +395,16 @@ def test_a_case_result_and_its_json_form_are_the_same_point(arm):
 # ------------------------------------------------------------------ the region map in the sweep view
 
 
-def small_region_map():
-    """Three quadrants of depth 1 and four leaves of depth 2 in the fourth, over the paper's range."""
-    from pipeline.certify.region_map import RegionMap
-
-    return RegionMap(
-        family="paper",
-        coefficients_source="paper",
-        coefficients_sha256="ab" * 32,
-        length_range_m=(0.2, 0.3),
-        width_range_m=(0.08, 0.12),
-        margin_m=0.01,
-        endpoint_tolerance_m=0.002,
-        depth=np.array([1, 1, 1, 2, 2, 2, 2]),
-        index_l=np.array([0, 1, 0, 2, 3, 2, 3]),
-        index_w=np.array([0, 0, 1, 2, 2, 3, 3]),
-        clearance_bound_m=np.array([0.012, 0.020, 0.008, 0.009, 0.011, 0.003, 0.015]),
-        endpoint_bound_m=np.full(7, 0.001),
-        endpoint_clearance_upper_m=np.full(7, 0.05),
-        status=np.array([0, 0, 1, 1, 0, 2, 0]),
-    )
+@pytest.fixture
+def small_region_map(quadrant_map):
+    return quadrant_map([0.012, 0.020, 0.008, 0.009, 0.011, 0.003, 0.015], [0, 0, 1, 1, 0, 2, 0])
 
 
-def test_region_map_mesh_puts_each_case_inside_its_own_leaf():
+def test_region_map_mesh_puts_each_case_inside_its_own_leaf(small_region_map):
     from verify.acceptance.map_leaves import leaf_drawing
     from verify.viewer.sweep_view import MapLayout, _placement, region_map_mesh, sweep_points
 
-    region_map = small_region_map()
+    region_map = small_region_map
     placement = _placement(sweep_points(SWEEP), MapLayout(), region_map)
     mesh = region_map_mesh(region_map, placement)
     n = region_map.depth.size
@@ -443,11 +426,11 @@ def test_region_map_mesh_puts_each_case_inside_its_own_leaf():
         assert box[:, 1].min() - 1e-6 <= y <= box[:, 1].max() + 1e-6
 
 
-def test_sweep_page_draws_the_region_map_under_the_cases(arm):
+def test_sweep_page_draws_the_region_map_under_the_cases(arm, small_region_map):
     from pipeline.offline.coefficients import load_coefficients
     from verify.viewer.sweep_view import sweep_page
 
-    region_map = small_region_map()
+    region_map = small_region_map
     html, _ = sweep_page(
         SWEEP, load_coefficients("paper"), arm=arm, style=ViewStyle.for_pixels(aspect=2.0), region_map=region_map
     )
