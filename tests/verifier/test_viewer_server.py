@@ -13,6 +13,7 @@ import re
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 import urllib.request
 from pathlib import Path
@@ -211,3 +212,29 @@ def test_sigterm_is_handled_before_the_url_is_announced():
     serve_until_interrupted(FakeServer(), hold_s=30.0, out=out)  # returns at once: SIGTERM stops it cleanly
     assert out.handlers and out.handlers[0] not in (signal.SIG_DFL, signal.SIG_IGN, None)
     assert signal.getsignal(signal.SIGTERM) == before
+
+
+def test_reading_the_log_leaves_the_shared_file_offset_alone(tmp_path):
+    """The server process writes its log through the same open file as ours (one shared offset):
+    reading it must not seek, or the next line it writes could overwrite the first (a lost URL
+    line, seen as a 30 s start timeout once in 20 suite runs)."""
+    server = MeshcatServer()
+    log = tempfile.TemporaryFile()
+    server._log = log
+    try:
+        log.write(b"zmq_url=tcp://127.0.0.1:6000\n")
+        log.flush()
+        written_up_to = log.tell()
+        assert server._read_log() == "zmq_url=tcp://127.0.0.1:6000\n"
+        assert log.tell() == written_up_to  # the writer's next line goes after its first
+        log.write(b"web_url=http://127.0.0.1:7000/static/\n")
+        log.flush()
+        log.seek(5)  # wherever the writer's offset is, reading neither needs nor moves it
+        assert server._read_log().splitlines() == [
+            "zmq_url=tcp://127.0.0.1:6000",
+            "web_url=http://127.0.0.1:7000/static/",
+        ]
+        assert log.tell() == 5
+    finally:
+        server._log = None
+        log.close()

@@ -226,9 +226,12 @@ class MeshcatServer:
         return self
 
     def _read_log(self) -> str:
+        """Everything the server process has written so far, read without moving the file offset:
+        the process writes through the same open file (shared offset), so a seek here could make
+        its next line overwrite the start of the log (a URL line lost, the start timing out)."""
         assert self._log is not None
-        self._log.seek(0)
-        return self._log.read().decode("utf-8", "replace")
+        descriptor = self._log.fileno()
+        return os.pread(descriptor, os.fstat(descriptor).st_size, 0).decode("utf-8", "replace")
 
     def _wait_for_urls(self) -> None:
         assert self._proc is not None
