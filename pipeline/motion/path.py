@@ -135,7 +135,7 @@ class QuarticPath:
         """x of P5 [m]."""
         return float(self.points_m[-1, 0])
 
-    @property
+    @cached_property
     def length_m(self) -> float:
         """Total arc length from P1 to P5 [m]: for the symmetric quartic the generator's closed-form
         rule (the same T to the last bit), else the sum of the 64 panels."""
