@@ -91,8 +91,7 @@ def parser() -> argparse.ArgumentParser:
         "--min-cell",
         type=_fraction,
         default=None,
-        help=f"smallest (L, W) cell, as a fraction of the fitted range's side [-] "
-        f"(default: {DEFAULT_MIN_CELL}; 1/32 for a family that pins the endpoints)",
+        help=f"smallest (L, W) cell, as a fraction of the fitted range's side [-] (default: {DEFAULT_MIN_CELL})",
     )
     p.add_argument(
         "--witnesses",
@@ -108,7 +107,7 @@ def parser() -> argparse.ArgumentParser:
         type=_fraction,
         default=None,
         help="cell size to which regions that miss the margin are resolved, fraction of the side [-] "
-        f"(default: {DEFAULT_BOUNDARY_CELL}; 1/16 for a family that pins the endpoints)",
+        f"(default: {DEFAULT_BOUNDARY_CELL})",
     )
     return p
 

@@ -20,10 +20,6 @@ from pipeline.offline.coefficients import Coefficients
 
 #: File name of the map written beside a coefficients file.
 DEFAULT_MAP_NAME = "region_map.json"
-#: Cell sizes for a family that pins its endpoints: its A1 = span / D has wide derivative
-#: enclosures, so the finest default cells cost more memory and time than the build allows.
-PINNED_MIN_CELL = 1.0 / 32
-PINNED_BOUNDARY_CELL = 1.0 / 16
 
 
 def default_config(
@@ -35,15 +31,15 @@ def default_config(
     boundary_cell: float | None = None,
     jobs: int = 1,
 ) -> RangeCertificateConfig:
-    """The certificate's settings for these coefficients; None takes the family's default
-    (endpoint tolerance 0 and coarser cells for a family that pins the endpoints)."""
+    """The certificate's settings for these coefficients; None takes the default (endpoint
+    tolerance 0 for a family that pins the endpoints)."""
     pinned = coefficients.family.pins_endpoints
     if endpoint_tolerance_m is None:
         endpoint_tolerance_m = 0.0 if pinned else DEFAULT_ENDPOINT_TOLERANCE_M
     if min_cell is None:
-        min_cell = PINNED_MIN_CELL if pinned else DEFAULT_MIN_CELL
+        min_cell = DEFAULT_MIN_CELL
     if boundary_cell is None:
-        boundary_cell = PINNED_BOUNDARY_CELL if pinned else DEFAULT_BOUNDARY_CELL
+        boundary_cell = DEFAULT_BOUNDARY_CELL
     return RangeCertificateConfig(
         margin_m=margin_m,
         endpoint_tolerance_m=endpoint_tolerance_m,
