@@ -47,6 +47,14 @@ tolerance and the margin anywhere in the cell: the cell is *infeasible*. An uppe
   has its tip within tol of P(L', W) for some L' of the cell, clears the margin (then
   U >= margin: not infeasible; the pose with its tip exactly at P(centre) is tried first), or a
   depth limit; U is the largest bound left.
+
+The cell's own size enters the bound twice to first order (the disc grows by h_L / 2, the
+obstacle moves by up to sqrt((h_L / 2)^2 + h_W^2)), about 0.2 mm on a 1/256 cell of the
+default range, which leaves cells whose every point is infeasible unproven. So for leaves close
+to the margin, :func:`infeasibility_upper_bounds` splits the cell into sub-cells (halving them
+where still unproven, a few levels deep) and bounds each: the leaf is infeasible when every
+sub-cell has one end (P1 or P5) with U < margin, and its bound is then the largest over the
+sub-cells of the smaller of the two ends, a valid upper bound because the sub-cells cover the cell.
 """
 
 from __future__ import annotations
@@ -63,7 +71,7 @@ from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, link_segments
 #: Cap on the polar sub-boxes alive at once in :func:`endpoint_clearance_upper_bounds`.
 _MAX_SUB_BOXES = 400_000
 
-__all__ = ["endpoint_clearance_upper_bounds", "endpoint_error_bounds"]
+__all__ = ["endpoint_clearance_upper_bounds", "endpoint_error_bounds", "infeasibility_upper_bounds"]
 
 
 def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
@@ -229,3 +237,50 @@ def endpoint_clearance_upper_bounds(
             )
         out[:, column] = np.where(witnessed, np.maximum(best, margin_m), best)
     return out
+
+
+def infeasibility_upper_bounds(
+    model: RangeModel,
+    center_m: np.ndarray,
+    radius_m: np.ndarray,
+    tolerance_m: float,
+    margin_m: float,
+    *,
+    levels: int = 3,
+) -> np.ndarray:
+    """Upper bounds [m] on min(U(P1), U(P5)) over (L, W) cells by sub-cells (module docstring),
+    shape (N,); +inf where the cell is not proven infeasible (a sub-cell at or above the margin
+    after ``levels`` halvings, or one that clears the margin by more than its own size could
+    explain: splitting it further would not help).
+
+    Args:
+        model: The coefficients' range model.
+        center_m, radius_m: Cell centres and half widths (N, 2): L, W [m].
+        tolerance_m: Endpoint tolerance [m].
+        margin_m: Clearance margin [m].
+        levels: Halvings of the sub-cells (1: four sub-cells per cell) [count].
+    """
+    center2 = np.asarray(center_m, dtype=float).reshape(-1, 2)
+    radius2 = np.asarray(radius_m, dtype=float).reshape(-1, 2)
+    n = center2.shape[0]
+    worst = np.full(n, -np.inf)
+    alive = np.ones(n, dtype=bool)
+    owner, centre, radius = np.arange(n), center2, radius2
+    quarter = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]) / 2
+    for _ in range(levels):
+        owner = np.repeat(owner, 4)
+        centre = (centre[:, None, :] + quarter[None] * radius[:, None, :]).reshape(-1, 2)
+        radius = np.repeat(radius / 2, 4, axis=0)
+        upper = np.min(endpoint_clearance_upper_bounds(model, centre, radius, tolerance_m, margin_m), axis=1)
+        proven = upper < margin_m
+        np.maximum.at(worst, owner[proven], upper[proven])
+        # A sub-cell above the margin by more than its size terms (module docstring) has feasible
+        # poses within reach: the cell is not infeasible.
+        hopeless = ~proven & (upper >= margin_m + radius[:, 0] / 2 + obstacle_motion_m(radius[:, 0], radius[:, 1]))
+        alive[owner[hopeless]] = False
+        keep = ~proven & alive[owner]
+        owner, centre, radius = owner[keep], centre[keep], radius[keep]
+        if owner.size == 0:
+            break
+    alive[owner] = False  # sub-cells still unproven after the last level
+    return np.where(alive, worst, np.inf)

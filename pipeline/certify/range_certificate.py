@@ -12,6 +12,10 @@ whose docstrings carry the derivations; this module only combines them:
   its endpoint bound exceeds the tolerance (unless the family pins the endpoints by
   construction), or while it is below the margin, not yet proven infeasible and close to being
   so, down to the smallest cell.
+  Smallest cells still close to being proven infeasible get the sub-cell bound of
+  ``endpoints.infeasibility_upper_bounds`` (the lower of the two valid upper bounds is kept;
+  the map's cells themselves are not cut below the smallest cell, so the online lookup grid
+  keeps its size).
 """
 
 from __future__ import annotations
@@ -23,7 +27,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from pipeline.certify.endpoints import endpoint_clearance_upper_bounds, endpoint_error_bounds
+from pipeline.certify.endpoints import (
+    endpoint_clearance_upper_bounds,
+    endpoint_error_bounds,
+    infeasibility_upper_bounds,
+)
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap
 from pipeline.certify.search import ClosedBoxes, SearchSettings, node_boxes, search
@@ -192,6 +200,9 @@ def refine_leaves(
         loose = (endpoint > tolerance_m) & (not model.family.pins_endpoints)
         rows = deep & (loose | close)
         if not np.any(rows):
+            if np.any(close):  # smallest cells still close: try sub-cells (pipeline.certify.endpoints)
+                c, r = node_boxes(model, depth[close], i_l[close], i_w[close])
+                upper[close] = np.minimum(upper[close], infeasibility_upper_bounds(model, c, r, tolerance_m, margin_m))
             return [depth, i_l, i_w, bound], endpoint, upper
         arrays = _split([depth, i_l, i_w, bound, endpoint, upper], rows)
         arrays[4][-4 * np.count_nonzero(rows) :] = np.nan  # children get their own endpoint bounds

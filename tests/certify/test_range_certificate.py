@@ -14,7 +14,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pipeline.certify.clearance_bound import box_clearance_bounds
-from pipeline.certify.endpoints import endpoint_clearance_upper_bounds, endpoint_error_bounds
+from pipeline.certify.endpoints import (
+    endpoint_clearance_upper_bounds,
+    endpoint_error_bounds,
+    infeasibility_upper_bounds,
+)
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range, refine_leaves
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES
@@ -303,6 +307,28 @@ def test_infeasible_cells_of_a_fine_map_hold_no_feasible_pose(eq9: Coefficients,
         obstacle = Obstacle.in_scene(L, W, eq9.scene)
         p5 = np.array([-(L / 2 + eq9.scene.start_dx_m), eq9.scene.y1_m])
         assert _best_clearance_near(p5, region_map.endpoint_tolerance_m, obstacle, arm) < region_map.margin_m
+
+
+def test_sub_cells_prove_more_cells_infeasible_and_stay_sound(eq9: Coefficients, arm: PlanarArm) -> None:
+    """Cells of 1/256 of the default range, the fifth row below W = 0.12 m: the sub-cell bound proves cells the
+    cell's own bound cannot, and at the corners and centre of every cell it proves, no sampled
+    pose near P5 reaches its bound."""
+    model = RangeModel.from_coefficients(eq9)
+    half = np.array([0.1, 0.04]) / 512
+    L = 0.2 + half[0] * (2 * np.arange(0, 180, 6) + 1)
+    center = np.column_stack([L, np.full(L.size, 0.12 - 9 * half[1])])
+    radius = np.tile(half, (L.size, 1))
+    direct = endpoint_clearance_upper_bounds(model, center, radius, 0.002, 0.01).min(axis=1)
+    refined = infeasibility_upper_bounds(model, center, radius, 0.002, 0.01)
+    assert np.all(np.isinf(refined) | (refined < 0.01))
+    gained = np.flatnonzero(np.isfinite(refined) & (direct >= 0.01))
+    assert gained.size >= 3
+    for k in gained[:: max(1, gained.size // 4)]:
+        for du, dv in [(0, 0), (-1, -1), (-1, 1), (1, -1), (1, 1)]:
+            L_k, W_k = center[k] + np.array([du, dv]) * half
+            p5 = np.array([-(L_k / 2 + eq9.scene.start_dx_m), eq9.scene.y1_m])
+            sampled = _best_clearance_near(p5, 0.002, Obstacle.in_scene(L_k, W_k, eq9.scene), arm)
+            assert sampled <= refined[k] + COAL_DISTANCE_ERROR_M
 
 
 def test_config_takes_keywords_only() -> None:
