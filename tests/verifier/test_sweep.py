@@ -472,3 +472,18 @@ def test_decide_mode_gives_the_tight_modes_verdicts() -> None:
 def test_certificate_mode_is_checked() -> None:
     with pytest.raises(InvalidParameterError, match="certificate_mode"):
         MeasureSettings(certificate_mode="loose")
+
+
+def test_a_malformed_map_beside_the_coefficients_names_the_way_past_it(capsys, tmp_path: Path) -> None:
+    """A broken region_map.json the sweep found on its own stops it with one line that says
+    --no-region-map skips it; with that flag the same sweep runs."""
+    from pipeline.offline.coefficients import paper_data_path
+
+    coefficients = tmp_path / "coefficients.json"
+    coefficients.write_text(paper_data_path("paper_eq9_coefficients.json").read_text())
+    (tmp_path / "region_map.json").write_text("{not json")
+    status, _, err = run_main(capsys, "--coefficients", str(coefficients), "--n", "2", *FAST)
+    assert status == EXIT_USAGE
+    assert len(err.strip().splitlines()) == 1 and "region_map.json" in err and "--no-region-map" in err
+    status, out, err = run_main(capsys, "--coefficients", str(coefficients), "--n", "2", "--no-region-map", *FAST)
+    assert status in (EXIT_OK, EXIT_FAILED) and "Traceback" not in err and "region map" not in out

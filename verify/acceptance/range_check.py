@@ -45,7 +45,7 @@ import numpy as np
 from pipeline.certify.clearance_bound import FLOAT_SLACK_M
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME
 from pipeline.certify.region_map import STATUSES, RegionMap, load_region_map
-from pipeline.exceptions import InvalidParameterError
+from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
@@ -311,16 +311,20 @@ def find_region_map(coefficients: Coefficients, path: str | Path | None = None) 
     (None, None). The paper's Eq. 9 has no file beside it: only an explicit ``path``.
 
     Raises:
-        DataFileError: the map file is missing (if named), unreadable or malformed.
+        DataFileError: the map file is missing (if named), unreadable or malformed (the map
+            found beside the coefficients: the message names ``--no-region-map``).
     """
     if path is not None:
         return load_region_map(path), str(path)
     if not coefficients.source or coefficients.source == PAPER_SOURCE:
         return None, None
     beside = Path(coefficients.source).with_name(DEFAULT_MAP_NAME)
-    found = load_region_map_beside(coefficients)
-    if found is not None:
-        return found, str(beside)
-    if beside.is_file():  # another build's map: reported as not belonging
-        return load_region_map(beside), str(beside)
+    try:
+        found = load_region_map_beside(coefficients)
+        if found is not None:
+            return found, str(beside)
+        if beside.is_file():  # another build's map: reported as not belonging
+            return load_region_map(beside), str(beside)
+    except DataFileError as exc:  # found, not asked for: say how to go on without it
+        raise DataFileError(exc.path, f"{exc.reason}; --no-region-map skips it") from None
     return None, None
