@@ -60,7 +60,9 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         text = action.help or ""
         if (
             "(default" in text
-            or action.default in (None, False, argparse.SUPPRESS)
+            or action.default is None
+            or action.default is False  # identity: a default of 0 is a value to show
+            or action.default is argparse.SUPPRESS
             or action.required
             or action.option_strings == ["-h", "--help"]
         ):
