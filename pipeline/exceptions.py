@@ -179,19 +179,21 @@ class NoCertifiedTrajectoryError(PipelineError):
     """No trajectory with a certified clearance of at least the margin was found.
 
     Attributes:
-        L_m, W_m: The obstacle [m].
+        length_m, width_m: The obstacle, L and W [m].
         certified_clearance_m: Best certified clearance reached [m].
         margin_m: Required margin [m].
     """
 
-    def __init__(self, L_m: float, W_m: float, certified_clearance_m: float, margin_m: float, reason: str) -> None:
-        self.L_m = L_m
-        self.W_m = W_m
+    def __init__(
+        self, length_m: float, width_m: float, certified_clearance_m: float, margin_m: float, reason: str
+    ) -> None:
+        self.length_m = length_m
+        self.width_m = width_m
         self.certified_clearance_m = certified_clearance_m
         self.margin_m = margin_m
         self.reason = reason
         super().__init__(
-            f"no certified trajectory for L = {L_m:.4f} m, W = {W_m:.4f} m: best certified "
+            f"no certified trajectory for L = {length_m:.4f} m, W = {width_m:.4f} m: best certified "
             f"clearance {certified_clearance_m * 1e3:.3f} mm < margin {margin_m * 1e3:.3f} mm "
             f"({reason})"
         )

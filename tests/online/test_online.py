@@ -52,7 +52,7 @@ def test_repair_disabled_refuses_with_reason(arm, paper):
     with pytest.raises(NoCertifiedTrajectoryError, match="repair disabled") as info:
         generate_certified(paper, 0.30, 0.12, arm, config=RepairConfig(repair=False))
     assert info.value.certified_clearance_m < info.value.margin_m
-    assert (info.value.L_m, info.value.W_m) == (0.30, 0.12)
+    assert (info.value.length_m, info.value.width_m) == (0.30, 0.12)
 
 
 def test_unreachable_margin_is_refused_not_returned(arm, paper):
