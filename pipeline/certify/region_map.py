@@ -85,7 +85,8 @@ class RegionMap:
         depth, index_l, index_w: Leaf nodes, int arrays (n,).
         clearance_bound_m, endpoint_bound_m, endpoint_clearance_upper_m: Per leaf [m], (n,).
         status: Per leaf, index into :data:`STATUSES`, (n,).
-        seconds: Wall time of the certificate [s].
+        seconds: Wall time of the certificate [s]; NaN for a map read from a file (not stored, so
+            that the file's bytes depend only on the coefficients and the settings).
         details: Settings and counters (plain JSON).
     """
 
@@ -285,7 +286,9 @@ class RegionMap:
             "fitted_range": {"L": list(self.length_range_m), "W": list(self.width_range_m)},
             "margin_m": self.margin_m,
             "endpoint_tolerance_m": self.endpoint_tolerance_m,
-            "summary": self.summary(),
+            # No wall time in the file (nor the worker count in ``details``): the same
+            # coefficients and settings give the same bytes.
+            "summary": {k: v for k, v in self.summary().items() if k != "seconds"},
             "details": self.details,
             "statuses": list(STATUSES),
             "cells": {
@@ -331,7 +334,7 @@ class RegionMap:
                     [_number(v, math.inf) for v in cells["endpoint_clearance_upper_m"]]
                 ),
                 status=np.array(status, dtype=np.int64),
-                seconds=float(document.get("summary", {}).get("seconds", 0.0)),
+                seconds=float(document.get("summary", {}).get("seconds", math.nan)),  # files before 2026-11-23
                 details=dict(document.get("details", {})),
             )
         except DataFileError:

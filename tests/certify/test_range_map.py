@@ -21,6 +21,18 @@ def small_map() -> RegionMap:
     return certify_range(load_coefficients("paper"), RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8))
 
 
+def test_the_same_coefficients_give_the_same_map_bytes_with_any_worker_count(small_map: RegionMap, tmp_path) -> None:
+    """The file holds no wall time and no worker count: a second certificate with two workers
+    writes the same bytes; the map read back reports its time as unknown."""
+    again = certify_range(
+        load_coefficients("paper"), RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8, jobs=2)
+    )
+    first, second = tmp_path / "one.json", tmp_path / "two.json"
+    assert save_region_map(small_map, first) == save_region_map(again, second)
+    assert first.read_bytes() == second.read_bytes()
+    assert small_map.seconds > 0 and np.isnan(load_region_map(first).seconds)
+
+
 def test_cell_at_and_batch_lookup_agree(small_map: RegionMap) -> None:
     rng = np.random.default_rng(0)
     L, W = rng.uniform(0.2, 0.3, 500), rng.uniform(0.08, 0.12, 500)
