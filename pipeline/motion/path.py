@@ -74,6 +74,14 @@ def symmetric_quartic_length_m(x_start_m: float, c4: float, c2: float) -> float:
     return 2.0 * a * float(speed.dot(_LENGTH_W))
 
 
+def symmetric_quartic_lengths_m(x_start_m: np.ndarray, c4: np.ndarray, c2: np.ndarray) -> np.ndarray:
+    """:func:`symmetric_quartic_length_m` for arrays of paths (the same rule, elementwise) [m]."""
+    a = np.asarray(x_start_m, dtype=float)
+    k1, k3 = 2.0 * c2 * a, 4.0 * c4 * a * a * a
+    speed = np.stack([np.ones_like(k1), k1 * k1, 2.0 * k1 * k3, k3 * k3], -1) @ _LENGTH_POWERS
+    return 2.0 * a * (np.sqrt(speed) @ _LENGTH_W)
+
+
 def _symmetric_coefficients(points: np.ndarray) -> np.ndarray | None:
     """(c4, c3, c2, c1, c0) in closed form if P1..P5 are mirror images about x = 0, else None."""
     (x1, y1), (x2, y2), (x3, y3), (x4, y4), (x5, y5) = points.tolist()

@@ -24,11 +24,11 @@ from pipeline.geometry.motion_certificate import DEFAULT_TOLERANCE_M
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
-from pipeline.motion.path import _LENGTH_POWERS, _LENGTH_W
+from pipeline.motion.path import symmetric_quartic, symmetric_quartic_lengths_m
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.online.arm_check import check_arm_matches
-from pipeline.online.generator import _plan, generate
+from pipeline.online.generator import generate, query_plan
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,7 +87,7 @@ def generate_batch(
         raise InvalidParameterError("lengths_m / widths_m", "not numbers", "arrays of sizes [m]") from None
     if L.shape != W.shape:
         raise InvalidParameterError("lengths_m / widths_m", (L.shape, W.shape), "arrays of equal length")
-    plan = _plan(coefficients)
+    plan = query_plan(coefficients)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         x1, x2 = L / 2.0 + plan.start_dx, L / 2.0 + plan.approach_dx
         bottom = plan.top - W
@@ -105,13 +105,8 @@ def generate_batch(
             & (x1 > x2)
         )
         # The symmetric quartic and its length, as the generator's scalar route, for every obstacle.
-        ua, ub = x1 * x1, x2 * x2
-        ra, rb = (plan.y1 - y3) / ua, (y2 - y3) / ub
-        c4 = (ra - rb) / (ua - ub)
-        c2 = ra - c4 * ua
-        k1, k3 = 2.0 * c2 * x1, 4.0 * c4 * x1 * x1 * x1
-        speed = np.stack([np.ones_like(k1), k1 * k1, 2.0 * k1 * k3, k3 * k3], -1) @ _LENGTH_POWERS
-        durations = 2.0 * x1 * (np.sqrt(speed) @ _LENGTH_W) / plan.speed
+        c4, c2, _ = symmetric_quartic(x1, plan.y1, x2, y2, y3)
+        durations = symmetric_quartic_lengths_m(x1, c4, c2) / plan.speed
     free = np.stack([np.ones_like(L), L, W, L * L, L * W, W * W], -1) @ plan.matrix_t
     errors: list[str | None] = [None] * L.size
     if coefficients.family.uses_endpoint_context or not np.all(valid):

@@ -139,8 +139,10 @@ class GeneratedTrajectory:
         return self.trajectory.ddq(t_s, outside=outside)
 
 
-class _Plan(NamedTuple):
-    """What every query with one coefficients object shares, precomputed once."""
+class QueryPlan(NamedTuple):
+    """What every query with one coefficients object shares, precomputed once: the regression
+    matrix and the scene's numbers as plain floats (:func:`generate` and
+    ``pipeline.online.batch.generate_batch`` read it through :func:`query_plan`)."""
 
     matrix_t: np.ndarray  # (6, k): the regression, basis (1, L, W, L^2, LW, W^2) -> free parameters
     l_range: tuple[float, float]
@@ -158,10 +160,11 @@ class _Plan(NamedTuple):
     height: float
 
 
-_PLANS: weakref.WeakKeyDictionary[Coefficients, _Plan] = weakref.WeakKeyDictionary()
+_PLANS: weakref.WeakKeyDictionary[Coefficients, QueryPlan] = weakref.WeakKeyDictionary()
 
 
-def _plan(coefficients: Coefficients) -> _Plan:
+def query_plan(coefficients: Coefficients) -> QueryPlan:
+    """The :class:`QueryPlan` of ``coefficients``, built on first use and kept while they live."""
     plan = _PLANS.get(coefficients)
     if plan is None:
         scene = coefficients.scene
@@ -170,7 +173,7 @@ def _plan(coefficients: Coefficients) -> _Plan:
         matrix = np.array([coefficients.parameters[name] for name in names], dtype=float)
         matrix.setflags(write=False)
         matrix = matrix.T
-        plan = _Plan(
+        plan = QueryPlan(
             matrix_t=matrix,
             l_range=tuple(coefficients.fitted_range_m["L"]),
             w_range=tuple(coefficients.fitted_range_m["W"]),
@@ -201,7 +204,7 @@ def _size(value: object, size: tuple[object, object], name: str) -> float:
     return value
 
 
-def _check_range(plan: _Plan, length_m: float, width_m: float, policy: str) -> bool:
+def _check_range(plan: QueryPlan, length_m: float, width_m: float, policy: str) -> bool:
     outside = False
     for name, value, (lo, hi) in (("L", length_m, plan.l_range), ("W", width_m, plan.w_range)):
         if not lo <= value <= hi:
@@ -248,7 +251,7 @@ def generate(
     if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
         L = _size(length_m, (length_m, width_m), "L")
         W = _size(width_m, (length_m, width_m), "W")
-    plan = _PLANS.get(coefficients) or _plan(coefficients)
+    plan = _PLANS.get(coefficients) or query_plan(coefficients)
     matrix_t, (l_lo, l_hi), (w_lo, w_hi), reach, top, y1 = plan[:6]
     start_dx, approach_dx, approach_dy, apex_dy, speed = plan[6:11]
     smallest = plan.smallest
