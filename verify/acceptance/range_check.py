@@ -49,7 +49,6 @@ from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
-from pipeline.online.generator import load_region_map_beside
 from pipeline.validation import check_non_negative
 
 from .metrics import MeasureSettings
@@ -305,10 +304,10 @@ def check_range(
 
 
 def find_region_map(coefficients: Coefficients, path: str | Path | None = None) -> tuple[RegionMap | None, str | None]:
-    """The map to check ``coefficients`` against, and its file: ``path`` if given; else the map
-    the build wrote beside the coefficients file (:func:`load_region_map_beside`), or, if the
-    file there belongs to other coefficients, that file (so that the sweep can say so); else
-    (None, None). The paper's Eq. 9 has no file beside it: only an explicit ``path``.
+    """The map to check ``coefficients`` against, and its file: ``path`` if given; else the
+    ``region_map.json`` the build wrote beside the coefficients file, whether it belongs to them
+    or to other coefficients (so that the sweep can say so); else (None, None). The paper's
+    Eq. 9 has no file beside it: only an explicit ``path``.
 
     Raises:
         DataFileError: the map file is missing (if named), unreadable or malformed (the map
@@ -319,12 +318,9 @@ def find_region_map(coefficients: Coefficients, path: str | Path | None = None) 
     if not coefficients.source or coefficients.source == PAPER_SOURCE:
         return None, None
     beside = Path(coefficients.source).with_name(DEFAULT_MAP_NAME)
-    try:
-        found = load_region_map_beside(coefficients)
-        if found is not None:
-            return found, str(beside)
-        if beside.is_file():  # another build's map: reported as not belonging
-            return load_region_map(beside), str(beside)
+    if not beside.is_file():
+        return None, None
+    try:  # read once: the report says whether it belongs (``RegionMap.belongs_to``)
+        return load_region_map(beside), str(beside)
     except DataFileError as exc:  # found, not asked for: say how to go on without it
         raise DataFileError(exc.path, f"{exc.reason}; --no-region-map skips it") from None
-    return None, None
