@@ -54,7 +54,8 @@ def symmetric_quartic(
 ) -> tuple[float, float, float]:
     """(c4, c2, c0) of the even quartic through (+-a, y1), (+-b, y2) and (0, y3) [m], closed form.
 
-    With u = x^2: c4 u + c2 = (y - c0) / u at u = a^2 and u = b^2 (a != b, both > 0).
+    With u = x^2: c4 u + c2 = (y - c0) / u at u = a^2 and u = b^2 (a != b, both > 0). Plain
+    arithmetic, so NumPy arrays of paths work elementwise (``pipeline.online.batch`` passes them).
     """
     ua, ub = x_start_m * x_start_m, x_approach_m * x_approach_m
     ra, rb = (y_start_m - y_apex_m) / ua, (y_approach_m - y_apex_m) / ub
