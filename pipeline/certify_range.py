@@ -12,6 +12,8 @@ import argparse
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, certify_and_save, default_config, summary_lines
 from pipeline.certify.range_certificate import DEFAULT_BOUNDARY_CELL, DEFAULT_ENDPOINT_TOLERANCE_M, DEFAULT_MIN_CELL
 from pipeline.certify.reachability import witness_lines, witnesses_for_map
@@ -103,6 +105,20 @@ def parser() -> argparse.ArgumentParser:
         "what is reachable; pipeline.certify.reachability) [count] (default: 0)",
     )
     p.add_argument(
+        "--witness-restarts",
+        type=count_argument,
+        default=0,
+        metavar="K",
+        help="random restarts of each witness search besides the start at the coefficients' trajectory [count] "
+        "(default: 0)",
+    )
+    p.add_argument(
+        "--seed",
+        type=count_argument,
+        default=0,
+        help="seed of the witness searches' restarts (numpy.random.default_rng) [integer >= 0] (default: 0)",
+    )
+    p.add_argument(
         "--boundary-cell",
         type=_fraction,
         default=None,
@@ -131,7 +147,14 @@ def _work(args: argparse.Namespace) -> int:
     print("\n".join(summary_lines(region_map)))
     summary = region_map.summary()
     if args.witnesses > 0:
-        witnesses = witnesses_for_map(coefficients, region_map, load_planar_arm(), args.witnesses)
+        witnesses = witnesses_for_map(
+            coefficients,
+            region_map,
+            load_planar_arm(),
+            args.witnesses,
+            args.witness_restarts,
+            np.random.default_rng(args.seed),
+        )
         print("\n".join(witness_lines(witnesses)))
         summary["witnesses"] = [w.to_json() for w in witnesses]
     if output is not None:

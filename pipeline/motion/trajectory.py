@@ -83,6 +83,14 @@ def _peak_abs(amplitude: float, w: float, phase: float, duration_s: float, offse
     return abs(amplitude) * max(abs(math.sin(lo)), abs(math.sin(hi)))
 
 
+def _sin_extremes(lo: float, hi: float) -> tuple[float, float]:
+    """(min, max) of sin(u) over u in [lo, hi] (lo <= hi), closed form."""
+    top = math.ceil((lo - math.pi / 2) / (2 * math.pi)) * 2 * math.pi + math.pi / 2 <= hi
+    bottom = math.ceil((lo + math.pi / 2) / (2 * math.pi)) * 2 * math.pi - math.pi / 2 <= hi
+    ends = (math.sin(lo), math.sin(hi))
+    return (-1.0 if bottom else min(ends), 1.0 if top else max(ends))
+
+
 @dataclass(frozen=True)
 class JointTrajectory:
     """One joint-space trajectory of the paper's family over [0, T].
@@ -182,6 +190,16 @@ class JointTrajectory:
 
     def __call__(self, t_s: float | np.ndarray, *, outside: str = "error") -> np.ndarray:
         return self.q(t_s, outside=outside)
+
+    def angle_ranges_rad(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(min, max) over [0, T] of each joint angle [rad], in closed form."""
+        out = []
+        for i in (0, 1):
+            amplitude, w, phi, gamma = self.parameters[4 * i : 4 * i + 4]
+            s_min, s_max = _sin_extremes(*sorted((phi, w * self.duration_s + phi)))
+            values = (gamma + amplitude * s_min, gamma + amplitude * s_max)
+            out.append((min(values), max(values)))
+        return out[0], out[1]
 
     def peak_velocity_rad_s(self) -> np.ndarray:
         """max over [0, T] of |dtheta_i/dt| [rad/s] per joint, in closed form."""

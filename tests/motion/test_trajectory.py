@@ -203,6 +203,21 @@ def test_peaks_equal_dense_sampling(params: list[float], duration: float) -> Non
     assert_allclose(trajectory.peak_acceleration_rad_s2(), acceleration, rtol=0, atol=1e-6)
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.floats(-2, 2), st.floats(0.01, 5), st.floats(-4, 4), st.floats(-1, 1), st.floats(0.1, 8))
+@example(1.0, 1.0, 0.2, 0.0, 0.5)  # extremes at the endpoints only
+@example(1.0, math.pi, -HALF_PI, 0.0, 2.0)  # a whole period: both extremes inside
+def test_angle_ranges_equal_dense_sampling(
+    amplitude: float, w: float, phi: float, gamma: float, duration: float
+) -> None:
+    """The closed-form range contains every sampled angle and is within the sampling's resolution of it."""
+    trajectory = JointTrajectory((amplitude, w, phi, gamma, -amplitude, w / 2, -phi, gamma), duration)
+    q = trajectory.q(np.linspace(0.0, duration, 50_001))
+    for joint, (lo, hi) in enumerate(trajectory.angle_ranges_rad()):
+        assert lo <= q[:, joint].min() + 1e-12 and q[:, joint].max() <= hi + 1e-12
+        assert lo >= q[:, joint].min() - 1e-6 and hi <= q[:, joint].max() + 1e-6
+
+
 def test_peaks_at_the_endpoints() -> None:
     """Short windows where |cos| and |sin| are monotone: the peak is at t = 0 or t = T."""
     # Joint 1: |velocity| = cos(t + 0.2) falls from t = 0; |acceleration| = sin(t + 0.2) rises to T.

@@ -1,6 +1,6 @@
 """Per-case measurement (verify.acceptance.metrics): the verifier's clearance against an independent planar
-distance (not Coal), endpoint and tracking errors against Eq. 2 written here, closed-form joint
-ranges against sampling, and the acceptance checks."""
+distance (not Coal), endpoint and tracking errors against Eq. 2 written here, and the acceptance
+checks (the closed-form joint ranges are tested with the trajectory, tests/motion/test_trajectory.py)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,6 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from pipeline.exceptions import InvalidParameterError
@@ -23,7 +21,6 @@ from pipeline.offline.coefficients import load_coefficients
 from verify.acceptance.metrics import (
     AcceptanceThresholds,
     MeasureSettings,
-    joint_ranges,
     measure_case,
     measure_trajectory,
 )
@@ -215,16 +212,6 @@ def test_collision_is_reported(arm: PlanarArm, scene: Scene) -> None:
     assert result.clearance_m < 0 and result.certified_clearance_m <= result.clearance_m
     assert result.certificate.collision_free is False and not result.passed
     assert any("collision not excluded" in f for f in result.failures)
-
-
-@settings(max_examples=60, deadline=None, derandomize=True)
-@given(st.floats(-2, 2), st.floats(0.01, 5), st.floats(-4, 4), st.floats(-1, 1), st.floats(0.1, 8))
-def test_joint_ranges_closed_form(amplitude: float, w: float, phi: float, gamma: float, duration: float) -> None:
-    trajectory = JointTrajectory((amplitude, w, phi, gamma, -amplitude, w / 2, -phi, gamma), duration)
-    q = trajectory.q(np.linspace(0.0, duration, 50_001))
-    for joint, (lo, hi) in enumerate(joint_ranges(trajectory)):
-        assert lo <= q[:, joint].min() + 1e-12 and q[:, joint].max() <= hi + 1e-12
-        assert lo >= q[:, joint].min() - 1e-6 and hi <= q[:, joint].max() + 1e-6
 
 
 def test_case_result_invariants_and_json(arm: PlanarArm, scene: Scene) -> None:

@@ -167,25 +167,10 @@ class MeasureSettings:
         }
 
 
-def _sin_range(lo: float, hi: float) -> tuple[float, float]:
-    """(min, max) of sin(u) over u in [lo, hi], closed form."""
-    top = 1.0 if math.ceil((lo - math.pi / 2) / (2 * math.pi)) * 2 * math.pi + math.pi / 2 <= hi else None
-    bottom = -1.0 if math.ceil((lo + math.pi / 2) / (2 * math.pi)) * 2 * math.pi - math.pi / 2 <= hi else None
-    ends = (math.sin(lo), math.sin(hi))
-    return (bottom if bottom is not None else min(ends), top if top is not None else max(ends))
-
-
 def joint_ranges(trajectory: JointTrajectory) -> tuple[Pair, Pair]:
-    """Closed-form (min, max) of each joint angle over [0, T] [rad]."""
-    p = trajectory.parameters
-    out = []
-    for i in (0, 1):
-        amplitude, w, phi, gamma = p[4 * i : 4 * i + 4]
-        lo, hi = sorted((phi, w * trajectory.duration_s + phi))
-        s_min, s_max = _sin_range(lo, hi)
-        values = (gamma + amplitude * s_min, gamma + amplitude * s_max)
-        out.append((min(values), max(values)))
-    return out[0], out[1]
+    """Closed-form (min, max) of each joint angle over [0, T] [rad]
+    (:meth:`~pipeline.motion.trajectory.JointTrajectory.angle_ranges_rad`)."""
+    return trajectory.angle_ranges_rad()
 
 
 def _pair(values: Any) -> Pair:
