@@ -47,7 +47,7 @@ from pipeline.model.arm import PlanarArm
 from pipeline.model.kinematics import forward_kinematics
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import desired_path
-from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory
+from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory, joint_angles, joint_velocities
 from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
@@ -103,12 +103,6 @@ class Witness:
         }
 
 
-def _theta(parameters: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Joint angles (K, 2) of the 8 parameters at times t (K,)."""
-    A, w, phi, gamma = (parameters[i::4] for i in range(4))
-    return A * np.sin(w * t[:, None] + phi) + gamma
-
-
 def _link_clearances(theta: np.ndarray, obstacle: Obstacle, arm: PlanarArm) -> np.ndarray:
     """Clearance of each link (K, 2) [m] against the rounded box (analytic route)."""
     elbow, tip = link_segments(theta, arm.link_lengths_m)
@@ -133,12 +127,6 @@ def in_family(trajectory: JointTrajectory, arm: PlanarArm, elbow: int) -> bool:
     branch = min(elbow * ranges[1][0], elbow * ranges[1][1]) > 0.0
     speeds = bool(np.all(trajectory.peak_velocity_rad_s() <= np.asarray(arm.velocity_limits_rad_s)))
     return within and branch and speeds
-
-
-def _velocities(parameters: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Joint speeds (K, 2) [rad/s] of the 8 parameters at times t (K,)."""
-    A, w, phi, _ = (parameters[i::4] for i in range(4))
-    return A * w * np.cos(w * t[:, None] + phi)
 
 
 def best_clearance_at(
@@ -181,29 +169,29 @@ def best_clearance_at(
     regression = np.asarray(coefficients.predict_free(length_m, width_m), dtype=float).ravel()
 
     def clearance_rows(x: np.ndarray) -> np.ndarray:
-        return (_link_clearances(_theta(x[:8], times), obstacle, arm) - x[8]).ravel() * 100.0
+        return (_link_clearances(joint_angles(x[:8], times), obstacle, arm) - x[8]).ravel() * 100.0
 
     def endpoint_rows(x: np.ndarray) -> np.ndarray:
-        tips = forward_kinematics(_theta(x[:8], np.array([0.0, duration])), arm.link_lengths_m)
+        tips = forward_kinematics(joint_angles(x[:8], np.array([0.0, duration])), arm.link_lengths_m)
         return 1.0 - np.sum((tips - ends) ** 2, -1) / (_INSIDE * tolerance_m) ** 2
 
     def family_rows(x: np.ndarray) -> np.ndarray:
-        theta = _theta(x[:8], times)
+        theta = joint_angles(x[:8], times)
         return np.concatenate(
             [
                 (theta - limits[:, 0]).ravel(),
                 (limits[:, 1] - theta).ravel(),
                 coefficients.elbow * theta[:, 1] - _BRANCH_INSIDE_RAD,
-                (speed_limits - np.abs(_velocities(x[:8], times))).ravel(),
+                (speed_limits - np.abs(joint_velocities(x[:8], times))).ravel(),
             ]
         )
 
     def errors_of(parameters: np.ndarray) -> np.ndarray:
-        tips = forward_kinematics(_theta(parameters, np.array([0.0, duration])), arm.link_lengths_m)
+        tips = forward_kinematics(joint_angles(parameters, np.array([0.0, duration])), arm.link_lengths_m)
         return np.linalg.norm(tips - ends, axis=-1)
 
     def search(start: np.ndarray) -> np.ndarray:
-        z0 = float(_link_clearances(_theta(start, times), obstacle, arm).min())
+        z0 = float(_link_clearances(joint_angles(start, times), obstacle, arm).min())
         result = minimize(
             lambda x: -100.0 * x[8],
             np.append(start, z0),
@@ -224,7 +212,7 @@ def best_clearance_at(
         trajectory = JointTrajectory(tuple(float(v) for v in found), duration)
         if errors_of(found).max() > tolerance_m or not in_family(trajectory, arm, coefficients.elbow):
             continue
-        sampled = float(_link_clearances(_theta(found, times), obstacle, arm).min())
+        sampled = float(_link_clearances(joint_angles(found, times), obstacle, arm).min())
         if sampled > best_sampled:
             best, best_sampled = found, sampled
     found = regression if best is None else best  # nothing ended inside: report the regression's trajectory
