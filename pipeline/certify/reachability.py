@@ -145,7 +145,8 @@ def best_clearance_at(
         arm: The arm (link lengths and radii, joint limits).
         length_m, width_m: The obstacle [m].
         tolerance_m: Endpoint tolerance [m].
-        restarts: Further starts, the first perturbed by N(0, ``_RESTART_SCALE``) [count].
+        restarts: Further starts, each the regression's parameters perturbed by N(0,
+            ``_RESTART_SCALE``) [count].
         rng: Source of the perturbations; required when ``restarts`` > 0.
 
     Raises:
