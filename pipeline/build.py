@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import TextIO
 
@@ -27,6 +28,7 @@ from tqdm import tqdm
 
 from pipeline.certify.certifiable_regression import (
     DEFAULT_CLEARANCE_ROUNDS,
+    REFIT_MIN_CELL,
     CertifiableFitConfig,
     clearance_refit_lines,
     refit_file_for_clearance,
@@ -295,7 +297,8 @@ def _certify_range(result: BuildResult, args: argparse.Namespace, out: TextIO) -
     timing = dict(result.timing)
     if args.clearance_rounds > 0 and not args.plain and coefficients.family == PAPER:
         refit = CertifiableFitConfig(
-            certificate=config,
+            certificate=replace(config, min_cell=max(config.min_cell, REFIT_MIN_CELL)),
+            final_certificate=config,
             endpoint=EndpointConstraint(tolerance_m=args.endpoint_tolerance),
             max_rounds=args.clearance_rounds,
         )

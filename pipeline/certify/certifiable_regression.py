@@ -3,7 +3,8 @@ endpoint-constrained fit (``pipeline.offline.endpoint_regression``) and the rang
 
 Round k:
 
-1. certify the current coefficients over the fitted range (``certify_range``);
+1. certify the current coefficients over the fitted range (``certify_range``; the last round
+   with ``final_certificate``, whose cells may be finer);
 2. for every leaf that misses the margin without being proven infeasible (status
    ``collision_free`` or ``undecided``), take its worst point: the (L, W) of its centre and the
    s in [0, 1] where the clearance along that motion is lowest (dense sampling); for every
@@ -69,6 +70,12 @@ _FD_STEP_RAD = 1e-6
 _CLEARANCE_SCALE = 100.0
 #: Rounds of the build's certifiable regression (``python -m pipeline.build --clearance-rounds``).
 DEFAULT_CLEARANCE_ROUNDS = 1
+#: Smallest cell of the maps of the build's refit rounds but the last (fraction of the side);
+#: the last round, whose map the build writes, uses the build's (finer) cells. Measured on the
+#: default build (seed 0): with the first round at 1/256 and the last at 1/512, margin 98.42 %
+#: of the area; with both at 1/512, the 200 points spread over other leaves and the final map
+#: reaches 98.17 %.
+REFIT_MIN_CELL = 1.0 / 256
 
 
 @dataclass(frozen=True)
@@ -76,7 +83,8 @@ class CertifiableFitConfig:
     """Settings of :func:`fit_certifiable`.
 
     Attributes:
-        certificate: Settings of each round's range certificate.
+        certificate: Settings of each round's range certificate but the last.
+        final_certificate: Settings of the last round's (the returned map's); None: ``certificate``.
         endpoint: The endpoint constraint (tolerance and grid) of the regression.
         max_rounds: Rounds of certify -> add constraints -> refit.
         cushion_m: Clearance asked above the margin at the constraint points [m] (the margin
@@ -88,6 +96,7 @@ class CertifiableFitConfig:
     """
 
     certificate: RangeCertificateConfig = field(default_factory=RangeCertificateConfig)
+    final_certificate: RangeCertificateConfig | None = None
     endpoint: EndpointConstraint = field(default_factory=EndpointConstraint)
     max_rounds: int = 4
     cushion_m: float = 0.0
@@ -333,7 +342,8 @@ def fit_certifiable(
     rounds = []
     for round_index in range(config.max_rounds + 1):
         start = time.perf_counter()
-        region_map = certify_range(current, config.certificate)
+        final = config.final_certificate or config.certificate
+        region_map = certify_range(current, final if round_index == config.max_rounds else config.certificate)
         summary = region_map.summary()
         new_points, loose = worst_points(current, region_map, config.points_per_round, config.feasible_slack_m)
         rounds.append(
@@ -347,6 +357,9 @@ def fit_certifiable(
             }
         )
         if (new_points.shape[0] == 0 and loose.shape[0] == 0) or round_index == config.max_rounds:
+            if round_index < config.max_rounds and final != config.certificate:  # clean early: final cells
+                region_map = certify_range(current, final)
+                rounds[-1]["final_area_fraction"] = region_map.summary()["area_fraction"]
             break
         collected = np.vstack([collected, new_points])
         if loose.shape[0]:

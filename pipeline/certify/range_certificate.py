@@ -42,7 +42,7 @@ from pipeline.validation import check_non_negative, check_positive, check_positi
 #: Default endpoint tolerance of the infeasibility certificate [m] (the build's regression's).
 DEFAULT_ENDPOINT_TOLERANCE_M = 0.002
 #: Default smallest cell, as a fraction of the fitted range's side.
-DEFAULT_MIN_CELL = 1.0 / 256
+DEFAULT_MIN_CELL = 1.0 / 512
 #: Default cell size to which regions below the margin are resolved, fraction of the side.
 DEFAULT_BOUNDARY_CELL = 1.0 / 64
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is

@@ -103,3 +103,29 @@ def test_refit_file_rewrites_the_coefficients_and_links_their_map(tmp_path) -> N
     before, after = report["rounds"][0]["area_fraction"], region_map.summary()["area_fraction"]
     assert after["margin"] >= before["margin"]
     assert saved.extra["fit"]["regression"].endswith("clearance constraint generation")
+
+
+@pytest.mark.parametrize(("margin_m", "tolerance_m"), [(None, 0.002), (0.002, 0.01)])
+def test_the_last_round_certifies_with_the_final_cells(tmp_path, margin_m, tolerance_m) -> None:
+    """Rounds on coarse cells, the returned map on finer ones (the build's split): the map is
+    the final certificate of the file's coefficients, as certify_range makes it, and the last
+    round records its fractions. With a 2 mm margin and a 1 cm endpoint tolerance the first map is
+    clean, the loop stops
+    before its last round, and the fit is certified once more with the final cells."""
+    doe = load_doe(paper_data_path("paper_table2_doe.json"))
+    fitted, _ = fit_coefficients(doe, None, EndpointConstraint())
+    path = tmp_path / "coefficients.json"
+    save_coefficients(fitted, path)
+    cells = {"margin_m": margin_m, "endpoint_tolerance_m": tolerance_m, "boundary_cell": 1 / 16}
+    coarse = RangeCertificateConfig(min_cell=1 / 32, **cells)
+    final = RangeCertificateConfig(min_cell=1 / 128, **cells)
+    config = CertifiableFitConfig(certificate=coarse, final_certificate=final, max_rounds=1)
+    saved, region_map, report = refit_file_for_clearance(path, doe, config)
+    again = certify_range(saved, final)
+    assert np.array_equal(again.depth, region_map.depth) and np.array_equal(again.status, region_map.status)
+    if margin_m is None:  # at the 1 cm margin the map resolves finer than the rounds' cells could
+        assert region_map.depth.max() > 5
+    last = report["rounds"][-1]
+    recorded = last.get("final_area_fraction", last["area_fraction"])
+    assert recorded == region_map.summary()["area_fraction"]
+    assert ("final_area_fraction" in last) == (margin_m is not None)
