@@ -108,6 +108,10 @@ class CertifiableFitConfig:
     feasible_slack_m: float = 1e-3
 
     def __post_init__(self) -> None:
+        if not isinstance(self.certificate, RangeCertificateConfig):
+            raise InvalidParameterError("certificate", self.certificate, "a RangeCertificateConfig")
+        if not isinstance(self.final_certificate, RangeCertificateConfig | None):
+            raise InvalidParameterError("final_certificate", self.final_certificate, "a RangeCertificateConfig or None")
         check_positive_int("max_rounds", self.max_rounds)
         check_non_negative("cushion_m", self.cushion_m)
         check_positive_int("points_per_round", self.points_per_round)

@@ -17,6 +17,7 @@ from pipeline.certify.certifiable_regression import (
     refit_file_for_clearance,
 )
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import analytic_link_clearance
 from pipeline.model.arm import PlanarArm
 from pipeline.motion.trajectory import PARAMETER_NAMES
@@ -129,3 +130,9 @@ def test_the_last_round_certifies_with_the_final_cells(tmp_path, margin_m, toler
     recorded = last.get("final_area_fraction", last["area_fraction"])
     assert recorded == region_map.summary()["area_fraction"]
     assert ("final_area_fraction" in last) == (margin_m is not None)
+
+
+@pytest.mark.parametrize("field", ["certificate", "final_certificate"])
+def test_certificate_settings_must_be_certificate_configs(field: str) -> None:
+    with pytest.raises(InvalidParameterError, match=field):
+        CertifiableFitConfig(**{field: {"min_cell": 1 / 512}})
