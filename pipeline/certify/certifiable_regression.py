@@ -348,9 +348,9 @@ def fit_certifiable(
     collected = np.empty((0, 3))
     current = coefficients
     rounds = []
+    final = config.final_certificate or config.certificate
     for round_index in range(config.max_rounds + 1):
         start = time.perf_counter()
-        final = config.final_certificate or config.certificate
         region_map = certify_range(current, final if round_index == config.max_rounds else config.certificate)
         summary = region_map.summary()
         new_points, loose = worst_points(current, region_map, config.points_per_round, config.feasible_slack_m)

@@ -187,9 +187,11 @@ def best_clearance_at(
             ]
         )
 
-    def errors_of(parameters: np.ndarray) -> np.ndarray:
+    def outcome(parameters: np.ndarray) -> tuple[np.ndarray, bool]:
+        """|tip(0) - P1| and |tip(T) - P5| [m], and whether the trajectory is in the family."""
         tips = forward_kinematics(joint_angles(parameters, np.array([0.0, duration])), arm.link_lengths_m)
-        return np.linalg.norm(tips - ends, axis=-1)
+        trajectory = JointTrajectory(tuple(float(v) for v in parameters), duration)
+        return np.linalg.norm(tips - ends, axis=-1), in_family(trajectory, arm, coefficients.elbow)
 
     def search(start: np.ndarray) -> np.ndarray:
         z0 = float(_link_clearances(joint_angles(start, times), obstacle, arm).min())
@@ -208,25 +210,27 @@ def best_clearance_at(
         return result.x[:8]
 
     starts = [regression] + [regression + rng.normal(0.0, 1.0, 8) * _RESTART_SCALE for _ in range(restarts)]
-    best, best_sampled = None, -np.inf
+    regression_outcome = outcome(regression)
+    # If nothing ends inside the tolerance and the family, the regression's trajectory is reported.
+    chosen, chosen_outcome, best_sampled = regression, regression_outcome, -np.inf
     for found in [regression, *(search(start) for start in starts)]:  # the regression's own trajectory competes too
-        trajectory = JointTrajectory(tuple(float(v) for v in found), duration)
-        if errors_of(found).max() > tolerance_m or not in_family(trajectory, arm, coefficients.elbow):
+        result = regression_outcome if found is regression else outcome(found)
+        if result[0].max() > tolerance_m or not result[1]:
             continue
         sampled = float(_link_clearances(joint_angles(found, times), obstacle, arm).min())
         if sampled > best_sampled:
-            best, best_sampled = found, sampled
-    found = regression if best is None else best  # nothing ended inside: report the regression's trajectory
-    errors = errors_of(found)
+            chosen, chosen_outcome, best_sampled = found, result, sampled
+    errors, member = chosen_outcome
+    regression_clearance = _certified(regression, duration, arm, obstacle)
     return Witness(
         length_m=float(length_m),
         width_m=float(width_m),
-        regression_clearance_m=_certified(regression, duration, arm, obstacle),
-        clearance_m=_certified(found, duration, arm, obstacle),
+        regression_clearance_m=regression_clearance,
+        clearance_m=regression_clearance if chosen is regression else _certified(chosen, duration, arm, obstacle),
         endpoint_errors_m=(float(errors[0]), float(errors[1])),
-        parameters=tuple(float(v) for v in found),
+        parameters=tuple(float(v) for v in chosen),
         within_tolerance=bool(errors.max() <= tolerance_m),
-        within_family=in_family(JointTrajectory(tuple(float(v) for v in found), duration), arm, coefficients.elbow),
+        within_family=member,
     )
 
 
