@@ -351,7 +351,8 @@ def fit_certifiable(
     final = config.final_certificate or config.certificate
     for round_index in range(config.max_rounds + 1):
         start = time.perf_counter()
-        region_map = certify_range(current, final if round_index == config.max_rounds else config.certificate)
+        settings = final if round_index == config.max_rounds else config.certificate
+        region_map = certify_range(current, settings)
         summary = region_map.summary()
         new_points, loose = worst_points(current, region_map, config.points_per_round, config.feasible_slack_m)
         rounds.append(
@@ -362,12 +363,14 @@ def fit_certifiable(
                 "clearance_points": int(collected.shape[0]),
                 "endpoint_targets": 0 if extra_targets is None else int(extra_targets.lengths_m.size),
                 "certify_seconds": region_map.seconds,
+                **_cells(settings),
             }
         )
         if (new_points.shape[0] == 0 and loose.shape[0] == 0) or round_index == config.max_rounds:
             if round_index < config.max_rounds and final != config.certificate:  # clean early: final cells
                 region_map = certify_range(current, final)
                 rounds[-1]["final_area_fraction"] = region_map.summary()["area_fraction"]
+                rounds[-1]["final_cells"] = _cells(final)
             break
         collected = np.vstack([collected, new_points])
         if loose.shape[0]:
@@ -387,6 +390,13 @@ def fit_certifiable(
             endpoint_errors_m(design_matrix(targets.lengths_m, targets.widths_m) @ _matrix(current), targets).max()
         )
     return current, region_map, {"rounds": rounds}
+
+
+def _cells(settings: RangeCertificateConfig) -> dict[str, float]:
+    """The cell sizes a round's map was certified with, as the quadtree uses them (fractions of
+    the fitted range's side, powers of 1/2)."""
+    search = settings.search_settings(0.0)
+    return {"min_cell": 2.0**-search.max_depth_lw, "boundary_cell": 2.0**-search.boundary_depth_lw}
 
 
 def _matrix(coefficients: Coefficients) -> np.ndarray:
@@ -448,6 +458,7 @@ def clearance_refit_lines(report: dict) -> list[str]:
         stopped = f" ({r['stopped']})" if "stopped" in r else ""
         lines.append(
             f"certifiable regression round {r['round']}: {fractions}; {r['clearance_points']} clearance points held, "
-            f"{r['endpoint_targets']} endpoint targets; certificate {r['certify_seconds']:.1f} s{refit}{stopped}"
+            f"{r['endpoint_targets']} endpoint targets; certificate (cells >= 1/{round(1 / r['min_cell'])}) "
+            f"{r['certify_seconds']:.1f} s{refit}{stopped}"
         )
     return lines

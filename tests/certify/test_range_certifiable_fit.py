@@ -130,6 +130,12 @@ def test_the_last_round_certifies_with_the_final_cells(tmp_path, margin_m, toler
     recorded = last.get("final_area_fraction", last["area_fraction"])
     assert recorded == region_map.summary()["area_fraction"]
     assert ("final_area_fraction" in last) == (margin_m is not None)
+    # each round records the cells its map was certified with, the file too
+    first_cells = {"min_cell": 1 / 32, "boundary_cell": 1 / 16}
+    final_cells = {"min_cell": 1 / 128, "boundary_cell": 1 / 16}
+    assert {k: report["rounds"][0][k] for k in first_cells} == first_cells
+    assert last.get("final_cells", {k: last[k] for k in final_cells}) == final_cells
+    assert saved.extra["fit"]["clearance_refit"]["rounds"][-1]["min_cell"] == last["min_cell"]
 
 
 @pytest.mark.parametrize("field", ["certificate", "final_certificate"])
