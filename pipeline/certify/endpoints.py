@@ -34,25 +34,35 @@ tolerance and the margin anywhere in the cell: the cell is *infeasible*. An uppe
   (2 l1 l2)) is monotone in r; th1 = psi - beta(th2), beta = atan2(l2 sin th2, l1 + l2 cos th2),
   d beta / d th2 = l2 (l2 + l1 cos th2) / r^2, so beta is monotone between the zeros of
   l2 + l1 cos th2 (checked). So each sub-box maps into a box of (th1, th2).
+* The obstacles of a cell are nested: the core rectangle R(L, W) = [-(L/2 - r), L/2 - r] x
+  [d - W + r, d - r] grows with both L and W, so every obstacle of the cell [L0, L1] x [W0, W1]
+  contains O0 = O(L0, W0), the obstacle of its smallest corner, and a pose's clearance against
+  any obstacle of the cell is at most its clearance against O0 (distance to a superset is no
+  larger). So the bound is taken against O0 alone and the obstacle's change across the cell
+  costs nothing (an earlier form used the centre's obstacle plus its Hausdorff motion
+  sqrt((h_L / 2)^2 + h_W^2), about 0.06 mm on a 1/512 cell of the default range). O0 is formed
+  from the cell's centre minus its half widths in floating point, a few ulps (1e-17 m) from the
+  true corner; distance is 1-Lipschitz in that, and the float slack covers it.
 * Over a (th1, th2) box with half widths (D1, D2) around q_m, links move by at most
   l1 D1 (link 1) and by the larger of the elbow's motion (l1 D1) and the tip's in Hausdorff
   distance (link 2); the tip stays in the polar sub-box, whose points are within
   (r_hi - r_lo) / 2 + r_hi (psi_hi - psi_lo) / 2 of its centre point (radial step then arc), so
   the tip moves by at most that plus |tip(q_m) - centre point| (and never more than
-  l1 D1 + l2 (D1 + D2)); the obstacle moves
-  by at most sqrt((h_L / 2)^2 + h_W^2). Distance being 1-Lipschitz,
-  c(q, O) <= min_k (c_k(q_m, O_centre) + move_k) + obstacle motion + distance error.
+  l1 D1 + l2 (D1 + D2)). Distance being 1-Lipschitz,
+  c(q, O) <= c(q, O0) <= min_k (c_k(q_m, O0) + move_k) + distance error.
 * Sub-boxes whose sector misses the disc are dropped. The others are bisected (branch and
   bound for a maximum) until every bound is below the margin, or a sub-box centre, whose pose
-  has its tip within tol of P(L', W) for some L' of the cell, clears the margin (then
-  U >= margin: not infeasible; the pose with its tip exactly at P(centre) is tried first), or a
-  depth limit; U is the largest bound left.
+  has its tip within tol of P(L0) and clears the margin against O0 (a feasible end pose at
+  the cell's corner (L0, W0), which belongs to the closed cell: U >= margin, not infeasible;
+  the pose with its tip exactly at P(L0) is tried first), or a depth limit; U is the largest
+  bound left. A witness only stops the proof early, so it can cost tightness, never soundness.
 
-The cell's own size enters the bound twice to first order (the disc grows by h_L / 2, the
-obstacle moves by up to sqrt((h_L / 2)^2 + h_W^2)), about 0.2 mm on a 1/256 cell of the
-default range, which leaves cells whose every point is infeasible unproven. So for leaves close
-to the margin, :func:`infeasibility_upper_bounds` splits the cell into sub-cells (halving them
-where still unproven, a few levels deep) and bounds each: the leaf is infeasible when every
+The cell's length still enters the bound to first order: the disc grows by h_L / 2 (P moves
+along x as L does), and O0 is the obstacle of the shortest L, while a pose near P(L1) is
+compared with it. So for leaves close to the margin, :func:`infeasibility_upper_bounds` splits
+the cell's length into sub-intervals (halving them where still unproven, several levels deep)
+and bounds each; splitting W would not help (every sub-cell's bound is taken at its smallest
+W, and the sub-cells at the cell's W0 have the cell's). The leaf is infeasible when every
 sub-cell has one end (P1 or P5) with U < margin, and its bound is then the largest over the
 sub-cells of the smaller of the two ends, a valid upper bound because the sub-cells cover the cell.
 """
@@ -63,7 +73,7 @@ import math
 
 import numpy as np
 
-from pipeline.certify.clearance_bound import FLOAT_SLACK_M, obstacle_motion_m
+from pipeline.certify.clearance_bound import FLOAT_SLACK_M
 from pipeline.certify.interval import lower_bound, upper_bound
 from pipeline.certify.range_model import RangeModel
 from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, link_segments, segment_rectangle_distance
@@ -129,10 +139,10 @@ def _pose_box_upper_bounds(
     r_hi: np.ndarray,
     psi_lo: np.ndarray,
     psi_hi: np.ndarray,
-    cell_center: np.ndarray,
-    cell_radius: np.ndarray,
+    obstacle_lw: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Upper bound on the clearance over polar tip boxes, and the clearance and tip of each box's centre pose."""
+    """Upper bound on the clearance against the obstacles ``obstacle_lw`` (n, 2: L, W [m]) over
+    polar tip boxes, and the clearance and tip of each box's centre pose."""
     l1, l2 = model.link_lengths_m
     cos2 = lambda r: np.clip((r * r - l1 * l1 - l2 * l2) / (2 * l1 * l2), -1.0, 1.0)  # noqa: E731
     t2a, t2b = model.elbow * np.arccos(cos2(r_lo)), model.elbow * np.arccos(cos2(r_hi))
@@ -143,8 +153,8 @@ def _pose_box_upper_bounds(
     d1, d2 = (t1_hi - t1_lo) / 2, (t2_hi - t2_lo) / 2
     elbow, tip = link_segments(q_mid, model.link_lengths_m)
     r_corner, d = model.scene.corner_radius_m, model.scene.top_y_m
-    rect_center = np.stack([np.zeros(len(r_lo)), d - cell_center[:, 1] / 2], -1)
-    rect_half = np.stack([cell_center[:, 0] / 2 - r_corner, cell_center[:, 1] / 2 - r_corner], -1)
+    rect_center = np.stack([np.zeros(len(r_lo)), d - obstacle_lw[:, 1] / 2], -1)
+    rect_half = np.stack([obstacle_lw[:, 0] / 2 - r_corner, obstacle_lw[:, 1] / 2 - r_corner], -1)
     c1 = segment_rectangle_distance(np.zeros_like(elbow), elbow, rect_center, rect_half) - model.link_radii_m[0]
     c2 = segment_rectangle_distance(elbow, tip, rect_center, rect_half) - model.link_radii_m[1]
     centre_clearance = np.minimum(c1, c2) - r_corner
@@ -154,7 +164,7 @@ def _pose_box_upper_bounds(
     tip_move = np.linalg.norm(tip - sector_center, axis=1) + (r_hi - r_lo) / 2 + r_hi * (psi_hi - psi_lo) / 2
     move2 = np.minimum(np.maximum(move1, tip_move), l1 * d1 + l2 * (d1 + d2))
     upper = np.minimum(c1 + move1, c2 + move2) - r_corner
-    upper = upper + obstacle_motion_m(cell_radius[:, 0], cell_radius[:, 1]) + ANALYTIC_DISTANCE_ERROR_M + FLOAT_SLACK_M
+    upper = upper + ANALYTIC_DISTANCE_ERROR_M + FLOAT_SLACK_M
     return upper, centre_clearance, tip
 
 
@@ -202,14 +212,17 @@ def endpoint_clearance_upper_bounds(
         r_lo, r_hi = dist - rho, dist + rho
         p_lo, p_hi = psi - spread, psi + spread
         best = np.full(n, -np.inf)
-        # A witness: the pose with its tip exactly at P(centre) clears the margin there.
-        _, exact_c, _ = _pose_box_upper_bounds(model, dist, dist, psi, psi, center2, np.zeros_like(radius2))
+        # Every obstacle of the cell contains that of its smallest corner (L0, W0) (module docstring).
+        corner = center2 - radius2
+        px0 = side * (corner[:, 0] / 2 + model.scene.start_dx_m)
+        # A witness: the pose with its tip exactly at P(L0) clears the margin against O(L0, W0).
+        dist0, psi0 = np.hypot(px0, py), np.arctan2(py, px0)
+        _, exact_c, _ = _pose_box_upper_bounds(model, dist0, dist0, psi0, psi0, corner)
         witnessed = exact_c >= margin_m
         for depth in range(max_depth + 1):
-            upper, centre_c, tip = _pose_box_upper_bounds(model, r_lo, r_hi, p_lo, p_hi, center2[owner], radius2[owner])
-            # Tip within the tolerance of P(L', W) for some L' of the cell (P moves along x by h_L / 2).
-            gap_x = np.maximum(np.abs(tip[:, 0] - px[owner]) - radius2[owner, 0] / 2, 0.0)
-            in_set = np.hypot(gap_x, tip[:, 1] - py[owner]) <= tolerance_m
+            upper, centre_c, tip = _pose_box_upper_bounds(model, r_lo, r_hi, p_lo, p_hi, corner[owner])
+            # A witness needs its tip within the tolerance of P(L0), the corner's own end point.
+            in_set = np.hypot(tip[:, 0] - px0[owner], tip[:, 1] - py[owner]) <= tolerance_m
             hit = in_set & (centre_c >= margin_m)
             np.logical_or.at(witnessed, owner[hit], True)
             # Sub-boxes of the polar box that miss the disc hold no pose of the set.
@@ -246,19 +259,19 @@ def infeasibility_upper_bounds(
     tolerance_m: float,
     margin_m: float,
     *,
-    levels: int = 3,
+    levels: int = 5,
 ) -> np.ndarray:
-    """Upper bounds [m] on min(U(P1), U(P5)) over (L, W) cells by sub-cells (module docstring),
-    shape (N,); +inf where the cell is not proven infeasible (a sub-cell at or above the margin
-    after ``levels`` halvings, or one that clears the margin by more than its own size could
-    explain: splitting it further would not help).
+    """Upper bounds [m] on min(U(P1), U(P5)) over (L, W) cells by sub-cells of their length
+    (module docstring), shape (N,); +inf where the cell is not proven infeasible (a sub-cell at
+    or above the margin after ``levels`` halvings, or one that clears the margin by more than
+    its own length could explain: splitting it further would not help).
 
     Args:
         model: The coefficients' range model.
         center_m, radius_m: Cell centres and half widths (N, 2): L, W [m].
         tolerance_m: Endpoint tolerance [m].
         margin_m: Clearance margin [m].
-        levels: Halvings of the sub-cells (1: four sub-cells per cell) [count].
+        levels: Halvings of the sub-cells' length (1: two sub-cells per cell) [count].
     """
     center2 = np.asarray(center_m, dtype=float).reshape(-1, 2)
     radius2 = np.asarray(radius_m, dtype=float).reshape(-1, 2)
@@ -266,17 +279,18 @@ def infeasibility_upper_bounds(
     worst = np.full(n, -np.inf)
     alive = np.ones(n, dtype=bool)
     owner, centre, radius = np.arange(n), center2, radius2
-    quarter = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]) / 2
+    halves = np.array([[-0.5, 0.0], [0.5, 0.0]])
     for _ in range(levels):
-        owner = np.repeat(owner, 4)
-        centre = (centre[:, None, :] + quarter[None] * radius[:, None, :]).reshape(-1, 2)
-        radius = np.repeat(radius / 2, 4, axis=0)
+        owner = np.repeat(owner, 2)
+        centre = (centre[:, None, :] + halves[None] * radius[:, None, :]).reshape(-1, 2)
+        radius = np.repeat(radius * np.array([0.5, 1.0]), 2, axis=0)
         upper = np.min(endpoint_clearance_upper_bounds(model, centre, radius, tolerance_m, margin_m), axis=1)
         proven = upper < margin_m
         np.maximum.at(worst, owner[proven], upper[proven])
-        # A sub-cell above the margin by more than its size terms (module docstring) has feasible
-        # poses within reach: the cell is not infeasible.
-        hopeless = ~proven & (upper >= margin_m + radius[:, 0] / 2 + obstacle_motion_m(radius[:, 0], radius[:, 1]))
+        # A sub-cell above the margin by more than its length terms (the disc's growth h_L / 2 and
+        # the end point's motion h_L, module docstring, with room to spare) has feasible poses
+        # within reach: the cell is not infeasible.
+        hopeless = ~proven & (upper >= margin_m + 4.0 * radius[:, 0])
         alive[owner[hopeless]] = False
         keep = ~proven & alive[owner]
         owner, centre, radius = owner[keep], centre[keep], radius[keep]

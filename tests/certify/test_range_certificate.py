@@ -336,3 +336,33 @@ def test_config_takes_keywords_only() -> None:
     with pytest.raises(TypeError):
         RangeCertificateConfig(1 / 16, 1 / 8)  # type: ignore[misc]
     assert RangeCertificateConfig(min_cell=1 / 16).min_cell == 1 / 16
+
+
+def test_infeasibility_bound_holds_at_the_cells_roomiest_corner_and_reaches_the_boundary(
+    eq9: Coefficients, arm: PlanarArm
+) -> None:
+    """The end-pose bound is taken against the obstacle of the cell's smallest corner (L0, W0),
+    which every obstacle of the cell contains. Columns of cells of 1/256 of the default range
+    across the strip where the end poses lose the margin: wherever a cell is proven infeasible,
+    no sampled pose near P5(L0) clears more than the bound against O(L0, W0), the cell's
+    roomiest obstacle; and the proof reaches cells whose corner keeps 9.97 mm or more, where a
+    bound taken against the centre's obstacle (0.05 mm less room at this size) would lie below
+    that sampling."""
+    model = RangeModel.from_coefficients(eq9)
+    half = np.array([0.1, 0.04]) / 512
+    L = 0.2 + half[0] * (2 * np.array([5, 35, 70]) + 1)
+    W = 0.12 - half[1] * (1 + 0.5 * np.arange(24))  # cells a quarter of their height apart
+    center = np.array([[length, width] for length in L for width in W])
+    radius = np.tile(half, (center.shape[0], 1))
+    upper = infeasibility_upper_bounds(model, center, radius, 0.002, 0.01)
+    proven = np.flatnonzero(np.isfinite(upper))
+    assert np.all(upper[proven] < 0.01)
+    assert 6 <= proven.size < center.shape[0]
+    corner_room = []
+    for k in proven:
+        L0, W0 = center[k] - half
+        p5 = np.array([-(L0 / 2 + eq9.scene.start_dx_m), eq9.scene.y1_m])
+        sampled = _best_clearance_near(p5, 0.002, Obstacle.in_scene(L0, W0, eq9.scene), arm)
+        assert sampled <= upper[k] + COAL_DISTANCE_ERROR_M
+        corner_room.append(sampled)
+    assert max(corner_room) > 0.00997
