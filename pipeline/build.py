@@ -28,6 +28,7 @@ from tqdm import tqdm
 
 from pipeline.certify.certifiable_regression import (
     DEFAULT_CLEARANCE_ROUNDS,
+    REFIT_ENDPOINT_HEADROOM,
     REFIT_MIN_CELL,
     CertifiableFitConfig,
     clearance_refit_lines,
@@ -299,7 +300,7 @@ def _certify_range(result: BuildResult, args: argparse.Namespace, out: TextIO) -
         refit = CertifiableFitConfig(
             certificate=replace(config, min_cell=max(config.min_cell, REFIT_MIN_CELL)),
             final_certificate=config,
-            endpoint=EndpointConstraint(tolerance_m=args.endpoint_tolerance),
+            endpoint=EndpointConstraint(tolerance_m=args.endpoint_tolerance, headroom=REFIT_ENDPOINT_HEADROOM),
             max_rounds=args.clearance_rounds,
         )
         doe = load_doe(result.written[0][0])

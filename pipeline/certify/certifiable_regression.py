@@ -72,6 +72,17 @@ _CHUNK_LEAVES = 256
 _FD_STEP_RAD = 1e-6
 #: Clearance constraints are given to SLSQP in centimetres, the size of the endpoint slack's terms.
 _CLEARANCE_SCALE = 100.0
+#: End-pose sampling of :func:`end_pose_room_m`: circles of tips, and angles on each.
+_ROOM_RINGS = 5
+_ROOM_ANGLES = 180
+#: Default of ``CertifiableFitConfig.feasible_slack_m`` [m].
+_DEFAULT_FEASIBLE_SLACK_M = 2e-5
+#: Headroom of the refit's endpoint constraint (``python -m pipeline.build``'s refit holds the
+#: endpoint errors to tolerance (1 - this) at its grid and targets; the first fit keeps
+#: ``EndpointConstraint``'s default, 0.03). Measured on the default build (seed 0, one round of
+#: 400 points): 0.03 -> margin 98.65 % of the area, 0.015 -> 98.69 %, 0.01 -> 98.74 %, 0.0075 ->
+#: 98.74 %; at 0.004 the final map's endpoint bound reached 2.009 mm, above the tolerance.
+REFIT_ENDPOINT_HEADROOM = 0.01
 #: Rounds of the build's certifiable regression (``python -m pipeline.build --clearance-rounds``).
 DEFAULT_CLEARANCE_ROUNDS = 1
 #: Smallest cell of the maps of the build's refit rounds but the last (fraction of the side);
@@ -94,9 +105,9 @@ class CertifiableFitConfig:
         cushion_m: Clearance asked above the margin at the constraint points [m] (the margin
             must hold between them too).
         points_per_round: Cap on new clearance constraint points and on new endpoint targets per round.
-        feasible_slack_m: Leaves whose endpoint-pose clearance bound U (the infeasibility
-            certificate's) is below margin + this are not constrained [m]: the family can barely
-            keep the margin there, if at all.
+        feasible_slack_m: Leaves whose end poses within the fit's endpoint tolerance keep less
+            than margin + this (:func:`end_pose_room_m`, sampled at the leaf's centre) are not
+            constrained [m]: the family cannot keep the margin there, or only just.
     """
 
     certificate: RangeCertificateConfig = field(default_factory=RangeCertificateConfig)
@@ -104,8 +115,8 @@ class CertifiableFitConfig:
     endpoint: EndpointConstraint = field(default_factory=EndpointConstraint)
     max_rounds: int = 4
     cushion_m: float = 0.0
-    points_per_round: int = 200
-    feasible_slack_m: float = 1e-3
+    points_per_round: int = 400
+    feasible_slack_m: float = _DEFAULT_FEASIBLE_SLACK_M
 
     def __post_init__(self) -> None:
         if not isinstance(self.certificate, RangeCertificateConfig):
@@ -183,25 +194,62 @@ def clearance_jacobian(b: np.ndarray, data: ClearancePoints, coefficients: Coeff
     return np.einsum("np,nk->nkp", d_p, X).reshape(len(theta), 48)
 
 
+def end_pose_room_m(
+    coefficients: Coefficients, length_m: np.ndarray, width_m: np.ndarray, tolerance_m: float
+) -> np.ndarray:
+    """Sampled room at the ends [m], (n,): for each obstacle, the smaller over P1 and P5 of the
+    largest clearance of a pose on the family's elbow branch whose tip lies within
+    ``tolerance_m`` of that end point (tips on :data:`_ROOM_RINGS` circles of radii up to the
+    tolerance, :data:`_ROOM_ANGLES` angles each; analytic distance). A sampling, not a bound:
+    it chooses where the refit asks for the margin (the map certifies the result), and it is
+    at most the true room, so it never asks for more than the end poses allow."""
+    lengths = np.asarray(length_m, dtype=float).ravel()
+    widths = np.asarray(width_m, dtype=float).ravel()
+    scene = coefficients.scene
+    l1, l2 = coefficients.link_lengths_m
+    angle = np.linspace(0.0, 2.0 * np.pi, _ROOM_ANGLES, endpoint=False)
+    radius = np.linspace(0.0, tolerance_m, _ROOM_RINGS)
+    offsets = np.stack([np.outer(radius, np.cos(angle)).ravel(), np.outer(radius, np.sin(angle)).ravel()], -1)
+    room = np.full(lengths.size, np.inf)
+    for side in (1.0, -1.0):
+        ends = np.stack([side * (lengths / 2 + scene.start_dx_m), np.full(lengths.size, scene.y1_m)], -1)
+        tips = (ends[:, None, :] + offsets[None]).reshape(-1, 2)
+        cos2 = np.clip((np.sum(tips * tips, -1) - l1 * l1 - l2 * l2) / (2 * l1 * l2), -1.0, 1.0)
+        theta2 = coefficients.elbow * np.arccos(cos2)
+        theta1 = np.arctan2(tips[:, 1], tips[:, 0]) - np.arctan2(l2 * np.sin(theta2), l1 + l2 * np.cos(theta2))
+        sizes = np.repeat(np.column_stack([lengths, widths]), offsets.shape[0], axis=0)
+        clearance = _clearance_of_theta(np.column_stack([theta1, theta2]), sizes, coefficients)
+        room = np.minimum(room, clearance.reshape(lengths.size, offsets.shape[0]).max(axis=1, initial=-np.inf))
+    return room
+
+
 def worst_points(
-    coefficients: Coefficients, region_map: RegionMap, limit: int, feasible_slack_m: float = 1e-3
+    coefficients: Coefficients,
+    region_map: RegionMap,
+    limit: int,
+    feasible_slack_m: float = _DEFAULT_FEASIBLE_SLACK_M,
+    tolerance_m: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Clearance points (L, W, s) of the leaves that miss the margin without being infeasible
-    (at most ``limit``, spread evenly over those leaves in (L, W) order: the lowest ``limit``
+    and whose end poses leave room for it (:func:`end_pose_room_m` at ``tolerance_m``, default
+    the map's endpoint tolerance, at least margin + ``feasible_slack_m`` at the leaf's centre;
+    at most ``limit``, spread evenly over those leaves in (L, W) order: the lowest ``limit``
     crowd into one corner and leave the rest of the strip to later rounds), and the centres
     (L, W) of leaves whose endpoint bound exceeds the tolerance, largest bound first (at most
     ``limit``)."""
-    failing = np.flatnonzero(
-        ((region_map.status == STATUSES.index("collision_free")) | (region_map.status == STATUSES.index("undecided")))
-        # Leaves whose endpoint poses can barely keep the margin are left out: the constraint
-        # would be (nearly) infeasible there (the infeasibility certificate's upper bound U).
-        & (region_map.endpoint_clearance_upper_m >= region_map.margin_m + feasible_slack_m)
-    )
     model_lo = np.array([region_map.length_range_m[0], region_map.width_range_m[0]])
     size = np.array([region_map.length_range_m[1], region_map.width_range_m[1]]) - model_lo
     centres = model_lo + (np.stack([region_map.index_l, region_map.index_w], -1) + 0.5) * size / (
         2.0 ** region_map.depth[:, None]
     )
+    failing = np.flatnonzero(
+        (region_map.status == STATUSES.index("collision_free")) | (region_map.status == STATUSES.index("undecided"))
+    )
+    # Leaves whose end poses cannot keep the margin (sampled) are left out: the constraint
+    # would be infeasible there.
+    tolerance = region_map.endpoint_tolerance_m if tolerance_m is None else tolerance_m
+    room = end_pose_room_m(coefficients, centres[failing, 0], centres[failing, 1], tolerance)
+    failing = failing[room >= region_map.margin_m + feasible_slack_m]
     order = np.lexsort((centres[failing, 1], centres[failing, 0]))
     chosen = failing[order[np.unique(np.linspace(0, order.size - 1, min(limit, order.size)).round().astype(np.int64))]]
     s = np.linspace(0.0, 1.0, _SAMPLES_S)
@@ -354,7 +402,9 @@ def fit_certifiable(
         settings = final if round_index == config.max_rounds else config.certificate
         region_map = certify_range(current, settings)
         summary = region_map.summary()
-        new_points, loose = worst_points(current, region_map, config.points_per_round, config.feasible_slack_m)
+        new_points, loose = worst_points(
+            current, region_map, config.points_per_round, config.feasible_slack_m, config.endpoint.fit_tolerance_m
+        )
         rounds.append(
             {
                 "round": round_index,

@@ -9,17 +9,22 @@ import numpy as np
 import pytest
 
 from pipeline.certify.certifiable_regression import (
+    _ROOM_ANGLES,
+    _ROOM_RINGS,
     CertifiableFitConfig,
     _clearance_points,
     clearance_at,
     clearance_jacobian,
+    end_pose_room_m,
     refit,
     refit_file_for_clearance,
 )
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.exceptions import InvalidParameterError
-from pipeline.geometry.clearance import analytic_link_clearance
+from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
 from pipeline.model.arm import PlanarArm
+from pipeline.model.kinematics import inverse_kinematics
+from pipeline.model.obstacle import Obstacle
 from pipeline.motion.trajectory import PARAMETER_NAMES
 from pipeline.offline.coefficients import (
     Coefficients,
@@ -142,3 +147,23 @@ def test_the_last_round_certifies_with_the_final_cells(tmp_path, margin_m, toler
 def test_certificate_settings_must_be_certificate_configs(field: str) -> None:
     with pytest.raises(InvalidParameterError, match=field):
         CertifiableFitConfig(**{field: {"min_cell": 1 / 512}})
+
+
+def test_end_pose_room_is_coals_sampled_room(eq9: Coefficients, arm: PlanarArm) -> None:
+    """The refit's sampled room at the ends against Coal on the same tips (Pinocchio-free IK of
+    the model module, Coal through the arm's geometry): equal to Coal's error, and below the
+    margin exactly where the strip near W = 0.12 m leaves no room (0.20, 0.12), above it far away."""
+    sizes = np.array([[0.2, 0.12], [0.25, 0.119], [0.27, 0.09]])
+    room = end_pose_room_m(eq9, sizes[:, 0], sizes[:, 1], 0.002)
+    radii = np.linspace(0.0, 0.002, _ROOM_RINGS)
+    angles = np.linspace(0.0, 2 * np.pi, _ROOM_ANGLES, endpoint=False)
+    for (L, W), value in zip(sizes, room, strict=True):
+        coal = CoalClearance(arm, Obstacle.in_scene(L, W, eq9.scene))
+        ends = []
+        for side in (1.0, -1.0):
+            end = np.array([side * (L / 2 + eq9.scene.start_dx_m), eq9.scene.y1_m])
+            tips = [end + r * np.array([np.cos(a), np.sin(a)]) for r in radii for a in angles]
+            poses = [inverse_kinematics(tip, arm.link_lengths_m, eq9.elbow) for tip in tips]
+            ends.append(max(float(coal.link_clearance(q).min()) for q in poses))
+        assert value == pytest.approx(min(ends), abs=COAL_DISTANCE_ERROR_M)
+    assert room[0] < eq9.scene.margin_m < room[2]

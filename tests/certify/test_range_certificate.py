@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pipeline.certify.certifiable_regression import ClearancePoints, _clearance_points, clearance_at
 from pipeline.certify.clearance_bound import box_clearance_bounds
 from pipeline.certify.endpoints import (
     endpoint_clearance_upper_bounds,
@@ -22,11 +23,13 @@ from pipeline.certify.endpoints import (
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range, refine_leaves
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES
+from pipeline.certify.search import SearchSettings, node_boxes, search
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
 from pipeline.model.arm import PlanarArm
 from pipeline.model.kinematics import inverse_kinematics
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.families import family_from_name
+from pipeline.motion.trajectory import PARAMETER_NAMES
 from pipeline.offline.coefficients import Coefficients, fit_coefficients, load_coefficients, paper_data_path
 from pipeline.offline.doe import load_doe
 from pipeline.offline.endpoint_regression import EndpointConstraint
@@ -366,3 +369,34 @@ def test_infeasibility_bound_holds_at_the_cells_roomiest_corner_and_reaches_the_
         assert sampled <= upper[k] + COAL_DISTANCE_ERROR_M
         corner_room.append(sampled)
     assert max(corner_room) > 0.00997
+
+
+def test_the_search_resolves_the_margins_contour_at_its_smallest_cell(eq9: Coefficients) -> None:
+    """Eq. 9 on a sub-range its 1 cm contour crosses, with a coarse resolution (5 mm: every node
+    whose centre misses the margin counts as resolved at the boundary depth): a node left below
+    the margin coarser than the smallest cell holds no obstacle that keeps the margin (5 x 5
+    (L, W) per node, the clearance's minimum over 401 times; the analytic clearance of
+    ``clearance_at``, tested equal to the generator's), so the contour is resolved at the
+    smallest cell. When nodes were closed at the boundary depth wherever their centre missed
+    the margin, coarse nodes straddled the contour and this failed."""
+    strip = dataclasses.replace(eq9, fitted_range_m={"L": (0.2, 0.225), "W": (0.108, 0.116)})
+    model = RangeModel.from_coefficients(strip)
+    settings = SearchSettings(margin_m=0.01, max_depth_lw=5, boundary_depth_lw=2, resolution_m=5e-3)
+    boxes = search(model, settings)
+    keys = boxes.depth_lw * 10**6 + boxes.index_l * 10**3 + boxes.index_w
+    nodes, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    node_bound = np.full(nodes.size, np.inf)
+    np.minimum.at(node_bound, inverse, boxes.bound_m)
+    coarse = np.flatnonzero((node_bound < settings.margin_m) & (boxes.depth_lw[first] < settings.max_depth_lw))
+    assert coarse.size >= 3 and np.any(node_bound >= settings.margin_m)
+    rows = first[coarse]
+    centre, half = node_boxes(model, boxes.depth_lw[rows], boxes.index_l[rows], boxes.index_w[rows])
+    offsets = np.array([[u, v] for u in np.linspace(-1, 1, 5) for v in np.linspace(-1, 1, 5)])
+    sizes = (centre[:, None, :] + offsets[None] * half[:, None, :]).reshape(-1, 2)
+    at_sizes = _clearance_points(strip, np.column_stack([sizes, np.zeros(len(sizes))]))  # T per obstacle
+    s = np.linspace(0.0, 1.0, 401)
+    points = np.column_stack([np.repeat(sizes, s.size, axis=0), np.tile(s, len(sizes))])
+    data = ClearancePoints(points, np.repeat(at_sizes.duration_s, s.size))
+    b = np.stack([strip.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
+    per_obstacle = clearance_at(b, data, strip).reshape(len(sizes), s.size).min(axis=1)
+    assert np.all(per_obstacle < settings.margin_m)
