@@ -17,8 +17,9 @@ Round k:
    the 48 coefficients; the clearance rows in cm, the scale of the endpoint slack). If SLSQP
    cannot meet a positive cushion it is asked for the margin itself;
 
-until the map has no such leaf or ``max_rounds`` is reached, or a refit fails to converge (then
-the previous fit and its map are returned and the report says so). Leaves whose endpoint-pose
+until the map has no such leaf or ``max_rounds`` is reached, or a refit fails to converge (it is
+tried again without the points whose end poses keep less than margin + ``RETRY_SLACKS_M``;
+if that fails too, the previous fit and its map are returned and the report says so). Leaves whose endpoint-pose
 clearance bound (the infeasibility certificate's U) is below margin + ``feasible_slack_m`` are
 not constrained: there the family can barely keep the margin at all with the endpoint
 tolerance. The fit remains a closed-form quadratic in (L, W); its certificate is the last map,
@@ -83,6 +84,11 @@ _DEFAULT_FEASIBLE_SLACK_M = 2e-5
 #: 400 points): 0.03 -> margin 98.65 % of the area, 0.015 -> 98.69 %, 0.01 -> 98.74 %, 0.0075 ->
 #: 98.74 %; at 0.004 the final map's endpoint bound reached 2.009 mm, above the tolerance.
 REFIT_ENDPOINT_HEADROOM = 0.01
+#: If a refit does not converge, it is tried again without the points whose end poses keep less
+#: than margin + each of these in turn (:func:`end_pose_room_m`) [m]; the last is about the
+#: constraint set of the rounds before the end-pose room chose the points (leaves with U >=
+#: margin + 1 mm).
+RETRY_SLACKS_M = (1e-4, 1e-3)
 #: Rounds of the build's certifiable regression (``python -m pipeline.build --clearance-rounds``).
 DEFAULT_CLEARANCE_ROUNDS = 1
 #: Smallest cell of the maps of the build's refit rounds but the last (fraction of the side);
@@ -430,6 +436,16 @@ def fit_certifiable(
         candidate, converged = refit(
             current, length_m, width_m, values, targets, _clearance_points(current, collected), margin, config
         )
+        room = end_pose_room_m(current, collected[:, 0], collected[:, 1], config.endpoint.fit_tolerance_m)
+        for slack in RETRY_SLACKS_M:  # the points with least room are the hardest to hold: retry without them
+            roomy = room >= margin + slack
+            if converged or not 0 < np.count_nonzero(roomy) < roomy.size:
+                continue
+            collected, room = collected[roomy], room[roomy]
+            candidate, converged = refit(
+                current, length_m, width_m, values, targets, _clearance_points(current, collected), margin, config
+            )
+            rounds[-1]["retried_without_points_below_m"] = slack
         rounds[-1]["refit_converged"] = converged
         if not converged:  # SLSQP's last iterate need not satisfy anything: keep the certified fit
             rounds[-1]["stopped"] = "refit did not converge; the previous coefficients are returned"

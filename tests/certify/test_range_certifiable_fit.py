@@ -167,3 +167,32 @@ def test_end_pose_room_is_coals_sampled_room(eq9: Coefficients, arm: PlanarArm) 
             ends.append(max(float(coal.link_clearance(q).min()) for q in poses))
         assert value == pytest.approx(min(ends), abs=COAL_DISTANCE_ERROR_M)
     assert room[0] < eq9.scene.margin_m < room[2]
+
+
+def test_a_refit_that_fails_is_retried_without_the_tightest_points(monkeypatch) -> None:
+    """The first refit is made to fail: the round retries with only the points whose end poses
+    keep margin + a retry slack (each checked by end_pose_room_m), records that slack, and keeps
+    the retry's converged fit."""
+    from pipeline.certify import certifiable_regression as module
+
+    doe = load_doe(paper_data_path("paper_table2_doe.json"))
+    fitted, _ = fit_coefficients(doe, None, EndpointConstraint())
+    calls = []
+    real = module.refit
+
+    def failing_first(start, length_m, width_m, values, targets, clearance, margin_m, config):
+        calls.append(clearance.points.copy())
+        result, converged = real(start, length_m, width_m, values, targets, clearance, margin_m, config)
+        return result, converged and len(calls) > 1
+
+    monkeypatch.setattr(module, "refit", failing_first)
+    certificate = RangeCertificateConfig(min_cell=1 / 64, boundary_cell=1 / 16)
+    config = CertifiableFitConfig(certificate=certificate, max_rounds=1)
+    _, _, report = module.fit_certifiable(fitted, doe.lengths_m, doe.widths_m, doe.free_parameters(), config)
+    first = report["rounds"][0]
+    assert len(calls) >= 2 and first["refit_converged"]
+    slack = first["retried_without_points_below_m"]
+    assert slack in module.RETRY_SLACKS_M
+    assert 0 < len(calls[-1]) < len(calls[0])
+    room = end_pose_room_m(fitted, calls[-1][:, 0], calls[-1][:, 1], config.endpoint.fit_tolerance_m)
+    assert np.all(room >= fitted.scene.margin_m + slack)
