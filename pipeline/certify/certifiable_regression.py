@@ -18,24 +18,23 @@ Round k:
    cannot meet a positive cushion it is asked for the margin itself;
 
 until the map has no such leaf or ``max_rounds`` is reached, or a refit fails to converge (it is
-tried again without the points whose end poses keep less than margin + ``RETRY_SLACKS_M``;
-if that fails too, the previous fit and its map are returned and the report says so). Leaves whose endpoint-pose
-clearance bound (the infeasibility certificate's U) is below margin + ``feasible_slack_m`` are
-not constrained: there the family can barely keep the margin at all with the endpoint
-tolerance. The fit remains a closed-form quadratic in (L, W); its certificate is the last map,
-so nothing here needs trusting beyond ``certify_range``. Paper family only (all 8 parameters
-regressed).
+tried again without the points whose end poses keep less than margin + each of
+``RETRY_SLACKS_M``; if that fails too, the previous fit and its map are returned and the report
+says so). Leaves whose end poses cannot keep margin + ``feasible_slack_m`` at the fit's
+endpoint tolerance (:func:`end_pose_room_m`, sampled at the leaf's centre) are not constrained:
+there the family cannot keep the margin at all with that tolerance, or only just. The fit
+remains a closed-form quadratic in (L, W); its certificate is the last map, so nothing here
+needs trusting beyond ``certify_range``. Paper family only (all 8 parameters regressed).
 
-Measured on the default build (seed 0): the map goes from margin 95.96 % / collision-free
-3.46 % / infeasible 0.58 % to 98.32 / 1.10 / 0.58 after one round (200 points spread over the
-failing leaves) and 98.38 / 1.04 / 0.58 after two or three, every refit converging (SLSQP with
-cushion 0 is the default: a cushion of 0.2 or 0.5 mm was out of reach at 200 of the lowest
-points, where the family keeps 10.0-10.2 mm at most). With the 200 lowest points instead of a
-spread, one round reached 96.65 % and two 98.35 %. (These maps at cells of 1/256, before the
-infeasibility certificate's sub-cells; the build's final map today, at 1/512: 98.42 / 0.61 /
-0.96.) Constraining the leaves whose end poses keep less than 1 mm above the margin as well
-(``feasible_slack_m`` 0.3 mm or 0) makes the first refit fail to converge, and the previous fit
-is kept.
+Measured on the default build (seed 0, one round, final map at 1/512): before the refit, margin
+96.13 % / collision-free below it 2.90 % / infeasible 0.98 %; after it, 98.76 / 0.27 / 0.98 with
+400 points, the refit holding 1.98 mm (``REFIT_ENDPOINT_HEADROOM``) and ``feasible_slack_m``
+0.02 mm (with 200 points and 1.94 mm: 98.61 / 0.41; with 400 and 1.94 mm: 98.65 / 0.38; with
+0.005 mm: 98.77 / 0.26; with 600 points at 0.01 mm the refit failed to converge and the retry
+without the points below 0.1 mm of room gave 98.58 %). Two rounds at 1.985 mm reached 98.75 %
+but the second refit's endpoint errors broke the 2 mm proof (2.0019 mm). Until the points were
+chosen by the end poses' room, leaves whose infeasibility bound U was below margin + 1 mm were
+left out, which left the whole strip near W = 0.12 m unconstrained (98.42 % after one round).
 """
 
 from __future__ import annotations

@@ -1,0 +1,132 @@
+"""Where a region map misses the margin without proving infeasibility, whose is the gap: the end
+poses', the regression's or the certificate's?
+
+    python scripts/margin_gap.py [--coefficients results/coefficients.json] [--map MAP] [--json OUT]
+
+For every ``collision_free`` leaf of the map (certified collision-free, below the margin) it
+samples
+
+* the room the end poses leave at the leaf's centre: the largest clearance of a pose on the
+  family's elbow branch whose tip is within the map's endpoint tolerance of P1 and of P5, the
+  smaller of the two (``pipeline.certify.certifiable_regression.end_pose_room_m``);
+* the regression's own clearance over the leaf: its smallest analytic clearance at the
+  corners and centre of the cell, at 401 times of s in [0.9, 1] and 401 in [0, 1]
+
+and prints the area fraction of the fitted range per class of the room, split by whether the
+regression's sampled clearance over the leaf reaches the margin (where it does, only the
+certificate's bound is below it). Then, over the strip W >= ``--strip-from``, the area where the
+room at the full tolerance lies within +-delta of the margin on a grid of obstacle sizes (the
+band that a map with exact bounds and a regression exact to delta would still leave open), and
+how fast the room changes with W there.
+
+A sampling, not a proof (the proofs are the map's); not part of the test suite.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import sys
+
+import numpy as np
+
+#: Class edges of the end-pose room relative to the margin [m].
+ROOM_EDGES_M = (-np.inf, -2e-5, 0.0, 2e-5, 5e-5, 1e-4, np.inf)
+#: Half widths of the bands around the margin [m].
+BANDS_M = (1e-5, 2e-5, 5e-5, 1e-4)
+
+
+def _leaf_minimum(coefficients, lengths: np.ndarray, widths: np.ndarray) -> np.ndarray:
+    """Smallest sampled clearance [m] of the regression at each (L, W): s on [0, 1] and densely near 1."""
+    from pipeline.certify.certifiable_regression import ClearancePoints, _clearance_points, clearance_at
+    from pipeline.motion.trajectory import PARAMETER_NAMES
+
+    s = np.unique(np.concatenate([np.linspace(0.0, 1.0, 401), np.linspace(0.9, 1.0, 401)]))
+    sizes = _clearance_points(coefficients, np.column_stack([lengths, widths, np.zeros(lengths.size)]))
+    points = np.column_stack([np.repeat(sizes.points[:, :2], s.size, axis=0), np.tile(s, lengths.size)])
+    b = np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
+    values = clearance_at(b, ClearancePoints(points, np.repeat(sizes.duration_s, s.size)), coefficients)
+    return values.reshape(lengths.size, s.size).min(axis=1)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--coefficients", default="results/coefficients.json", help="(default: %(default)s)")
+    parser.add_argument("--map", default=None, help="region map (default: region_map.json beside the coefficients)")
+    parser.add_argument(
+        "--strip-from", type=float, default=0.116, help="W where the band grid starts [m] (default: 0.116)"
+    )
+    parser.add_argument("--json", default=None, help="also write the tables as JSON to this file")
+    args = parser.parse_args(argv)
+    from pathlib import Path
+
+    from pipeline.certify.certifiable_regression import end_pose_room_m
+    from pipeline.certify.region_map import STATUSES, load_region_map
+    from pipeline.exceptions import PipelineError
+    from pipeline.offline.coefficients import load_coefficients
+
+    try:
+        coefficients = load_coefficients(args.coefficients)
+        region_map = load_region_map(args.map or Path(args.coefficients).with_name("region_map.json"))
+    except PipelineError as error:
+        print(f"margin_gap: {error}", file=sys.stderr)
+        return 2
+    if not region_map.belongs_to(coefficients):
+        print("margin_gap: the map does not belong to these coefficients", file=sys.stderr)
+        return 2
+    margin, tolerance = region_map.margin_m, region_map.endpoint_tolerance_m
+    lo = np.array([region_map.length_range_m[0], region_map.width_range_m[0]])
+    size = np.array([region_map.length_range_m[1], region_map.width_range_m[1]]) - lo
+    cell = size / (2.0 ** region_map.depth[:, None])
+    centre = lo + (np.stack([region_map.index_l, region_map.index_w], -1) + 0.5) * cell
+    below = np.flatnonzero(region_map.status == STATUSES.index("collision_free"))
+    area = region_map.area[below]
+    room = end_pose_room_m(coefficients, centre[below, 0], centre[below, 1], tolerance) - margin
+    corners = np.array([[0.0, 0.0], [-0.5, -0.5], [-0.5, 0.5], [0.5, -0.5], [0.5, 0.5]])
+    regression = np.min([_leaf_minimum(coefficients, *(centre[below] + k * cell[below]).T) for k in corners], axis=0)
+    reached = regression >= margin
+    rows = []
+    print(f"collision_free leaves: {below.size}, {100 * area.sum():.3f} % of the range")
+    for low, high in itertools.pairwise(ROOM_EDGES_M):
+        sel = (room >= low) & (room < high)
+        row = {
+            "room_above_margin_m": [low, high],
+            "area_fraction": float(area[sel].sum()),
+            "regression_below_margin": float(area[sel & ~reached].sum()),
+            "regression_at_margin_bound_below": float(area[sel & reached].sum()),
+        }
+        rows.append(row)
+        print(
+            f"room - margin in [{1e3 * low:+.2f}, {1e3 * high:+.2f}) mm: {100 * row['area_fraction']:.3f} %"
+            f" (regression's sampled clearance below the margin {100 * row['regression_below_margin']:.3f} %,"
+            f" at it, only the bound below {100 * row['regression_at_margin_bound_below']:.3f} %)"
+        )
+    lengths = np.linspace(*region_map.length_range_m, 201)
+    widths = np.linspace(args.strip_from, region_map.width_range_m[1], 81)
+    grid_l, grid_w = np.meshgrid(lengths, widths, indexing="ij")
+    band_room = end_pose_room_m(coefficients, grid_l.ravel(), grid_w.ravel(), tolerance) - margin
+    strip_fraction = (region_map.width_range_m[1] - args.strip_from) / size[1]
+    bands = {}
+    for delta in BANDS_M:
+        bands[delta] = float(np.mean(np.abs(band_room) < delta) * strip_fraction)
+        print(f"room within +-{1e3 * delta:.2f} mm of the margin: {100 * bands[delta]:.3f} % of the range")
+    slope = np.gradient(band_room.reshape(grid_l.shape), widths, axis=1)
+    near = np.abs(band_room.reshape(grid_l.shape)) < 3e-4
+    median_slope = float(np.median(slope[near]))
+    print(f"d room / d W within 0.3 mm of the margin: median {median_slope:.3f} (m per m)")
+    infeasible = float(np.mean(band_room < 0.0) * strip_fraction)
+    print(f"room below the margin (sampled infeasible): {100 * infeasible:.3f} % of the range")
+    if args.json:
+        Path(args.json).write_text(
+            json.dumps(
+                {"classes": rows, "bands": bands, "sampled_infeasible": infeasible, "slope": median_slope},
+                indent=1,
+            )
+            + "\n"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
