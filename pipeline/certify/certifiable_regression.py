@@ -92,9 +92,9 @@ RETRY_SLACKS_M = (1e-4, 1e-3)
 DEFAULT_CLEARANCE_ROUNDS = 1
 #: Smallest cell of the maps of the build's refit rounds but the last (fraction of the side);
 #: the last round, whose map the build writes, uses the build's (finer) cells. Measured on the
-#: default build (seed 0): with the first round at 1/256 and the last at 1/512, margin 98.42 %
-#: of the area; with both at 1/512, the 200 points spread over other leaves and the final map
-#: reaches 98.17 %.
+#: default build (seed 0), with the earlier choice of points (200, infeasibility bound U >=
+#: margin + 1 mm): with the first round at 1/256 and the last at 1/512, margin 98.42 % of the
+#: area; with both at 1/512, the points spread over other leaves and the final map reached 98.17 %.
 REFIT_MIN_CELL = 1.0 / 256
 
 

@@ -27,9 +27,10 @@ Without the family constraints the search is not evidence of anything: from pert
 it finds trajectories that end on the other elbow branch (theta2 past pi, outside the URDF's
 limits) and clear the box by 10 cm where every end pose on the family's branch is within about
 1 cm of it. With them, ``python -m pipeline.certify_range results/coefficients.json --jobs 2
---witnesses 12 --witness-restarts 6`` (default build, 3.6 min) finds 9.93-10.26 mm at the centres
-of 12 leaves of the strip W > 0.1188 m where the map misses the margin (below 10 mm at 1 of
-them), the coefficients' own trajectories 9.77-10.05 mm.
+--witnesses 12 --witness-restarts 6`` (default build, 2.7 min) finds 9.96-10.04 mm at the
+centres of 12 leaves of the band near W = 0.1193 m where the map misses the margin (below 10 mm
+at 5 of them, each with its error at P5 at the full 2.00 mm), the coefficients' own
+trajectories 9.92-10.02 mm.
 """
 
 from __future__ import annotations
