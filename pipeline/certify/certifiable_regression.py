@@ -435,10 +435,12 @@ def fit_certifiable(
         candidate, converged = refit(
             current, length_m, width_m, values, targets, _clearance_points(current, collected), margin, config
         )
-        room = end_pose_room_m(current, collected[:, 0], collected[:, 1], config.endpoint.fit_tolerance_m)
+        room = None if converged else end_pose_room_m(current, *collected[:, :2].T, config.endpoint.fit_tolerance_m)
         for slack in RETRY_SLACKS_M:  # the points with least room are the hardest to hold: retry without them
+            if converged:
+                break
             roomy = room >= margin + slack
-            if converged or not 0 < np.count_nonzero(roomy) < roomy.size:
+            if not 0 < np.count_nonzero(roomy) < roomy.size:
                 continue
             collected, room = collected[roomy], room[roomy]
             candidate, converged = refit(
