@@ -49,6 +49,9 @@ DEFAULT_BOUNDARY_CELL = 1.0 / 64
 #: within this of the margin [m].
 _INFEASIBILITY_REFINE_M = 1e-3
 _KEY_BITS = 21
+#: Leaves per task of the infeasibility certificate's sub-cells (fixed, so that the map does not
+#: depend on the worker count).
+_SUB_CELL_CHUNK = 128
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -172,12 +175,47 @@ def _split(arrays: list[np.ndarray], rows: np.ndarray) -> list[np.ndarray]:
     return [np.concatenate([column[~rows], kid]) for column, kid in zip(arrays, kids, strict=True)]
 
 
+def _infeasibility_task(model: RangeModel, c: np.ndarray, r: np.ndarray, tolerance_m: float, margin_m: float):
+    return infeasibility_upper_bounds(model, c, r, tolerance_m, margin_m)
+
+
+def sub_cell_bounds(
+    model: RangeModel, c: np.ndarray, r: np.ndarray, tolerance_m: float, margin_m: float, jobs: int = 1
+) -> np.ndarray:
+    """``endpoints.infeasibility_upper_bounds`` over chunks of :data:`_SUB_CELL_CHUNK` leaves,
+    spread over ``jobs`` processes. The chunks do not depend on ``jobs`` (the branch and bound
+    caps its boxes per call), so neither do the bounds."""
+    chunks = [slice(k, k + _SUB_CELL_CHUNK) for k in range(0, c.shape[0], _SUB_CELL_CHUNK)]
+    if jobs <= 1 or len(chunks) <= 1:
+        parts = [_infeasibility_task(model, c[k], r[k], tolerance_m, margin_m) for k in chunks]
+    else:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(chunks))) as pool:
+            n = len(chunks)
+            parts = list(
+                pool.map(
+                    _infeasibility_task,
+                    [model] * n,
+                    [c[k] for k in chunks],
+                    [r[k] for k in chunks],
+                    [tolerance_m] * n,
+                    [margin_m] * n,
+                )
+            )
+    return np.concatenate(parts) if parts else np.empty(0)
+
+
 def refine_leaves(
-    model: RangeModel, leaves: list[np.ndarray], margin_m: float, tolerance_m: float, max_depth: int
+    model: RangeModel,
+    leaves: list[np.ndarray],
+    margin_m: float,
+    tolerance_m: float,
+    max_depth: int,
+    jobs: int = 1,
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Endpoint bounds and infeasibility upper bounds per leaf, cutting leaves as the module
     docstring says. ``leaves`` = [depth, i_L, i_W, clearance bound]; returns the final leaves,
-    their endpoint bounds (n,) and their endpoint clearance upper bounds (n,) (inf where not needed)."""
+    their endpoint bounds (n,) and their endpoint clearance upper bounds (n,) (inf where not needed).
+    The sub-cell bounds run in ``jobs`` processes (the result does not depend on it)."""
     endpoint = np.full(leaves[0].size, np.nan)
     upper = np.full(leaves[0].size, np.nan)
     arrays = [*leaves, endpoint, upper]
@@ -202,7 +240,7 @@ def refine_leaves(
         if not np.any(rows):
             if np.any(close):  # smallest cells still close: try sub-cells (pipeline.certify.endpoints)
                 c, r = node_boxes(model, depth[close], i_l[close], i_w[close])
-                upper[close] = np.minimum(upper[close], infeasibility_upper_bounds(model, c, r, tolerance_m, margin_m))
+                upper[close] = np.minimum(upper[close], sub_cell_bounds(model, c, r, tolerance_m, margin_m, jobs))
             return [depth, i_l, i_w, bound], endpoint, upper
         arrays = _split([depth, i_l, i_w, bound, endpoint, upper], rows)
         arrays[4][-4 * np.count_nonzero(rows) :] = np.nan  # children get their own endpoint bounds
@@ -236,7 +274,7 @@ def certify_range(coefficients: Coefficients, config: RangeCertificateConfig | N
     boxes = run_search(model, settings, config.jobs)
     d, il, iw, bound, _ = leaves_from_boxes(boxes)
     (d, il, iw, bound), endpoint, upper = refine_leaves(
-        model, [d, il, iw, bound], margin, config.endpoint_tolerance_m, config.max_depth_lw
+        model, [d, il, iw, bound], margin, config.endpoint_tolerance_m, config.max_depth_lw, config.jobs
     )
     seconds = time.perf_counter() - start
     return RegionMap(
