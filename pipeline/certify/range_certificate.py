@@ -175,10 +175,6 @@ def _split(arrays: list[np.ndarray], rows: np.ndarray) -> list[np.ndarray]:
     return [np.concatenate([column[~rows], kid]) for column, kid in zip(arrays, kids, strict=True)]
 
 
-def _infeasibility_task(model: RangeModel, c: np.ndarray, r: np.ndarray, tolerance_m: float, margin_m: float):
-    return infeasibility_upper_bounds(model, c, r, tolerance_m, margin_m)
-
-
 def sub_cell_bounds(
     model: RangeModel, c: np.ndarray, r: np.ndarray, tolerance_m: float, margin_m: float, jobs: int = 1
 ) -> np.ndarray:
@@ -186,21 +182,13 @@ def sub_cell_bounds(
     spread over ``jobs`` processes. The chunks do not depend on ``jobs`` (the branch and bound
     caps its boxes per call), so neither do the bounds."""
     chunks = [slice(k, k + _SUB_CELL_CHUNK) for k in range(0, c.shape[0], _SUB_CELL_CHUNK)]
-    if jobs <= 1 or len(chunks) <= 1:
-        parts = [_infeasibility_task(model, c[k], r[k], tolerance_m, margin_m) for k in chunks]
+    n = len(chunks)
+    arguments = ([model] * n, [c[k] for k in chunks], [r[k] for k in chunks], [tolerance_m] * n, [margin_m] * n)
+    if jobs <= 1 or n <= 1:
+        parts = list(map(infeasibility_upper_bounds, *arguments))
     else:
-        with ProcessPoolExecutor(max_workers=min(jobs, len(chunks))) as pool:
-            n = len(chunks)
-            parts = list(
-                pool.map(
-                    _infeasibility_task,
-                    [model] * n,
-                    [c[k] for k in chunks],
-                    [r[k] for k in chunks],
-                    [tolerance_m] * n,
-                    [margin_m] * n,
-                )
-            )
+        with ProcessPoolExecutor(max_workers=min(jobs, n)) as pool:
+            parts = list(pool.map(infeasibility_upper_bounds, *arguments))
     return np.concatenate(parts) if parts else np.empty(0)
 
 
