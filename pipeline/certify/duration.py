@@ -115,8 +115,10 @@ def duration_at(length_m: np.ndarray, width_m: np.ndarray, scene: Scene) -> tupl
     f_l = (0.5 * x1 + g * (2.0 * xi * alpha_l + 4.0 * xi3 * beta_l)) / f
     f_w = g * (2.0 * xi * alpha_w + 4.0 * xi3 * beta_w) / f
     v = scene.speed_m_s
-    s = 2.0 * f @ _WEIGHTS
-    grad = 2.0 * np.stack([f_l @ _WEIGHTS, f_w @ _WEIGHTS], -1)
+    # Row sums, not a matrix product: BLAS may round a row differently with its position in the
+    # batch, and T at a node must not depend on which other nodes share its batch.
+    s = 2.0 * np.sum(f * _WEIGHTS, axis=1)
+    grad = 2.0 * np.stack([np.sum(f_l * _WEIGHTS, axis=1), np.sum(f_w * _WEIGHTS, axis=1)], -1)
     err_value, err_grad = _quadrature_error(x1[:, 0], alpha[:, 0], beta[:, 0], alpha_l, alpha_w, beta_l, beta_w)
     value = Interval.around(s / v, 2.0 * err_value / v)
     return value, Interval.around(grad / v, 2.0 * err_grad / v)
@@ -251,7 +253,11 @@ class DurationModel:
             Jet with value (N,) [s] and gradient (N, k) [s/m] enclosing T and grad T over each box.
         """
         center = np.asarray(center_m, dtype=float)
-        value_c, grad_c = duration_at(center[:, 0], center[:, 1], self.scene)
+        # Boxes of one (L, W) node differ only in s: the quadrature runs once per distinct node.
+        nodes, inverse = np.unique(center[:, :2], axis=0, return_inverse=True)
+        value_n, grad_n = duration_at(nodes[:, 0], nodes[:, 1], self.scene)
+        inverse = inverse.reshape(-1)
+        value_c, grad_c = value_n[inverse], grad_n[inverse]
         r = np.asarray(radius_m, dtype=float)[:, :2]
         hmag = self.hessian_magnitude(center, r)
         grad_spread = np.einsum("nij,nj->ni", hmag, r)
