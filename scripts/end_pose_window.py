@@ -38,14 +38,11 @@ def _disc(tolerance_m: float) -> np.ndarray:
 def best_end_pose_clearance_m(length_m: float, width_m: float, disc: np.ndarray, arm, scene, elbow: int) -> float:
     """Largest sampled clearance [m] of a pose on the ``elbow`` branch with its tip in ``disc`` around P5."""
     from pipeline.geometry.clearance import analytic_link_clearance
+    from pipeline.model.kinematics import inverse_kinematics_batch
     from pipeline.model.obstacle import Obstacle
 
     tips = np.array([-(length_m / 2 + scene.start_dx_m), scene.y1_m]) + disc
-    l1, l2 = arm.link_lengths_m
-    cos2 = ((tips**2).sum(axis=1) - l1 * l1 - l2 * l2) / (2 * l1 * l2)
-    theta2 = elbow * np.arccos(np.clip(cos2, -1.0, 1.0))
-    theta1 = np.arctan2(tips[:, 1], tips[:, 0]) - np.arctan2(l2 * np.sin(theta2), l1 + l2 * np.cos(theta2))
-    q = np.stack([theta1, theta2], -1)
+    q = inverse_kinematics_batch(tips, arm.link_lengths_m, elbow)
     return float(analytic_link_clearance(q, arm, Obstacle.in_scene(length_m, width_m, scene)).min(axis=1).max())
 
 

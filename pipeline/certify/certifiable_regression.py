@@ -50,7 +50,8 @@ from scipy.optimize import minimize
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import STATUSES, RegionMap
 from pipeline.exceptions import DataFileError, InvalidParameterError
-from pipeline.geometry.clearance import segment_rectangle_distance
+from pipeline.geometry.clearance import link_box_clearance
+from pipeline.model.kinematics import inverse_kinematics_batch
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import PARAMETER_NAMES
@@ -164,17 +165,12 @@ def _theta(parameters: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def _clearance_of_theta(theta: np.ndarray, points: np.ndarray, coefficients: Coefficients) -> np.ndarray:
     """Analytic clearance (both links) of configurations (n, 2) against the obstacles of ``points``."""
-    l1, l2 = coefficients.link_lengths_m
     scene = coefficients.scene
     r = scene.corner_radius_m
-    elbow = l1 * np.stack([np.cos(theta[:, 0]), np.sin(theta[:, 0])], -1)
-    phi = theta.sum(-1)
-    tip = elbow + l2 * np.stack([np.cos(phi), np.sin(phi)], -1)
     center = np.stack([np.zeros(len(points)), scene.top_y_m - points[:, 1] / 2], -1)
     half = np.stack([points[:, 0] / 2 - r, points[:, 1] / 2 - r], -1)
-    c1 = segment_rectangle_distance(np.zeros_like(elbow), elbow, center, half) - coefficients.link_radii_m[0]
-    c2 = segment_rectangle_distance(elbow, tip, center, half) - coefficients.link_radii_m[1]
-    return np.minimum(c1, c2) - r
+    links = link_box_clearance(theta, coefficients.link_lengths_m, coefficients.link_radii_m, center, half, r)
+    return np.minimum(links[:, 0], links[:, 1])
 
 
 def clearance_at(b: np.ndarray, data: ClearancePoints, coefficients: Coefficients) -> np.ndarray:
@@ -211,7 +207,6 @@ def end_pose_room_m(
     lengths = np.asarray(length_m, dtype=float).ravel()
     widths = np.asarray(width_m, dtype=float).ravel()
     scene = coefficients.scene
-    l1, l2 = coefficients.link_lengths_m
     angle = np.linspace(0.0, 2.0 * np.pi, _ROOM_ANGLES, endpoint=False)
     radius = np.linspace(0.0, tolerance_m, _ROOM_RINGS)
     offsets = np.stack([np.outer(radius, np.cos(angle)).ravel(), np.outer(radius, np.sin(angle)).ravel()], -1)
@@ -219,11 +214,9 @@ def end_pose_room_m(
     for side in (1.0, -1.0):
         ends = np.stack([side * (lengths / 2 + scene.start_dx_m), np.full(lengths.size, scene.y1_m)], -1)
         tips = (ends[:, None, :] + offsets[None]).reshape(-1, 2)
-        cos2 = np.clip((np.sum(tips * tips, -1) - l1 * l1 - l2 * l2) / (2 * l1 * l2), -1.0, 1.0)
-        theta2 = coefficients.elbow * np.arccos(cos2)
-        theta1 = np.arctan2(tips[:, 1], tips[:, 0]) - np.arctan2(l2 * np.sin(theta2), l1 + l2 * np.cos(theta2))
+        theta = inverse_kinematics_batch(tips, coefficients.link_lengths_m, coefficients.elbow)
         sizes = np.repeat(np.column_stack([lengths, widths]), offsets.shape[0], axis=0)
-        clearance = _clearance_of_theta(np.column_stack([theta1, theta2]), sizes, coefficients)
+        clearance = _clearance_of_theta(theta, sizes, coefficients)
         room = np.minimum(room, clearance.reshape(lengths.size, offsets.shape[0]).max(axis=1, initial=-np.inf))
     return room
 

@@ -10,10 +10,10 @@ whose docstrings carry the derivations; this module only combines them:
   cover the leaf times all of s in [0, 1];
 * a leaf is cut further (its children inherit that clearance bound, still valid on them) while
   its endpoint bound exceeds the tolerance (unless the family pins the endpoints by
-  construction; and where the error at its centre exceeds the tolerance too, only while the
-  bound is more than ``_ENDPOINT_RESOLUTION_M`` above that error: no cut can bring such a cell
-  within the tolerance), or while it is below the margin, not yet proven infeasible and close
-  to being so, down to the smallest cell.
+  construction; and where the error at its centre exceeds the tolerance by more than the
+  bound's gap above that error, only while the gap exceeds ``_ENDPOINT_RESOLUTION_M``: no cut
+  brings such a cell within the tolerance), or while it is below the margin, not yet proven
+  infeasible and close to being so, down to the smallest cell.
   Smallest cells still close to being proven infeasible get the sub-cell bound of
   ``endpoints.infeasibility_upper_bounds`` (the lower of the two valid upper bounds is kept;
   the map's cells themselves are not cut below the smallest cell, so the online lookup grid
@@ -52,10 +52,10 @@ DEFAULT_BOUNDARY_CELL = 1.0 / 64
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
 #: within this of the margin [m].
 _INFEASIBILITY_REFINE_M = 1e-3
-#: Leaves whose endpoint bound exceeds the tolerance while the error at their centre does too
-#: (no cut can bring the bound within the tolerance) are cut only while the bound is more than
-#: this above the centre's error [m].
-_ENDPOINT_RESOLUTION_M = 1e-4
+#: Leaves that miss the endpoint tolerance all over (the error at the centre, less the bound's
+#: gap above it, still exceeds the tolerance: no cut brings them within it) are cut only while
+#: the bound is more than this above the centre's error [m] (the clearance search's resolution).
+_ENDPOINT_RESOLUTION_M = 5e-4
 _KEY_BITS = 21
 #: Leaves per task of the infeasibility certificate's sub-cells (fixed, so that the map does not
 #: depend on the worker count).
@@ -237,10 +237,12 @@ def refine_leaves(
         deep = depth < max_depth
         close = (bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M)
         # A family that pins the endpoints has errors of rounding size: its bound is reported, not
-        # refined; where the centre's error exceeds the tolerance, the bound is refined only to
-        # within _ENDPOINT_RESOLUTION_M of it (the cell misses the tolerance whatever the cut).
-        reachable = (centre_error <= tolerance_m) | (endpoint - centre_error > _ENDPOINT_RESOLUTION_M)
-        loose = (endpoint > tolerance_m) & reachable & (not model.family.pins_endpoints)
+        # refined. A leaf whose error at the centre minus the bound's gap above it exceeds the
+        # tolerance (the error falls below its centre value by about as much as it rises above
+        # it, the search's rule for the margin) misses the tolerance whatever the cut: its bound
+        # is refined only to within _ENDPOINT_RESOLUTION_M of the centre's error.
+        missed = (2.0 * centre_error - endpoint > tolerance_m) & (endpoint - centre_error <= _ENDPOINT_RESOLUTION_M)
+        loose = (endpoint > tolerance_m) & ~missed & (not model.family.pins_endpoints)
         rows = deep & (loose | close)
         if not np.any(rows):
             if np.any(close):  # smallest cells still close: try sub-cells (pipeline.certify.endpoints)

@@ -42,7 +42,7 @@ from scipy.optimize import minimize
 
 from pipeline.certify.region_map import STATUSES, RegionMap
 from pipeline.exceptions import InvalidParameterError
-from pipeline.geometry.clearance import ANALYTIC, link_segments, segment_rectangle_distance
+from pipeline.geometry.clearance import ANALYTIC, analytic_link_clearance
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.arm import PlanarArm
 from pipeline.model.kinematics import forward_kinematics
@@ -104,17 +104,6 @@ class Witness:
         }
 
 
-def _link_clearances(theta: np.ndarray, obstacle: Obstacle, arm: PlanarArm) -> np.ndarray:
-    """Clearance of each link (K, 2) [m] against the rounded box (analytic route)."""
-    elbow, tip = link_segments(theta, arm.link_lengths_m)
-    r = obstacle.corner_radius_m
-    center = np.broadcast_to(np.asarray(obstacle.center_m, dtype=float)[:2], elbow.shape)
-    half = np.broadcast_to(np.array([obstacle.length_m / 2 - r, obstacle.width_m / 2 - r]), elbow.shape)
-    c1 = segment_rectangle_distance(np.zeros_like(elbow), elbow, center, half) - arm.link_radii_m[0]
-    c2 = segment_rectangle_distance(elbow, tip, center, half) - arm.link_radii_m[1]
-    return np.stack([c1, c2], -1) - r
-
-
 def _certified(parameters: np.ndarray, duration_s: float, arm: PlanarArm, obstacle: Obstacle) -> float:
     trajectory = JointTrajectory(tuple(float(v) for v in parameters), float(duration_s))
     return float(certify_trajectory(trajectory, arm, obstacle, route=ANALYTIC, tolerance_m=1e-5).certified_clearance_m)
@@ -171,7 +160,7 @@ def best_clearance_at(
     regression = np.asarray(coefficients.predict_free(length_m, width_m), dtype=float).ravel()
 
     def clearance_rows(x: np.ndarray) -> np.ndarray:
-        return (_link_clearances(joint_angles(x[:8], times), obstacle, arm) - x[8]).ravel() * 100.0
+        return (analytic_link_clearance(joint_angles(x[:8], times), arm, obstacle) - x[8]).ravel() * 100.0
 
     def endpoint_rows(x: np.ndarray) -> np.ndarray:
         tips = forward_kinematics(joint_angles(x[:8], np.array([0.0, duration])), arm.link_lengths_m)
@@ -195,7 +184,7 @@ def best_clearance_at(
         return np.linalg.norm(tips - ends, axis=-1), in_family(trajectory, arm, coefficients.elbow)
 
     def search(start: np.ndarray) -> np.ndarray:
-        z0 = float(_link_clearances(joint_angles(start, times), obstacle, arm).min())
+        z0 = float(analytic_link_clearance(joint_angles(start, times), arm, obstacle).min())
         result = minimize(
             lambda x: -100.0 * x[8],
             np.append(start, z0),
@@ -218,7 +207,7 @@ def best_clearance_at(
         result = regression_outcome if found is regression else outcome(found)
         if result[0].max() > tolerance_m or not result[1]:
             continue
-        sampled = float(_link_clearances(joint_angles(found, times), obstacle, arm).min())
+        sampled = float(analytic_link_clearance(joint_angles(found, times), arm, obstacle).min())
         if sampled > best_sampled:
             chosen, chosen_outcome, best_sampled = found, result, sampled
     errors, member = chosen_outcome

@@ -385,13 +385,43 @@ def analytic_link_clearance(q: np.ndarray, arm: PlanarArm, obstacle: Obstacle) -
 
     Equal to :meth:`CoalClearance.link_clearance` wherever the clearance is positive.
     """
-    elbow, tip = link_segments(q, arm.link_lengths_m)
-    center = obstacle.center_m[:2]
-    half = obstacle.core_half_extents_m[:2]
+    return link_box_clearance(
+        q,
+        arm.link_lengths_m,
+        arm.link_radii_m,
+        obstacle.center_m[:2],
+        obstacle.core_half_extents_m[:2],
+        obstacle.corner_radius_m,
+    )
+
+
+def link_box_clearance(
+    q: np.ndarray,
+    link_lengths_m: tuple[float, float],
+    link_radii_m: tuple[float, float],
+    center_m: np.ndarray,
+    half_extents_m: np.ndarray,
+    corner_radius_m: float,
+) -> np.ndarray:
+    """Clearance of each capsule link [m] of a planar 2R arm to rounded boxes: shape (..., 2). Vectorised.
+
+    The analytic route (:func:`analytic_link_clearance`) without an arm or obstacle object: each
+    configuration may have its own box, as the certifiable regression's points do.
+
+    Args:
+        q: Joint angles (..., 2) [rad].
+        link_lengths_m: (l1, l2) [m].
+        link_radii_m: Radius of each link's capsule [m].
+        center_m: Centre (x, y) of each box [m]: (2,) or broadcastable to (..., 2).
+        half_extents_m: Half extents (x, y) of each box's core rectangle (before rounding) [m]: (2,)
+            or broadcastable to (..., 2).
+        corner_radius_m: The boxes' corner radius [m] (the core rectangle inflated by it).
+    """
+    elbow, tip = link_segments(q, link_lengths_m)
     base = np.zeros_like(elbow)
-    d1 = segment_rectangle_distance(base, elbow, center, half) - arm.link_radii_m[0]
-    d2 = segment_rectangle_distance(elbow, tip, center, half) - arm.link_radii_m[1]
-    return np.stack([d1, d2], -1) - obstacle.corner_radius_m
+    d1 = segment_rectangle_distance(base, elbow, center_m, half_extents_m) - link_radii_m[0]
+    d2 = segment_rectangle_distance(elbow, tip, center_m, half_extents_m) - link_radii_m[1]
+    return np.stack([d1, d2], -1) - corner_radius_m
 
 
 #: A clearance function: joint configurations (m, 2) [rad] -> per-link clearance (m, 2) [m].

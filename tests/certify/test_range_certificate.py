@@ -222,6 +222,30 @@ def test_paper_eq9_gets_an_honest_map(eq9_map) -> None:
     assert summary["endpoint_within_tolerance_fraction"] == 0.0
 
 
+def test_cells_that_miss_the_tolerance_all_over_are_refined_only_to_the_resolution(eq9: Coefficients) -> None:
+    """Eq. 9 misses the 2 mm tolerance everywhere. Its leaves (here a 4 x 4 grid whose clearance
+    is taken as certified, so that only the endpoint rule cuts) stop being cut where the error at
+    the centre, less the bound's gap above it, exceeds the tolerance and that gap is within
+    0.5 mm; before, every leaf went down to the smallest cell. With a 10 mm tolerance, which Eq. 9
+    meets at some centres, the leaves that can still come within it are cut to the bottom."""
+    model = RangeModel.from_coefficients(eq9)
+    i, j = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    grid = [np.full(16, 2), i.ravel(), j.ravel(), np.full(16, np.inf)]
+    max_depth = 8
+    for tolerance_m in (0.002, 0.008):
+        (depth, i_l, i_w, _), endpoint, _ = refine_leaves(model, grid, 0.01, tolerance_m, max_depth)
+        assert math.isclose(float(np.sum(4.0 ** -depth.astype(float))), 1.0)
+        center, radius = node_boxes(model, depth, i_l, i_w)
+        assert np.array_equal(endpoint, np.max(endpoint_error_bounds(model, center, radius), axis=1))
+        at_centre = np.max(endpoint_error_bounds(model, center, np.zeros_like(radius)), axis=1)
+        missed = (2 * at_centre - endpoint > tolerance_m) & (endpoint - at_centre <= 5e-4)
+        assert np.all((endpoint <= tolerance_m) | missed | (depth == max_depth))
+        if tolerance_m == 0.002:
+            assert np.all(missed) and np.all(depth < max_depth) and depth.size < 4**max_depth / 10
+        else:
+            assert np.any(endpoint <= tolerance_m) and np.any(~missed & (depth == max_depth))
+
+
 def test_endpoint_bound_holds_against_pinocchio(eq9: Coefficients, eq9_map, arm: PlanarArm) -> None:
     rng = np.random.default_rng(8)
     for L, W in zip(rng.uniform(0.2, 0.3, 300), rng.uniform(0.08, 0.12, 300), strict=True):

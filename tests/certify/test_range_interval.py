@@ -141,6 +141,32 @@ def test_duration_jet_encloses_t_and_its_gradient_over_boxes() -> None:
             assert jet.grad.lo[k, 1] - 1e-7 <= d_w <= jet.grad.hi[k, 1] + 1e-7
 
 
+def test_duration_at_a_node_does_not_depend_on_its_batch() -> None:
+    """T at (L, W) is the same to the bit alone, in any batch and at any position in it, and the
+    jet of boxes that share a node (boxes along s) equals the jet of that node's box alone: the
+    map's bytes must not depend on how its boxes were chunked or spread over workers."""
+    scene = Scene()
+    rng = np.random.default_rng(11)
+    L, W = rng.uniform(0.2, 0.3, 257), rng.uniform(0.08, 0.12, 257)
+    value, grad = duration_at(L, W, scene)
+    for k in (0, 1, 5, 128, 256):
+        alone_value, alone_grad = duration_at(L[k : k + 1], W[k : k + 1], scene)
+        assert alone_value.lo[0] == value.lo[k] and alone_value.hi[0] == value.hi[k]
+        assert np.array_equal(alone_grad.lo[0], grad.lo[k]) and np.array_equal(alone_grad.hi[0], grad.hi[k])
+    shifted_value, _ = duration_at(L[3:], W[3:], scene)
+    assert np.array_equal(shifted_value.lo, value.lo[3:])
+    model = DurationModel(scene, (0.2, 0.3), (0.08, 0.12), grid=16)
+    node = np.array([[0.25, 0.1, 0.5]])
+    radius = np.array([[1e-3, 1e-3, 0.1]])
+    centers = np.vstack([np.repeat(node, 3, axis=0) + [[0, 0, -0.2], [0, 0, 0], [0, 0, 0.2]], [[0.21, 0.09, 0.5]]])
+    radii = np.repeat(radius, 4, axis=0)
+    shared, single = model.jet(centers, radii), model.jet(node, radius)
+    for k in range(3):
+        assert shared.value.lo[k] == single.value.lo[0] and shared.value.hi[k] == single.value.hi[0]
+        assert np.array_equal(shared.grad.lo[k], single.grad.lo[0])
+    assert shared.value.lo[3] != shared.value.lo[0]
+
+
 def test_duration_model_refuses_boxes_outside_its_range_and_bad_grids() -> None:
     model = DurationModel(Scene(), (0.2, 0.3), (0.08, 0.12), grid=4)
     with pytest.raises(InvalidParameterError):

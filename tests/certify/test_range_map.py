@@ -43,11 +43,16 @@ def test_cell_at_and_batch_lookup_agree(small_map: RegionMap) -> None:
         assert cell.width_range_m[0] <= W[k] <= cell.width_range_m[1]
         assert cell.clearance_bound_m == batch["clearance_bound_m"][k]
         assert STATUSES[batch["status"][k]] == cell.status
+        # The generator's scalar lookup (flat index) finds the same leaf.
+        assert small_map.bounds_at(L[k], W[k]) == (cell.clearance_bound_m, cell.endpoint_bound_m, cell.status)
     corners = small_map.cells_at(np.array([0.2, 0.3, 0.31]), np.array([0.08, 0.12, 0.1]))
     assert list(corners["leaf"][:2] >= 0) == [True, True] and corners["leaf"][2] == -1
     assert np.isnan(corners["clearance_bound_m"][2])
     with pytest.raises(OutOfFittedRangeError):
         small_map.cell_at(0.31, 0.1)
+    assert small_map.bounds_at(0.31, 0.1) is None
+    top = small_map.bounds_at(0.3, 0.12)  # the range's far corner belongs to the last leaf
+    assert top is not None and top[0] == small_map.cell_at(0.3, 0.12).clearance_bound_m
 
 
 def test_json_round_trip_and_hash_link(small_map: RegionMap, tmp_path) -> None:

@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose
 from scipy.optimize import minimize_scalar
 
 from pipeline.exceptions import RobotModelError
-from pipeline.geometry.clearance import CoalClearance, analytic_link_clearance, check_fast_route
+from pipeline.geometry.clearance import CoalClearance, analytic_link_clearance, check_fast_route, link_box_clearance
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.obstacle import Obstacle
 
@@ -159,6 +159,25 @@ def test_analytic_route_broadcasts(arm: PlanarArm) -> None:
     assert batch.shape == (4, 6, 2)
     single = np.array([[analytic_link_clearance(q, arm, obstacle) for q in row] for row in qs])
     assert_allclose(batch, single, rtol=0, atol=0)
+
+
+def test_link_box_clearance_per_row_equals_the_analytic_route_and_coal(arm: PlanarArm) -> None:
+    """A box per configuration (the certifiable regression's use): each row equals
+    analytic_link_clearance of its own obstacle bitwise, and Coal where positive (1e-9 m)."""
+    rng = np.random.default_rng(23)
+    radius = 0.01
+    obstacles = [Obstacle(rng.uniform(0.15, 0.35), rng.uniform(0.06, 0.15), corner_radius_m=radius) for _ in range(40)]
+    qs = rng.uniform(-np.pi, np.pi, size=(40, 2))
+    center = np.array([o.center_m[:2] for o in obstacles])
+    half = np.array([o.core_half_extents_m[:2] for o in obstacles])
+    rows = link_box_clearance(qs, arm.link_lengths_m, arm.link_radii_m, center, half, radius)
+    assert rows.shape == (40, 2)
+    by_obstacle = np.array([analytic_link_clearance(q, arm, o) for q, o in zip(qs, obstacles, strict=True)])
+    assert np.array_equal(rows, by_obstacle)
+    coal_values = np.array([CoalClearance(arm, o).link_clearance(q) for q, o in zip(qs, obstacles, strict=True)])
+    positive = coal_values > 0
+    assert positive.sum() > 20
+    assert_allclose(rows[positive], coal_values[positive], rtol=0, atol=1e-9)
 
 
 # --------------------------------------------------------------------------------------------
