@@ -48,7 +48,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import STATUSES, RegionMap
+from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.geometry.clearance import link_box_clearance
 from pipeline.model.kinematics import inverse_kinematics_batch
@@ -505,7 +505,7 @@ def refit_file_for_clearance(
     saved = load_coefficients(path)
     if saved.parameters != fitted.parameters:
         raise DataFileError(path, "the written coefficients differ from the certified ones")
-    region_map = replace(region_map, coefficients_source=str(path), coefficients_sha256=saved.source_sha256)
+    region_map = replace(region_map, coefficients_source=source_name(path), coefficients_sha256=saved.source_sha256)
     return saved, region_map, report
 
 

@@ -80,6 +80,11 @@ from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, link_segments
 
 #: Cap on the polar sub-boxes alive at once in :func:`endpoint_clearance_upper_bounds`.
 _MAX_SUB_BOXES = 400_000
+#: Polar sub-boxes whose radial and arc extents are both below this [m] are not bisected
+#: further (their bounds are valid as they are). It binds only where the tolerance is tiny
+#: (exact-endpoints, tolerance 0: the disc is the cell's h_L / 2, some 1e-5 m, and its sub-boxes
+#: went nine halvings deep, to 1e-10 m); with the 2 mm tolerance a ninth-level sub-box spans 8 um.
+_POLAR_RESOLUTION_M = 1e-6
 
 __all__ = ["endpoint_clearance_upper_bounds", "endpoint_error_bounds", "infeasibility_upper_bounds"]
 
@@ -231,7 +236,9 @@ def endpoint_clearance_upper_bounds(
             open_ = (upper >= margin_m) & ~witnessed[owner]
             closed = ~open_ | (depth == max_depth)
             np.maximum.at(best, owner[closed], upper[closed])
-            keep = open_ & (depth < max_depth)
+            fine = (r_hi - r_lo < _POLAR_RESOLUTION_M) & (r_hi * (p_hi - p_lo) < _POLAR_RESOLUTION_M)
+            np.maximum.at(best, owner[open_ & fine], upper[open_ & fine])
+            keep = open_ & ~fine & (depth < max_depth)
             if np.count_nonzero(keep) > _MAX_SUB_BOXES:  # memory cap: close the rest with their (valid) bounds
                 np.maximum.at(best, owner[keep], upper[keep])
                 keep[:] = False

@@ -35,7 +35,7 @@ from pipeline.certify.endpoints import (
     infeasibility_upper_bounds,
 )
 from pipeline.certify.range_model import RangeModel
-from pipeline.certify.region_map import STATUSES, RegionMap
+from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.certify.search import ClosedBoxes, SearchSettings, node_boxes, search
 from pipeline.exceptions import InvalidParameterError
 from pipeline.offline.coefficients import Coefficients
@@ -60,6 +60,11 @@ _KEY_BITS = 21
 #: Leaves per task of the infeasibility certificate's sub-cells (fixed, so that the map does not
 #: depend on the worker count).
 _SUB_CELL_CHUNK = 128
+#: Leaves per task of the endpoint bounds (bounded memory: the paper's Eq. 9, 247,000 leaves
+#: at 1/1024, took 3.0 GB in one batch; 0.64 GB in chunks).
+_LEAF_CHUNK = 4096
+#: Tasks of the clearance branch and bound (diagonal stripes of the initial grid, run_search).
+_SEARCH_GROUPS = 4
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -121,20 +126,26 @@ def _search_task(model: RangeModel, settings: SearchSettings, roots: np.ndarray)
 
 
 def run_search(model: RangeModel, settings: SearchSettings, jobs: int) -> ClosedBoxes:
-    """The branch and bound from the initial grid, spread over ``jobs`` processes."""
+    """The branch and bound from the initial grid, in :data:`_SEARCH_GROUPS` tasks spread over
+    ``jobs`` processes.
+
+    The roots go to the tasks by diagonal stripes ((i_L + i_W) mod groups), so that a strip along
+    either axis, where the work concentrates (near the margin's contour), is shared out (by rows
+    of the grid, the default build's strip along W = 0.12 m fell to one worker and two jobs took
+    as long as one). The tasks are fixed, not one per worker, so the result (the box budget is
+    per task) does not depend on ``jobs``.
+    """
     n = 2**settings.initial_depth_lw
     i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
     roots = np.column_stack([np.full(n * n, settings.initial_depth_lw), i.ravel(), j.ravel()])
-    if jobs <= 1 or roots.shape[0] == 1:
-        return search(model, settings, roots)
-    tasks = min(roots.shape[0], jobs)  # one task per worker: each round is vectorised, rounds cost overhead
-    # Diagonal stripes ((i_L + i_W) mod tasks), so that a strip along either axis, where the work
-    # concentrates (near the margin's contour), is shared; by rows of the grid, the strip of the
-    # default build along W = 0.12 m fell to one worker and two jobs took as long as one.
-    stripe = (roots[:, 1] + roots[:, 2]) % tasks
-    groups = [roots[stripe == k] for k in range(tasks)]
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        parts = list(pool.map(_search_task, [model] * tasks, [settings] * tasks, groups))
+    stripe = (roots[:, 1] + roots[:, 2]) % _SEARCH_GROUPS
+    groups = [roots[stripe == k] for k in range(_SEARCH_GROUPS) if np.any(stripe == k)]
+    tasks = len(groups)
+    if jobs <= 1 or tasks == 1:
+        parts = [search(model, settings, group) for group in groups]
+    else:
+        with ProcessPoolExecutor(max_workers=min(jobs, tasks)) as pool:
+            parts = list(pool.map(_search_task, [model] * tasks, [settings] * tasks, groups))
     fields = ("depth_lw", "index_l", "index_w", "depth_s", "index_s", "bound_m", "center_clearance_m")
     merged = {f: np.concatenate([getattr(p, f) for p in parts]) for f in fields}
     return ClosedBoxes(**merged, evaluations=sum(p.evaluations for p in parts))
@@ -187,21 +198,41 @@ def _split(arrays: list[np.ndarray], rows: np.ndarray) -> list[np.ndarray]:
     return [np.concatenate([column[~rows], kid]) for column, kid in zip(arrays, kids, strict=True)]
 
 
+def _in_chunks(function, rows: int, jobs: int, model: RangeModel, arrays: tuple, *constants) -> list:
+    """``function(model, *chunks of arrays, *constants)`` over fixed chunks of ``rows`` rows,
+    spread over ``jobs`` processes; the list of its results in order. The chunks do not depend
+    on ``jobs`` (the polar branch and bound caps its boxes per call), so neither do the results."""
+    chunks = [slice(k, k + rows) for k in range(0, arrays[0].shape[0], rows)]
+    n = len(chunks)
+    arguments = ([model] * n, *([a[k] for k in chunks] for a in arrays), *([v] * n for v in constants))
+    if jobs <= 1 or n <= 1:
+        return list(map(function, *arguments))
+    with ProcessPoolExecutor(max_workers=min(jobs, n)) as pool:
+        return list(pool.map(function, *arguments))
+
+
 def sub_cell_bounds(
     model: RangeModel, c: np.ndarray, r: np.ndarray, tolerance_m: float, margin_m: float, jobs: int = 1
 ) -> np.ndarray:
     """``endpoints.infeasibility_upper_bounds`` over chunks of :data:`_SUB_CELL_CHUNK` leaves,
-    spread over ``jobs`` processes. The chunks do not depend on ``jobs`` (the branch and bound
-    caps its boxes per call), so neither do the bounds."""
-    chunks = [slice(k, k + _SUB_CELL_CHUNK) for k in range(0, c.shape[0], _SUB_CELL_CHUNK)]
-    n = len(chunks)
-    arguments = ([model] * n, [c[k] for k in chunks], [r[k] for k in chunks], [tolerance_m] * n, [margin_m] * n)
-    if jobs <= 1 or n <= 1:
-        parts = list(map(infeasibility_upper_bounds, *arguments))
-    else:
-        with ProcessPoolExecutor(max_workers=min(jobs, n)) as pool:
-            parts = list(pool.map(infeasibility_upper_bounds, *arguments))
-    return np.concatenate(parts) if parts else np.empty(0)
+    spread over ``jobs`` processes (the bounds do not depend on ``jobs``)."""
+    if c.shape[0] == 0:
+        return np.empty(0)
+    parts = _in_chunks(infeasibility_upper_bounds, _SUB_CELL_CHUNK, jobs, model, (c, r), tolerance_m, margin_m)
+    return np.concatenate(parts)
+
+
+def _leaf_bounds(
+    model: RangeModel, c: np.ndarray, r: np.ndarray, need: np.ndarray, tolerance_m: float, margin_m: float
+) -> np.ndarray:
+    """Per leaf (centres, half widths): the endpoint bound, the endpoint error at the centre and,
+    where ``need``, the endpoint clearance upper bound (else inf), as columns of an (n, 3) array."""
+    out = np.full((c.shape[0], 3), np.inf)
+    out[:, 0] = np.max(endpoint_error_bounds(model, c, r), axis=1)
+    out[:, 1] = np.max(endpoint_error_bounds(model, c, np.zeros_like(r)), axis=1)
+    if np.any(need):
+        out[need, 2] = np.min(endpoint_clearance_upper_bounds(model, c[need], r[need], tolerance_m, margin_m), axis=1)
+    return out
 
 
 def refine_leaves(
@@ -215,7 +246,8 @@ def refine_leaves(
     """Endpoint bounds and infeasibility upper bounds per leaf, cutting leaves as the module
     docstring says. ``leaves`` = [depth, i_L, i_W, clearance bound]; returns the final leaves,
     their endpoint bounds (n,) and their endpoint clearance upper bounds (n,) (inf where not needed).
-    The sub-cell bounds run in ``jobs`` processes (the result does not depend on it)."""
+    The bounds run in ``jobs`` processes over fixed chunks of leaves (the result does not depend
+    on ``jobs``)."""
     endpoint = np.full(leaves[0].size, np.nan)
     centre_error = np.full(leaves[0].size, np.nan)
     upper = np.full(leaves[0].size, np.nan)
@@ -225,15 +257,9 @@ def refine_leaves(
         todo = np.isnan(endpoint)
         if np.any(todo):
             c, r = node_boxes(model, depth[todo], i_l[todo], i_w[todo])
-            endpoint[todo] = np.max(endpoint_error_bounds(model, c, r), axis=1)
-            centre_error[todo] = np.max(endpoint_error_bounds(model, c, np.zeros_like(r)), axis=1)
             need = bound[todo] < margin_m
-            values = np.full(c.shape[0], np.inf)
-            if np.any(need):
-                values[need] = np.min(
-                    endpoint_clearance_upper_bounds(model, c[need], r[need], tolerance_m, margin_m), axis=1
-                )
-            upper[todo] = values
+            parts = _in_chunks(_leaf_bounds, _LEAF_CHUNK, jobs, model, (c, r, need), tolerance_m, margin_m)
+            endpoint[todo], centre_error[todo], upper[todo] = np.concatenate(parts).T
         deep = depth < max_depth
         close = (bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M)
         # A family that pins the endpoints has errors of rounding size: its bound is reported, not
@@ -286,7 +312,7 @@ def certify_range(coefficients: Coefficients, config: RangeCertificateConfig | N
     seconds = time.perf_counter() - start
     return RegionMap(
         family=coefficients.family.name,
-        coefficients_source=str(coefficients.source),
+        coefficients_source=source_name(coefficients.source),
         coefficients_sha256=coefficients.source_sha256,
         length_range_m=tuple(coefficients.fitted_range_m["L"]),
         width_range_m=tuple(coefficients.fitted_range_m["W"]),

@@ -80,7 +80,9 @@ class RegionMap:
 
     Attributes:
         family: Trajectory family of the coefficients.
-        coefficients_source: Path (or PAPER_SOURCE) of the coefficients.
+        coefficients_source: File name (or PAPER_SOURCE) of the coefficients, without its folder
+            (:func:`source_name`), so that the map's bytes do not depend on where the build ran;
+            the link itself is the sha256.
         coefficients_sha256: sha256 of the coefficients file: the link between map and coefficients.
         length_range_m, width_range_m: The fitted range [m].
         margin_m: The margin the statuses refer to [m].
@@ -346,6 +348,12 @@ class RegionMap:
             raise
         except (KeyError, TypeError, ValueError, IndexError, InvalidParameterError) as exc:
             raise DataFileError(source, f"malformed region map ({exc.__class__.__name__}: {exc})") from None
+
+
+def source_name(source: object) -> str:
+    """The name a map records for its coefficients' source: the file name of a path (no folder),
+    a non-path source (the paper's ``"paper"``) as it is."""
+    return Path(str(source)).name if source else ""
 
 
 def _number(value, infinite: float) -> float:

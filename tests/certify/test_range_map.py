@@ -13,7 +13,7 @@ from pipeline.certify.range_certificate import RangeCertificateConfig, certify_r
 from pipeline.certify.region_map import STATUSES, RegionMap, load_region_map, save_region_map
 from pipeline.certify_range import main
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
-from pipeline.offline.coefficients import load_coefficients
+from pipeline.offline.coefficients import load_coefficients, save_coefficients
 
 
 @pytest.fixture(scope="module")
@@ -117,3 +117,20 @@ def test_cli_errors_are_one_line_and_exit_2(argv, capsys) -> None:
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "error" in err
+
+
+def test_the_map_records_the_coefficients_file_name_not_its_folder(tmp_path) -> None:
+    """The same coefficients certified in two folders give the same map bytes (the link is the
+    sha256; the map names the file, not where it lies)."""
+    paper = load_coefficients("paper")
+    config = RangeCertificateConfig(min_cell=1 / 8, boundary_cell=1 / 8)
+    digests = []
+    for folder in ("one", "two/deeper"):
+        path = tmp_path / folder / "coefficients.json"
+        path.parent.mkdir(parents=True)
+        save_coefficients(paper, path)
+        region_map = certify_range(load_coefficients(path), config)
+        assert region_map.coefficients_source == "coefficients.json"
+        digests.append(save_region_map(region_map, tmp_path / folder / "region_map.json"))
+    assert digests[0] == digests[1]
+    assert certify_range(paper, config).coefficients_source == "paper"
