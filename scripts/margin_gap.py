@@ -39,14 +39,12 @@ BANDS_M = (1e-5, 2e-5, 5e-5, 1e-4)
 
 def _leaf_minimum(coefficients, lengths: np.ndarray, widths: np.ndarray) -> np.ndarray:
     """Smallest sampled clearance [m] of the regression at each (L, W): s on [0, 1] and densely near 1."""
-    from pipeline.certify.certifiable_regression import ClearancePoints, _clearance_points, clearance_at
+    from pipeline.certify.certifiable_regression import clearance_at, clearance_grid
     from pipeline.motion.trajectory import PARAMETER_NAMES
 
     s = np.unique(np.concatenate([np.linspace(0.0, 1.0, 401), np.linspace(0.9, 1.0, 401)]))
-    sizes = _clearance_points(coefficients, np.column_stack([lengths, widths, np.zeros(lengths.size)]))
-    points = np.column_stack([np.repeat(sizes.points[:, :2], s.size, axis=0), np.tile(s, lengths.size)])
     b = np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
-    values = clearance_at(b, ClearancePoints(points, np.repeat(sizes.duration_s, s.size)), coefficients)
+    values = clearance_at(b, clearance_grid(coefficients, np.column_stack([lengths, widths]), s), coefficients)
     return values.reshape(lengths.size, s.size).min(axis=1)
 
 

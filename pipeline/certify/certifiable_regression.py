@@ -150,10 +150,21 @@ class ClearancePoints:
     duration_s: np.ndarray
 
 
-def _clearance_points(coefficients: Coefficients, points: np.ndarray) -> ClearancePoints:
+def clearance_points(coefficients: Coefficients, points: np.ndarray) -> ClearancePoints:
+    """:class:`ClearancePoints` of ``points`` (n, 3): L [m], W [m], s [-], each with its T."""
     scene = coefficients.scene
     durations = np.array([desired_path(Obstacle.in_scene(L, W, scene), scene).duration_s for L, W, _ in points])
     return ClearancePoints(np.asarray(points, dtype=float), durations)
+
+
+def clearance_grid(coefficients: Coefficients, sizes_m: np.ndarray, s: np.ndarray) -> ClearancePoints:
+    """Every obstacle of ``sizes_m`` (n, 2: L, W [m]) at every normalised time of ``s`` (m,):
+    n * m points, obstacle-major (reshape values to (n, m)), T computed once per obstacle."""
+    sizes = np.asarray(sizes_m, dtype=float).reshape(-1, 2)
+    s = np.asarray(s, dtype=float).ravel()
+    per_obstacle = clearance_points(coefficients, np.column_stack([sizes, np.zeros(len(sizes))]))
+    points = np.column_stack([np.repeat(sizes, s.size, axis=0), np.tile(s, len(sizes))])
+    return ClearancePoints(points, np.repeat(per_obstacle.duration_s, s.size))
 
 
 def _theta(parameters: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -253,7 +264,7 @@ def worst_points(
     order = np.lexsort((centres[failing, 1], centres[failing, 0]))
     chosen = failing[order[np.unique(np.linspace(0, order.size - 1, min(limit, order.size)).round().astype(np.int64))]]
     s = np.linspace(0.0, 1.0, _SAMPLES_S)
-    data = _clearance_points(coefficients, np.column_stack([centres[chosen], np.zeros(len(chosen))]))
+    data = clearance_points(coefficients, np.column_stack([centres[chosen], np.zeros(len(chosen))]))
     params = design_matrix(centres[chosen, 0], centres[chosen, 1]) @ _matrix(coefficients)  # (n, 8)
     where = np.empty(len(chosen), dtype=np.int64)
     for chunk in range(0, len(chosen), _CHUNK_LEAVES):  # vectorised over leaves x samples
@@ -262,10 +273,10 @@ def worst_points(
         theta, _ = _theta(np.repeat(params[rows], _SAMPLES_S, 0), (data.duration_s[rows, None] * s).ravel())
         clearance = _clearance_of_theta(theta, np.repeat(data.points[rows], _SAMPLES_S, 0), coefficients)
         where[rows] = np.argmin(clearance.reshape(count, _SAMPLES_S), axis=1)
-    clearance_points = np.column_stack([centres[chosen], s[where]])
+    worst = np.column_stack([centres[chosen], s[where]])
     loose = np.flatnonzero(region_map.endpoint_bound_m > region_map.endpoint_tolerance_m)
     loose = loose[np.argsort(-region_map.endpoint_bound_m[loose], kind="stable")][:limit]
-    return clearance_points, centres[loose]
+    return worst, centres[loose]
 
 
 def _merge_targets(grid: EndpointTargets, extra: EndpointTargets | None) -> EndpointTargets:
@@ -428,7 +439,7 @@ def fit_certifiable(
             extra_targets = more if extra_targets is None else _merge_targets(extra_targets, more)
         targets = _merge_targets(grid, extra_targets)
         candidate, converged = refit(
-            current, length_m, width_m, values, targets, _clearance_points(current, collected), margin, config
+            current, length_m, width_m, values, targets, clearance_points(current, collected), margin, config
         )
         room = None if converged else end_pose_room_m(current, *collected[:, :2].T, config.endpoint.fit_tolerance_m)
         for slack in RETRY_SLACKS_M:  # the points with least room are the hardest to hold: retry without them
@@ -439,7 +450,7 @@ def fit_certifiable(
                 continue
             collected, room = collected[roomy], room[roomy]
             candidate, converged = refit(
-                current, length_m, width_m, values, targets, _clearance_points(current, collected), margin, config
+                current, length_m, width_m, values, targets, clearance_points(current, collected), margin, config
             )
             rounds[-1]["retried_without_points_below_m"] = slack
         rounds[-1]["refit_converged"] = converged

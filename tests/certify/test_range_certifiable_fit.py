@@ -12,9 +12,10 @@ from pipeline.certify.certifiable_regression import (
     _ROOM_ANGLES,
     _ROOM_RINGS,
     CertifiableFitConfig,
-    _clearance_points,
     clearance_at,
+    clearance_grid,
     clearance_jacobian,
+    clearance_points,
     end_pose_room_m,
     refit,
     refit_file_for_clearance,
@@ -54,7 +55,7 @@ def _points(n: int, seed: int) -> np.ndarray:
 
 def test_constrained_clearance_is_the_generators(eq9: Coefficients, arm: PlanarArm) -> None:
     points = _points(50, 0)
-    values = clearance_at(_matrix(eq9), _clearance_points(eq9, points), eq9)
+    values = clearance_at(_matrix(eq9), clearance_points(eq9, points), eq9)
     for (L, W, s), value in zip(points, values, strict=True):
         answer = generate(eq9, L, W)
         expected = analytic_link_clearance(answer.q(s * answer.duration_s), arm, answer.obstacle).min()
@@ -62,7 +63,7 @@ def test_constrained_clearance_is_the_generators(eq9: Coefficients, arm: PlanarA
 
 
 def test_clearance_jacobian_matches_finite_differences(eq9: Coefficients) -> None:
-    data = _clearance_points(eq9, _points(20, 1))
+    data = clearance_points(eq9, _points(20, 1))
     b = _matrix(eq9)
     jacobian = clearance_jacobian(b, data, eq9)
     step = 1e-7
@@ -78,7 +79,7 @@ def test_refit_lifts_the_clearance_at_its_points(eq9: Coefficients) -> None:
     points as constraints (endpoint tolerance loose, so only the clearance binds) lifts them."""
     doe = load_doe(paper_data_path("paper_table2_doe.json"))
     points = np.array([[L, 0.117, s] for L in (0.2, 0.25) for s in np.linspace(0.9, 1.0, 4)])
-    data = _clearance_points(eq9, points)
+    data = clearance_points(eq9, points)
     before = clearance_at(_matrix(eq9), data, eq9)
     assert np.min(before) < 0.0105
     config = CertifiableFitConfig(endpoint=EndpointConstraint(tolerance_m=0.02, grid_points=3, max_iterations=100))
@@ -196,3 +197,18 @@ def test_a_refit_that_fails_is_retried_without_the_tightest_points(monkeypatch) 
     assert 0 < len(calls[-1]) < len(calls[0])
     room = end_pose_room_m(fitted, calls[-1][:, 0], calls[-1][:, 1], config.endpoint.fit_tolerance_m)
     assert np.all(room >= fitted.scene.margin_m + slack)
+
+
+def test_clearance_grid_equals_the_points_it_expands(eq9: Coefficients) -> None:
+    """Every obstacle at every s, obstacle-major, with the T of its obstacle: the same points,
+    durations and clearances as clearance_points on the expanded rows."""
+    sizes = np.array([[0.21, 0.09], [0.27, 0.118], [0.3, 0.12]])
+    s = np.array([0.0, 0.3, 0.97, 1.0])
+    grid = clearance_grid(eq9, sizes, s)
+    rows = np.array([[L, W, t] for L, W in sizes for t in s])
+    points = clearance_points(eq9, rows)
+    assert np.array_equal(grid.points, points.points)
+    assert np.array_equal(grid.duration_s, points.duration_s)
+    assert np.array_equal(clearance_at(_matrix(eq9), grid, eq9), clearance_at(_matrix(eq9), points, eq9))
+    assert np.all(np.diff(grid.duration_s.reshape(3, 4), axis=1) == 0.0)
+    assert len(set(grid.duration_s.tolist())) == 3

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline.certify.certifiable_regression import ClearancePoints, _clearance_points, clearance_at
+from pipeline.certify.certifiable_regression import clearance_at, clearance_grid
 from pipeline.certify.clearance_bound import box_clearance_bounds
 from pipeline.certify.endpoints import (
     endpoint_clearance_upper_bounds,
@@ -417,10 +417,8 @@ def test_the_search_resolves_the_margins_contour_at_its_smallest_cell(eq9: Coeff
     centre, half = node_boxes(model, boxes.depth_lw[rows], boxes.index_l[rows], boxes.index_w[rows])
     offsets = np.array([[u, v] for u in np.linspace(-1, 1, 5) for v in np.linspace(-1, 1, 5)])
     sizes = (centre[:, None, :] + offsets[None] * half[:, None, :]).reshape(-1, 2)
-    at_sizes = _clearance_points(strip, np.column_stack([sizes, np.zeros(len(sizes))]))  # T per obstacle
     s = np.linspace(0.0, 1.0, 401)
-    points = np.column_stack([np.repeat(sizes, s.size, axis=0), np.tile(s, len(sizes))])
-    data = ClearancePoints(points, np.repeat(at_sizes.duration_s, s.size))
+    data = clearance_grid(strip, sizes, s)
     b = np.stack([strip.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
     per_obstacle = clearance_at(b, data, strip).reshape(len(sizes), s.size).min(axis=1)
     assert np.all(per_obstacle < settings.margin_m)
