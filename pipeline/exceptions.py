@@ -9,7 +9,24 @@ from __future__ import annotations
 
 
 class PipelineError(Exception):
-    """Base class of every error raised by this project on bad input or state."""
+    """Base class of every error raised by this project on bad input or state.
+
+    Picklable with its attributes, so that an error raised in a worker process reaches the
+    caller as itself (Python pickles an exception as ``cls(*args)``, which fails for
+    constructors that take fields rather than the message: the pool then broke with a
+    ``TypeError`` in place of the error).
+    """
+
+    def __reduce__(self):
+        return _rebuild, (type(self), self.args, dict(self.__dict__))
+
+
+def _rebuild(cls: type, args: tuple, state: dict) -> PipelineError:
+    """The inverse of :meth:`PipelineError.__reduce__`: same class, message and attributes."""
+    error = cls.__new__(cls, *args)
+    Exception.__init__(error, *args)
+    error.__dict__.update(state)
+    return error
 
 
 class InvalidParameterError(PipelineError, ValueError):

@@ -109,3 +109,30 @@ def test_online_sweep_ctrl_c_is_one_line_and_status_130(capsys, monkeypatch):
     assert online_sweep.main(["--coefficients", "paper", "--n", "3", "--no-progress"]) == 130
     err = capsys.readouterr().err
     assert err.strip() == "python -m verify.online_sweep: interrupted"
+
+
+def test_workers_refuse_a_coefficients_file_that_is_not_the_one_given(tmp_path):
+    """The worker processes load the coefficients from the file; when it is not the object the
+    caller holds (rewritten, or another file under that name), they refuse with a one-line
+    DataFileError rather than answer for other coefficients (their cache is keyed by sha256)."""
+    import dataclasses
+
+    import numpy as np
+
+    from pipeline.exceptions import DataFileError
+    from pipeline.offline.coefficients import load_coefficients, save_coefficients
+    from pipeline.online.repair import RepairConfig
+    from verify.acceptance.online import run_online_cases
+
+    path = tmp_path / "coefficients.json"
+    save_coefficients(load_coefficients("paper"), path)
+    held = load_coefficients(path)
+    cases = np.array([[0.25, 0.1], [0.22, 0.09]])
+    answers = run_online_cases(str(path), cases, RepairConfig(), jobs=2, progress=False, coefficients=held)
+    assert len(answers) == 2
+    parameters = dict(held.parameters)
+    parameters["gamma2"] = (parameters["gamma2"][0] + 1e-3, *parameters["gamma2"][1:])
+    changed = dataclasses.replace(held, parameters=parameters)
+    save_coefficients(changed, path)  # the file under the same name now holds other coefficients
+    with pytest.raises(DataFileError, match="sha256 differs"):
+        run_online_cases(str(path), cases, RepairConfig(), jobs=2, progress=False, coefficients=held)

@@ -21,7 +21,12 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError, UnreachableObstacleError
+from pipeline.exceptions import (
+    DataFileError,
+    InvalidParameterError,
+    NoCertifiedTrajectoryError,
+    UnreachableObstacleError,
+)
 from pipeline.io.parallel import process_map
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.offline.coefficients import Coefficients, load_coefficients
@@ -102,12 +107,19 @@ def query(
 
 
 @functools.lru_cache(maxsize=4)
-def _loaded(source: str, urdf: str | None) -> tuple[Coefficients, PlanarArm]:
-    return load_coefficients(source), load_planar_arm(urdf)
+def _loaded(source: str, sha256: str, urdf: str | None) -> tuple[Coefficients, PlanarArm]:
+    """The worker's coefficients and arm, loaded once per (file, content): a file rewritten under
+    the same name is never served from the cache, it is refused (as the acceptance sweep does)."""
+    coefficients = load_coefficients(source)
+    if coefficients.source_sha256 != sha256:
+        raise DataFileError(source, "changed while the sweep was running (sha256 differs)")
+    return coefficients, load_planar_arm(urdf)
 
 
-def _query_in_worker(source: str, urdf: str | None, config: RepairConfig, case: tuple[float, float]) -> OnlineCase:
-    coefficients, arm = _loaded(source, urdf)
+def _query_in_worker(
+    source: str, sha256: str, urdf: str | None, config: RepairConfig, case: tuple[float, float]
+) -> OnlineCase:
+    coefficients, arm = _loaded(source, sha256, urdf)
     return query(coefficients, arm, case[0], case[1], config)
 
 
@@ -141,7 +153,8 @@ def run_online_cases(
             return query(loaded, arm, case[0], case[1], config)
 
     else:
-        function = functools.partial(_query_in_worker, source, urdf_text, config)
+        sha256 = (coefficients or load_coefficients(source)).source_sha256
+        function = functools.partial(_query_in_worker, source, sha256, urdf_text, config)
     with tqdm(total=len(cases), desc="certify-or-repair", unit="case", disable=not progress, file=sys.stderr) as bar:
         return process_map(function, cases, jobs=jobs, on_done=lambda done: bar.update(len(done)))
 
