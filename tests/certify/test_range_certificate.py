@@ -422,3 +422,41 @@ def test_the_search_resolves_the_margins_contour_at_its_smallest_cell(eq9: Coeff
     b = np.stack([strip.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
     per_obstacle = clearance_at(b, data, strip).reshape(len(sizes), s.size).min(axis=1)
     assert np.all(per_obstacle < settings.margin_m)
+
+
+def test_pinned_endpoint_bound_is_sound_where_the_pose_meets_the_margin(eq9: Coefficients, arm: PlanarArm) -> None:
+    """Tolerance 0 (the exact-endpoints family): the pose with its tip exactly at P5(L) over cells
+    of 1/1024 straddling the W where that pose's clearance crosses the 1 cm margin. Every proven
+    bound (below the margin) lies above the pose's clearance at 25 obstacles of its cell (Coal),
+    with the polar sub-boxes stopped at 1 um (they went to 1e-10 m), and the proof still reaches
+    cells next to the margin's crossing."""
+    model = RangeModel.from_coefficients(eq9)
+    scene = eq9.scene
+
+    def pose_clearance(length_m: float, width_m: float) -> float:
+        p5 = np.array([-(length_m / 2 + scene.start_dx_m), scene.y1_m])
+        q = inverse_kinematics(p5, arm.link_lengths_m, eq9.elbow)
+        return float(CoalClearance(arm, Obstacle.in_scene(length_m, width_m, scene)).link_clearance(q).min())
+
+    length = 0.25
+    lo, hi = 0.10, 0.12  # the clearance at P5 falls with W through the margin in between
+    assert pose_clearance(length, lo) > 0.01 > pose_clearance(length, hi)
+    for _ in range(50):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if pose_clearance(length, mid) > 0.01 else (lo, mid)
+    crossing = lo
+    half = np.array([0.1, 0.04]) / 2048
+    offsets = np.arange(-6, 7)
+    center = np.column_stack([np.full(offsets.size, length), crossing + 2 * half[1] * offsets])
+    radius = np.tile(half, (offsets.size, 1))
+    upper = endpoint_clearance_upper_bounds(model, center, radius, 0.0, 0.01)[:, 1]
+    proven = upper < 0.01
+    assert np.any(proven) and not np.all(proven)
+    grid = np.linspace(-1.0, 1.0, 5)
+    for k in np.flatnonzero(proven):
+        worst = max(pose_clearance(*(center[k] + radius[k] * [u, v])) for u in grid for v in grid)
+        assert worst <= upper[k] + COAL_DISTANCE_ERROR_M
+    # The proof reaches close to the crossing: the first proven cell's roomiest corner misses the
+    # margin by less than 0.1 mm (the bound's own first-order term in L is about 40 um here).
+    first = np.flatnonzero(proven)[0]
+    assert pose_clearance(*(center[first] - radius[first])) > 0.01 - 1e-4
