@@ -224,11 +224,11 @@ def end_pose_room_m(
     radius = np.linspace(0.0, tolerance_m, _ROOM_RINGS)
     offsets = np.stack([np.outer(radius, np.cos(angle)).ravel(), np.outer(radius, np.sin(angle)).ravel()], -1)
     room = np.full(lengths.size, np.inf)
+    sizes = np.repeat(np.column_stack([lengths, widths]), offsets.shape[0], axis=0)  # the obstacle of each tip
     for side in (1.0, -1.0):
         ends = np.stack([side * (lengths / 2 + scene.start_dx_m), np.full(lengths.size, scene.y1_m)], -1)
         tips = (ends[:, None, :] + offsets[None]).reshape(-1, 2)
         theta = inverse_kinematics_batch(tips, coefficients.link_lengths_m, coefficients.elbow)
-        sizes = np.repeat(np.column_stack([lengths, widths]), offsets.shape[0], axis=0)
         clearance = _clearance_of_theta(theta, sizes, coefficients)
         room = np.minimum(room, clearance.reshape(lengths.size, offsets.shape[0]).max(axis=1, initial=-np.inf))
     return room
