@@ -21,17 +21,13 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from pipeline.exceptions import (
-    DataFileError,
-    InvalidParameterError,
-    NoCertifiedTrajectoryError,
-    UnreachableObstacleError,
-)
+from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError, UnreachableObstacleError
 from pipeline.io.parallel import process_map
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.offline.coefficients import Coefficients, load_coefficients
 from pipeline.online.repair import RepairConfig, generate_certified
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
+from verify.acceptance.run import load_unchanged
 
 #: The outcomes of one query.
 STATUSES = ("certified", "repaired", "refused")
@@ -109,11 +105,8 @@ def query(
 @functools.lru_cache(maxsize=4)
 def _loaded(source: str, sha256: str, urdf: str | None) -> tuple[Coefficients, PlanarArm]:
     """The worker's coefficients and arm, loaded once per (file, content): a file rewritten under
-    the same name is never served from the cache, it is refused (as the acceptance sweep does)."""
-    coefficients = load_coefficients(source)
-    if coefficients.source_sha256 != sha256:
-        raise DataFileError(source, "changed while the sweep was running (sha256 differs)")
-    return coefficients, load_planar_arm(urdf)
+    the same name is never served from the cache, it is refused (``run.load_unchanged``)."""
+    return load_unchanged(source, sha256), load_planar_arm(urdf)
 
 
 def _query_in_worker(

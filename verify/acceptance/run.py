@@ -69,13 +69,23 @@ class _WorkerContext:
     settings: MeasureSettings
 
 
-@functools.lru_cache(maxsize=4)
-def _loaded(source: str, sha256: str, urdf_path: str | None) -> tuple[Coefficients, PlanarArm, LinkReach]:
+def load_unchanged(source: str, sha256: str) -> Coefficients:
+    """The coefficients at ``source`` if their sha256 is still ``sha256`` (what a worker process
+    loads for the sweep that started it).
+
+    Raises:
+        DataFileError: the file changed since the sweep read it.
+    """
     coefficients = load_coefficients(source)
     if coefficients.source_sha256 != sha256:
         raise DataFileError(source, "changed while the sweep was running (sha256 differs)")
+    return coefficients
+
+
+@functools.lru_cache(maxsize=4)
+def _loaded(source: str, sha256: str, urdf_path: str | None) -> tuple[Coefficients, PlanarArm, LinkReach]:
     arm = load_planar_arm(urdf_path)
-    return coefficients, arm, LinkReach.from_arm(arm)
+    return load_unchanged(source, sha256), arm, LinkReach.from_arm(arm)
 
 
 def _measure_in_worker(context: _WorkerContext, case: tuple[int, float, float]) -> CaseResult:
