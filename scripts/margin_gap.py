@@ -62,6 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     from pipeline.certify.certifiable_regression import end_pose_room_m
     from pipeline.certify.region_map import STATUSES, load_region_map
     from pipeline.exceptions import PipelineError
+    from pipeline.io.jsonio import write_text_atomic
     from pipeline.offline.coefficients import load_coefficients
 
     try:
@@ -77,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     lo = np.array([region_map.length_range_m[0], region_map.width_range_m[0]])
     size = np.array([region_map.length_range_m[1], region_map.width_range_m[1]]) - lo
     cell = size / (2.0 ** region_map.depth[:, None])
-    centre = lo + (np.stack([region_map.index_l, region_map.index_w], -1) + 0.5) * cell
+    centre = region_map.leaf_centres_m()
     below = np.flatnonzero(region_map.status == STATUSES.index("collision_free"))
     area = region_map.area[below]
     room = end_pose_room_m(coefficients, centre[below, 0], centre[below, 1], tolerance) - margin
@@ -116,12 +117,13 @@ def main(argv: list[str] | None = None) -> int:
     infeasible = float(np.mean(band_room < 0.0) * strip_fraction)
     print(f"room below the margin (sampled infeasible): {100 * infeasible:.3f} % of the range")
     if args.json:
-        Path(args.json).write_text(
+        write_text_atomic(
+            args.json,
             json.dumps(
                 {"classes": rows, "bands": bands, "sampled_infeasible": infeasible, "slope": median_slope},
                 indent=1,
             )
-            + "\n"
+            + "\n",
         )
     return 0
 

@@ -248,11 +248,7 @@ def worst_points(
     crowd into one corner and leave the rest of the strip to later rounds), and the centres
     (L, W) of leaves whose endpoint bound exceeds the tolerance, largest bound first (at most
     ``limit``)."""
-    model_lo = np.array([region_map.length_range_m[0], region_map.width_range_m[0]])
-    size = np.array([region_map.length_range_m[1], region_map.width_range_m[1]]) - model_lo
-    centres = model_lo + (np.stack([region_map.index_l, region_map.index_w], -1) + 0.5) * size / (
-        2.0 ** region_map.depth[:, None]
-    )
+    centres = region_map.leaf_centres_m()
     failing = np.flatnonzero(
         (region_map.status == STATUSES.index("collision_free")) | (region_map.status == STATUSES.index("undecided"))
     )

@@ -251,6 +251,12 @@ class RegionMap:
         """Area fraction of each leaf, (n,)."""
         return 4.0 ** (-self.depth.astype(float))
 
+    def leaf_centres_m(self) -> np.ndarray:
+        """Centre (L, W) [m] of each leaf, (n, 2)."""
+        lo = np.array([self.length_range_m[0], self.width_range_m[0]])
+        size = np.array([self.length_range_m[1], self.width_range_m[1]]) - lo
+        return lo + (np.stack([self.index_l, self.index_w], -1) + 0.5) * size / (2.0 ** self.depth[:, None])
+
     def summary(self) -> dict:
         """Area fractions per status, extreme bounds and time (plain JSON)."""
         area = self.area

@@ -134,3 +134,12 @@ def test_the_map_records_the_coefficients_file_name_not_its_folder(tmp_path) -> 
         digests.append(save_region_map(region_map, tmp_path / folder / "region_map.json"))
     assert digests[0] == digests[1]
     assert certify_range(paper, config).coefficients_source == "paper"
+
+
+def test_leaf_centres_are_the_cells_midpoints(small_map: RegionMap) -> None:
+    centres = small_map.leaf_centres_m()
+    assert centres.shape == (small_map.depth.size, 2)
+    for leaf in range(0, small_map.depth.size, 7):
+        cell = small_map.cell(leaf)
+        assert centres[leaf, 0] == pytest.approx(sum(cell.length_range_m) / 2, abs=1e-15)
+        assert centres[leaf, 1] == pytest.approx(sum(cell.width_range_m) / 2, abs=1e-15)
