@@ -298,7 +298,8 @@ def _certify_range(result: BuildResult, args: argparse.Namespace, out: TextIO) -
     timing = dict(result.timing)
     if args.clearance_rounds > 0 and not args.plain and coefficients.family == PAPER:
         refit = CertifiableFitConfig(
-            certificate=replace(config, min_cell=max(config.min_cell, REFIT_MIN_CELL)),
+            # The rounds but the last only pick constraint points: coarser cells, no strips.
+            certificate=replace(config, min_cell=max(config.min_cell, REFIT_MIN_CELL), strip_split=0),
             final_certificate=config,
             endpoint=EndpointConstraint(tolerance_m=args.endpoint_tolerance, headroom=REFIT_ENDPOINT_HEADROOM),
             max_rounds=args.clearance_rounds,

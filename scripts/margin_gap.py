@@ -8,7 +8,7 @@ samples
 
 * the room the end poses leave at the leaf's centre: the largest clearance of a pose on the
   family's elbow branch whose tip is within the map's endpoint tolerance of P1 and of P5, the
-  smaller of the two (``pipeline.certify.certifiable_regression.end_pose_room_m``);
+  smaller of the two (``pipeline.certify.end_pose_room.end_pose_room_m``);
 * the regression's own clearance over the leaf: its smallest analytic clearance at the
   corners and centre of the cell, at 401 times of s in [0.9, 1] and 401 in [0, 1]
 
@@ -59,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     from pathlib import Path
 
-    from pipeline.certify.certifiable_regression import end_pose_room_m
+    from pipeline.certify.end_pose_room import end_pose_room_m
     from pipeline.certify.region_map import STATUSES, load_region_map
     from pipeline.exceptions import PipelineError
     from pipeline.io.jsonio import write_text_atomic
@@ -75,9 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         print("margin_gap: the map does not belong to these coefficients", file=sys.stderr)
         return 2
     margin, tolerance = region_map.margin_m, region_map.endpoint_tolerance_m
-    lo = np.array([region_map.length_range_m[0], region_map.width_range_m[0]])
-    size = np.array([region_map.length_range_m[1], region_map.width_range_m[1]]) - lo
-    cell = size / (2.0 ** region_map.depth[:, None])
+    cell = region_map.leaf_sizes_m()
     centre = region_map.leaf_centres_m()
     below = np.flatnonzero(region_map.status == STATUSES.index("collision_free"))
     area = region_map.area[below]
@@ -105,7 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     widths = np.linspace(args.strip_from, region_map.width_range_m[1], 81)
     grid_l, grid_w = np.meshgrid(lengths, widths, indexing="ij")
     band_room = end_pose_room_m(coefficients, grid_l.ravel(), grid_w.ravel(), tolerance) - margin
-    strip_fraction = (region_map.width_range_m[1] - args.strip_from) / size[1]
+    w_lo, w_hi = region_map.width_range_m
+    strip_fraction = (w_hi - args.strip_from) / (w_hi - w_lo)
     bands = {}
     for delta in BANDS_M:
         bands[delta] = float(np.mean(np.abs(band_room) < delta) * strip_fraction)

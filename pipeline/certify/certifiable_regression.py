@@ -49,11 +49,10 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
+from pipeline.certify.end_pose_room import configuration_clearance, end_pose_room_m
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.exceptions import DataFileError, InvalidParameterError
-from pipeline.geometry.clearance import link_box_clearance
-from pipeline.model.kinematics import inverse_kinematics_batch
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import PARAMETER_NAMES
@@ -75,17 +74,24 @@ _CHUNK_LEAVES = 256
 _FD_STEP_RAD = 1e-6
 #: Clearance constraints are given to SLSQP in centimetres, the size of the endpoint slack's terms.
 _CLEARANCE_SCALE = 100.0
-#: End-pose sampling of :func:`end_pose_room_m`: circles of tips, and angles on each.
-_ROOM_RINGS = 5
-_ROOM_ANGLES = 180
-#: Default of ``CertifiableFitConfig.feasible_slack_m`` [m].
-_DEFAULT_FEASIBLE_SLACK_M = 2e-5
+#: Default of ``CertifiableFitConfig.feasible_slack_m`` [m]: every leaf whose end poses leave the
+#: margin is constrained. Measured on the default build (seed 0, one round, 2026-11-25), by the
+#: band of the strip near W = 0.12 m where the sampled end-pose room reaches the margin and the
+#: regression's sampled clearance does not (what a map with exact cells would still leave open):
+#: 2e-5 m -> 0.082 % of the range, 5e-6 m -> 0.066 %; with the headroom at 0.0025 as well, 0 ->
+#: 0.017 % (the refit's own map at 1/1024 was blind to this: 98.76 / 98.77 % with 2e-5 / 5e-6
+#: at 1/512, its cells 78 um tall in W against a band some 50 um wide).
+_DEFAULT_FEASIBLE_SLACK_M = 0.0
 #: Headroom of the refit's endpoint constraint (``python -m pipeline.build``'s refit holds the
 #: endpoint errors to tolerance (1 - this) at its grid and targets; the first fit keeps
-#: ``EndpointConstraint``'s default, 0.03). Measured on the default build (seed 0, one round of
-#: 400 points): 0.03 -> margin 98.65 % of the area, 0.015 -> 98.69 %, 0.01 -> 98.74 %, 0.0075 ->
-#: 98.74 %; at 0.004 the final map's endpoint bound reached 2.009 mm, above the tolerance.
-REFIT_ENDPOINT_HEADROOM = 0.01
+#: ``EndpointConstraint``'s default, 0.03). Each 0.01 of headroom costs the end poses about
+#: 0.0145 mm of room in the strip near W = 0.12 m (0.72 mm of clearance per mm of tolerance
+#: there). Measured on the default build (seed 0, one round of 400 points, feasible slack 0,
+#: final map at 1/1024 with strips of 1/8192 in W, 2026-11-25): 0.01 -> margin 99.886 % of the
+#: feasible area (feasible slack 2e-5), 0.005 -> 99.935 % with the endpoint bound <= 2 mm all
+#: over; 0.0025 -> 99.95 %, but its endpoint errors reach 2.0066 mm between the 21 x 21 grid
+#: points (2.0011 with 31 x 31; 41 x 41 holds 2 mm, with the refit taking 13 s longer).
+REFIT_ENDPOINT_HEADROOM = 0.005
 #: If a refit does not converge, it is tried again without the points whose end poses keep less
 #: than margin + each of these in turn (:func:`end_pose_room_m`) [m]; the last is about the
 #: constraint set of the rounds before the end-pose room chose the points (leaves with U >=
@@ -176,21 +182,11 @@ def _theta(parameters: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return theta, d
 
 
-def _clearance_of_theta(theta: np.ndarray, points: np.ndarray, coefficients: Coefficients) -> np.ndarray:
-    """Analytic clearance (both links) of configurations (n, 2) against the obstacles of ``points``."""
-    scene = coefficients.scene
-    r = scene.corner_radius_m
-    center = np.stack([np.zeros(len(points)), scene.top_y_m - points[:, 1] / 2], -1)
-    half = np.stack([points[:, 0] / 2 - r, points[:, 1] / 2 - r], -1)
-    links = link_box_clearance(theta, coefficients.link_lengths_m, coefficients.link_radii_m, center, half, r)
-    return np.minimum(links[:, 0], links[:, 1])
-
-
 def clearance_at(b: np.ndarray, data: ClearancePoints, coefficients: Coefficients) -> np.ndarray:
     """Clearance [m] of the fit with coefficient matrix ``b`` (6 x 8, row-major) at the points."""
     X = design_matrix(data.points[:, 0], data.points[:, 1])
     theta, _ = _theta(X @ np.reshape(b, (6, 8)), data.points[:, 2] * data.duration_s)
-    return _clearance_of_theta(theta, data.points, coefficients)
+    return configuration_clearance(theta, data.points, coefficients)
 
 
 def clearance_jacobian(b: np.ndarray, data: ClearancePoints, coefficients: Coefficients) -> np.ndarray:
@@ -201,37 +197,11 @@ def clearance_jacobian(b: np.ndarray, data: ClearancePoints, coefficients: Coeff
     for j in (0, 1):
         step = np.zeros(2)
         step[j] = _FD_STEP_RAD
-        up = _clearance_of_theta(theta + step, data.points, coefficients)
-        down = _clearance_of_theta(theta - step, data.points, coefficients)
+        up = configuration_clearance(theta + step, data.points, coefficients)
+        down = configuration_clearance(theta - step, data.points, coefficients)
         grad[:, j] = (up - down) / (2 * _FD_STEP_RAD)
     d_p = (grad[:, :, None] * d_theta).reshape(len(theta), 8)  # joint-major = PARAMETER_NAMES order
     return np.einsum("np,nk->nkp", d_p, X).reshape(len(theta), 48)
-
-
-def end_pose_room_m(
-    coefficients: Coefficients, length_m: np.ndarray, width_m: np.ndarray, tolerance_m: float
-) -> np.ndarray:
-    """Sampled room at the ends [m], (n,): for each obstacle, the smaller over P1 and P5 of the
-    largest clearance of a pose on the family's elbow branch whose tip lies within
-    ``tolerance_m`` of that end point (tips on :data:`_ROOM_RINGS` circles of radii up to the
-    tolerance, :data:`_ROOM_ANGLES` angles each; analytic distance). A sampling, not a bound:
-    it chooses where the refit asks for the margin (the map certifies the result), and it is
-    at most the true room, so it never asks for more than the end poses allow."""
-    lengths = np.asarray(length_m, dtype=float).ravel()
-    widths = np.asarray(width_m, dtype=float).ravel()
-    scene = coefficients.scene
-    angle = np.linspace(0.0, 2.0 * np.pi, _ROOM_ANGLES, endpoint=False)
-    radius = np.linspace(0.0, tolerance_m, _ROOM_RINGS)
-    offsets = np.stack([np.outer(radius, np.cos(angle)).ravel(), np.outer(radius, np.sin(angle)).ravel()], -1)
-    room = np.full(lengths.size, np.inf)
-    sizes = np.repeat(np.column_stack([lengths, widths]), offsets.shape[0], axis=0)  # the obstacle of each tip
-    for side in (1.0, -1.0):
-        ends = np.stack([side * (lengths / 2 + scene.start_dx_m), np.full(lengths.size, scene.y1_m)], -1)
-        tips = (ends[:, None, :] + offsets[None]).reshape(-1, 2)
-        theta = inverse_kinematics_batch(tips, coefficients.link_lengths_m, coefficients.elbow)
-        clearance = _clearance_of_theta(theta, sizes, coefficients)
-        room = np.minimum(room, clearance.reshape(lengths.size, offsets.shape[0]).max(axis=1, initial=-np.inf))
-    return room
 
 
 def worst_points(
@@ -267,7 +237,7 @@ def worst_points(
         rows = slice(chunk, chunk + _CHUNK_LEAVES)
         count = params[rows].shape[0]
         theta, _ = _theta(np.repeat(params[rows], _SAMPLES_S, 0), (data.duration_s[rows, None] * s).ravel())
-        clearance = _clearance_of_theta(theta, np.repeat(data.points[rows], _SAMPLES_S, 0), coefficients)
+        clearance = configuration_clearance(theta, np.repeat(data.points[rows], _SAMPLES_S, 0), coefficients)
         where[rows] = np.argmin(clearance.reshape(count, _SAMPLES_S), axis=1)
     worst = np.column_stack([centres[chosen], s[where]])
     loose = np.flatnonzero(region_map.endpoint_bound_m > region_map.endpoint_tolerance_m)

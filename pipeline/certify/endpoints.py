@@ -201,10 +201,20 @@ def endpoint_clearance_upper_bounds(
     The branch and bound stops proving once a bound is below ``margin_m`` or a pose is found
     that clears it, so values at or above the margin only mean "not infeasible" (module docstring).
     """
+    return _upper_bounds_and_witnesses(model, center_m, radius_m, tolerance_m, margin_m, max_depth)[0]
+
+
+def _upper_bounds_and_witnesses(
+    model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray, tolerance_m: float, margin_m: float, max_depth: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`endpoint_clearance_upper_bounds` (n, 2), and per cell and end whether a pose was
+    found at the cell's smallest corner (L0, W0) with its tip within the tolerance of that end
+    and clearing the margin (a witness: the end does not make the corner infeasible), (n, 2)."""
     center2 = np.asarray(center_m, dtype=float)
     radius2 = np.asarray(radius_m, dtype=float)
     n = center2.shape[0]
     out = np.empty((n, 2))
+    found = np.zeros((n, 2), dtype=bool)
     for column, side in enumerate((1.0, -1.0)):
         px = side * (center2[:, 0] / 2 + model.scene.start_dx_m)
         py = np.full(n, model.scene.y1_m)
@@ -256,7 +266,8 @@ def endpoint_clearance_upper_bounds(
                 np.stack([p_mid, p_hi, p_mid, p_hi], 1).ravel(),
             )
         out[:, column] = np.where(witnessed, np.maximum(best, margin_m), best)
-    return out
+        found[:, column] = witnessed
+    return out, found
 
 
 def infeasibility_upper_bounds(
@@ -267,6 +278,7 @@ def infeasibility_upper_bounds(
     margin_m: float,
     *,
     levels: int = 5,
+    polar_depth: int = 9,
 ) -> np.ndarray:
     """Upper bounds [m] on min(U(P1), U(P5)) over (L, W) cells by sub-cells of their length
     (module docstring), shape (N,); +inf where the cell is not proven infeasible (a sub-cell at
@@ -279,6 +291,8 @@ def infeasibility_upper_bounds(
         tolerance_m: Endpoint tolerance [m].
         margin_m: Clearance margin [m].
         levels: Halvings of the sub-cells' length (1: two sub-cells per cell) [count].
+        polar_depth: Depth of the polar branch and bound of each sub-cell
+            (:func:`endpoint_clearance_upper_bounds`' ``max_depth``) [count].
     """
     center2 = np.asarray(center_m, dtype=float).reshape(-1, 2)
     radius2 = np.asarray(radius_m, dtype=float).reshape(-1, 2)
@@ -291,13 +305,15 @@ def infeasibility_upper_bounds(
         owner = np.repeat(owner, 2)
         centre = (centre[:, None, :] + halves[None] * radius[:, None, :]).reshape(-1, 2)
         radius = np.repeat(radius * np.array([0.5, 1.0]), 2, axis=0)
-        upper = np.min(endpoint_clearance_upper_bounds(model, centre, radius, tolerance_m, margin_m), axis=1)
+        bounds, witnessed = _upper_bounds_and_witnesses(model, centre, radius, tolerance_m, margin_m, polar_depth)
+        upper = np.min(bounds, axis=1)
         proven = upper < margin_m
         np.maximum.at(worst, owner[proven], upper[proven])
         # A sub-cell above the margin by more than its length terms (the disc's growth h_L / 2 and
         # the end point's motion h_L, module docstring, with room to spare) has feasible poses
-        # within reach: the cell is not infeasible.
-        hopeless = ~proven & (upper >= margin_m + 4.0 * radius[:, 0])
+        # within reach, and one with a witness at both ends has a point (its corner) where both
+        # end poses clear the margin: the cell is not infeasible, and no cut can prove it so.
+        hopeless = ~proven & ((upper >= margin_m + 4.0 * radius[:, 0]) | np.all(witnessed, axis=1))
         alive[owner[hopeless]] = False
         keep = ~proven & alive[owner]
         owner, centre, radius = owner[keep], centre[keep], radius[keep]

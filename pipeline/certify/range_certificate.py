@@ -15,13 +15,17 @@ whose docstrings carry the derivations; this module only combines them:
   brings such a cell within the tolerance), or while it is below the margin, not yet proven
   infeasible and close to being so, down to the smallest cell.
   Smallest cells still close to being proven infeasible get the sub-cell bound of
-  ``endpoints.infeasibility_upper_bounds`` (the lower of the two valid upper bounds is kept;
-  the map's cells themselves are not cut below the smallest cell, so the online lookup grid
-  keeps its size).
+  ``endpoints.infeasibility_upper_bounds`` (the lower of the two valid upper bounds is kept);
+* smallest cells certified collision-free that still miss the margin without being proven
+  infeasible are cut into 2^``strip_split`` strips along W, each proven on its own
+  (``pipeline.certify.strip_split``, which derives why W and why that is sound); the strips
+  replace their cell in the map (the online lookup grid keeps its size: a split cell points
+  into a small table of strips).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Callable
@@ -38,6 +42,7 @@ from pipeline.certify.endpoints import (
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.certify.search import ClosedBoxes, SearchSettings, node_boxes, search
+from pipeline.certify.strip_split import strip_bounds, strip_geometry
 from pipeline.exceptions import InvalidParameterError
 from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
@@ -67,6 +72,13 @@ _SUB_CELL_CHUNK = 128
 _LEAF_CHUNK = 4096
 #: Tasks of the clearance branch and bound (diagonal stripes of the initial grid, run_search).
 _SEARCH_GROUPS = 4
+#: Default halvings along W of the smallest cells that miss the margin without being proven
+#: infeasible (``pipeline.certify.strip_split``). Measured on the default build (seed 0,
+#: 2026-11-25): see the README's range-certificate table.
+DEFAULT_STRIP_SPLIT = 3
+#: Columns (i_L) of strips per task of the strips' bounds (fixed, so that the map does not depend
+#: on the worker count).
+_STRIP_COLUMNS = 32
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -81,6 +93,8 @@ class RangeCertificateConfig:
         max_depth_s: Deepest cut of s = t / T (intervals of 1 / 2^depth).
         jobs: Worker processes for the branch and bound.
         max_boxes: Budget of box evaluations per worker task.
+        strip_split: Halvings along W of the smallest cells that miss the margin without being
+            proven infeasible (0: none; ``pipeline.certify.strip_split``).
     """
 
     margin_m: float | None = None
@@ -90,6 +104,7 @@ class RangeCertificateConfig:
     max_depth_s: int = 16
     jobs: int = 1
     max_boxes: int = 5_000_000
+    strip_split: int = DEFAULT_STRIP_SPLIT
 
     def __post_init__(self) -> None:
         if self.margin_m is not None:
@@ -102,6 +117,9 @@ class RangeCertificateConfig:
         check_positive_int("max_depth_s", self.max_depth_s, minimum=4)
         check_positive_int("jobs", self.jobs)
         check_positive_int("max_boxes", self.max_boxes)
+        check_positive_int("strip_split", self.strip_split, minimum=0)
+        if self.strip_split > 6:
+            raise InvalidParameterError("strip_split", self.strip_split, "0..6 halvings along W")
 
     @property
     def max_depth_lw(self) -> int:
@@ -201,12 +219,21 @@ def _split(arrays: list[np.ndarray], rows: np.ndarray) -> list[np.ndarray]:
 
 
 def _in_chunks(
-    function: Callable[..., np.ndarray], rows: int, jobs: int, model: RangeModel, arrays: tuple, *constants
+    function: Callable[..., np.ndarray],
+    rows: int | list[slice],
+    jobs: int,
+    model: RangeModel,
+    arrays: tuple,
+    *constants,
 ) -> list[np.ndarray]:
-    """``function(model, *chunks of arrays, *constants)`` over fixed chunks of ``rows`` rows,
-    spread over ``jobs`` processes; the list of its results in order. The chunks do not depend
-    on ``jobs`` (the polar branch and bound caps its boxes per call), so neither do the results."""
-    chunks = [slice(k, k + rows) for k in range(0, arrays[0].shape[0], rows)]
+    """``function(model, *chunks of arrays, *constants)`` over fixed chunks of ``rows`` rows (or
+    the given slices), spread over ``jobs`` processes; the list of its results in order. The
+    chunks do not depend on ``jobs`` (the polar branch and bound caps its boxes per call), so
+    neither do the results."""
+    if isinstance(rows, int):
+        chunks = [slice(k, k + rows) for k in range(0, arrays[0].shape[0], rows)]
+    else:
+        chunks = rows
     n = len(chunks)
     arguments = ([model] * n, *([a[k] for k in chunks] for a in arrays), *([v] * n for v in constants))
     if jobs <= 1 or n <= 1:
@@ -284,6 +311,53 @@ def refine_leaves(
             column[-4 * np.count_nonzero(rows) :] = np.nan
 
 
+def split_strips(
+    model: RangeModel,
+    leaves: list[np.ndarray],
+    endpoint: np.ndarray,
+    upper: np.ndarray,
+    margin_m: float,
+    tolerance_m: float,
+    config: RangeCertificateConfig,
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+    """Replace the smallest cells certified collision-free that miss the margin without being
+    proven infeasible by their 2^``config.strip_split`` strips along W (module docstring).
+    ``leaves`` = [depth, i_L, i_W, clearance bound]; returns the new leaves, their ``split_W``,
+    endpoint and infeasibility bounds."""
+    depth, i_l, i_w, bound = leaves
+    split = np.zeros(depth.size, dtype=np.int64)
+    e = config.strip_split
+    # Collision-free cells only: a cell not certified collision-free stays "undecided" whole.
+    rows = (depth == config.max_depth_lw) & (bound > 0.0) & (bound < margin_m) & (upper >= margin_m)
+    if e == 0 or not np.any(rows):
+        return leaves, split, endpoint, upper
+    k = 2**e
+    order = np.lexsort((i_w[rows], i_l[rows]))  # by column (i_L), then W
+    s_depth = np.repeat(depth[rows][order], k)
+    s_l = np.repeat(i_l[rows][order], k)
+    s_w = (i_w[rows][order][:, None] * k + np.arange(k)).ravel()
+    floor = np.repeat(bound[rows][order], k)
+    c, r = strip_geometry(model, s_depth, s_l, s_w, e)
+    # Tasks of whole columns (the infeasibility's monotonicity works along a column), fixed in size.
+    column_starts = np.concatenate([[0], np.flatnonzero(np.diff(s_l)) + 1])
+    cuts = [*column_starts[::_STRIP_COLUMNS].tolist(), s_l.size]
+    chunks = [slice(a, b) for a, b in itertools.pairwise(cuts)]
+    parts = _in_chunks(
+        strip_bounds, chunks, config.jobs, model, (c, r, floor, s_l), margin_m, tolerance_m, config.max_depth_s
+    )
+    s_bound, s_endpoint, s_upper = np.concatenate(parts).T
+    keep = ~rows
+    joined = [
+        np.concatenate([a[keep], b])
+        for a, b in zip(
+            (depth, i_l, i_w, bound, split, endpoint, upper),
+            (s_depth, s_l, s_w, s_bound, np.full(s_depth.size, e, dtype=np.int64), s_endpoint, s_upper),
+            strict=True,
+        )
+    ]
+    return joined[:4], joined[4], joined[5], joined[6]
+
+
 def statuses(bound: np.ndarray, upper: np.ndarray, margin_m: float) -> np.ndarray:
     """Status index (into :data:`STATUSES`) per leaf."""
     status = np.full(bound.size, STATUSES.index("undecided"))
@@ -310,8 +384,11 @@ def certify_range(coefficients: Coefficients, config: RangeCertificateConfig | N
     settings = config.search_settings(margin)
     boxes = run_search(model, settings, config.jobs)
     d, il, iw, bound, _ = leaves_from_boxes(boxes)
-    (d, il, iw, bound), endpoint, upper = refine_leaves(
+    leaves, endpoint, upper = refine_leaves(
         model, [d, il, iw, bound], margin, config.endpoint_tolerance_m, config.max_depth_lw, config.jobs
+    )
+    (d, il, iw, bound), split, endpoint, upper = split_strips(
+        model, leaves, endpoint, upper, margin, config.endpoint_tolerance_m, config
     )
     seconds = time.perf_counter() - start
     return RegionMap(
@@ -329,6 +406,7 @@ def certify_range(coefficients: Coefficients, config: RangeCertificateConfig | N
         endpoint_bound_m=endpoint,
         endpoint_clearance_upper_m=upper,
         status=statuses(bound, upper, margin),
+        split_w=split,
         seconds=seconds,
         details={  # the map does not depend on the worker count: not recorded, nor times
             "config": {k: v for k, v in asdict(config).items() if k != "jobs"},

@@ -9,17 +9,15 @@ import numpy as np
 import pytest
 
 from pipeline.certify.certifiable_regression import (
-    _ROOM_ANGLES,
-    _ROOM_RINGS,
     CertifiableFitConfig,
     clearance_at,
     clearance_grid,
     clearance_jacobian,
     clearance_points,
-    end_pose_room_m,
     refit,
     refit_file_for_clearance,
 )
+from pipeline.certify.end_pose_room import ROOM_ANGLES, ROOM_RINGS, end_pose_room_m
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
@@ -156,8 +154,8 @@ def test_end_pose_room_is_coals_sampled_room(eq9: Coefficients, arm: PlanarArm) 
     margin exactly where the strip near W = 0.12 m leaves no room (0.20, 0.12), above it far away."""
     sizes = np.array([[0.2, 0.12], [0.25, 0.119], [0.27, 0.09]])
     room = end_pose_room_m(eq9, sizes[:, 0], sizes[:, 1], 0.002)
-    radii = np.linspace(0.0, 0.002, _ROOM_RINGS)
-    angles = np.linspace(0.0, 2 * np.pi, _ROOM_ANGLES, endpoint=False)
+    radii = np.linspace(0.0, 0.002, ROOM_RINGS)
+    angles = np.linspace(0.0, 2 * np.pi, ROOM_ANGLES, endpoint=False)
     for (L, W), value in zip(sizes, room, strict=True):
         coal = CoalClearance(arm, Obstacle.in_scene(L, W, eq9.scene))
         ends = []

@@ -143,3 +143,115 @@ def test_leaf_centres_are_the_cells_midpoints(small_map: RegionMap) -> None:
         cell = small_map.cell(leaf)
         assert centres[leaf, 0] == pytest.approx(sum(cell.length_range_m) / 2, abs=1e-15)
         assert centres[leaf, 1] == pytest.approx(sum(cell.width_range_m) / 2, abs=1e-15)
+
+
+def test_the_small_map_has_strips_and_they_tile_their_cells(small_map: RegionMap) -> None:
+    """The certificate cut cells along W (``split_W``): only at the deepest level, 2^E strips per
+    cut cell, each 1 / 2^E of it in W and all of it in L."""
+    split = np.flatnonzero(small_map.split_w > 0)
+    assert split.size > 0
+    assert np.all(small_map.depth[split] == small_map.depth.max())
+    e = int(small_map.split_w.max())
+    parents = {(int(small_map.index_l[k]), int(small_map.index_w[k]) >> e) for k in split}
+    assert len(parents) * 2**e == split.size
+    sizes = small_map.leaf_sizes_m()
+    plain = np.flatnonzero((small_map.split_w == 0) & (small_map.depth == small_map.depth.max()))
+    assert np.allclose(sizes[split, 0], sizes[plain[0], 0], rtol=1e-12)
+    assert np.allclose(sizes[split, 1] * 2**e, sizes[plain[0], 1], rtol=1e-12)
+    assert float(np.sum(small_map.area)) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_strip_lookups_agree_at_strip_edges(small_map: RegionMap) -> None:
+    """At every edge between strips (and a hair either side) the scalar lookup, the batch lookup
+    and cell_at find the same leaf, and the point lies in that leaf's closed cell."""
+    split = np.flatnonzero(small_map.split_w > 0)[:64]
+    points = []
+    for k in split:
+        cell = small_map.cell(int(k))
+        L = sum(cell.length_range_m) / 2
+        for W in (
+            *cell.width_range_m,
+            np.nextafter(cell.width_range_m[0], 1.0),
+            np.nextafter(cell.width_range_m[1], 0.0),
+        ):
+            points.append((L, min(W, small_map.width_range_m[1])))
+    points = np.array(points)
+    leaves = small_map.leaf_indices(points[:, 0], points[:, 1])
+    for (L, W), leaf in zip(points, leaves, strict=True):
+        cell = small_map.cell_at(L, W)
+        assert cell == small_map.cell(int(leaf))
+        assert small_map.bounds_at(L, W) == (cell.clearance_bound_m, cell.endpoint_bound_m, cell.status)
+        assert cell.width_range_m[0] <= W <= cell.width_range_m[1]
+        assert cell.length_range_m[0] <= L <= cell.length_range_m[1]
+
+
+def test_strips_survive_the_json_round_trip_and_a_gap_is_refused(small_map: RegionMap, tmp_path) -> None:
+    path = tmp_path / "map.json"
+    save_region_map(small_map, path)
+    again = load_region_map(path)
+    assert np.array_equal(again.split_w, small_map.split_w)
+    assert save_region_map(again, tmp_path / "again.json") == save_region_map(small_map, tmp_path / "first.json")
+    document = json.loads(path.read_text())
+    strip = int(np.flatnonzero(small_map.split_w > 0)[0])
+    for column in document["cells"].values():
+        del column[strip]
+    path.write_text(json.dumps(document))
+    with pytest.raises(DataFileError, match="tiling"):
+        load_region_map(path)
+
+
+def test_split_above_the_deepest_level_is_refused(small_map: RegionMap) -> None:
+    """Leaves of depths 1 and 2 (the verifier's layout): cutting a depth-1 leaf in two along W
+    tiles the range but is refused, the lookup table only knows strips of the deepest cells."""
+    depth = np.array([1, 1, 1, 2, 2, 2, 2, 1])
+    i_l = np.array([0, 1, 0, 2, 3, 2, 3, 1])
+    i_w = np.array([0, 0, 2, 2, 2, 3, 3, 3])
+    split = np.array([0, 0, 1, 0, 0, 0, 0, 1])
+    values = np.full(8, 0.02)
+    fields = dict(
+        family="paper",
+        coefficients_source="test",
+        coefficients_sha256="",
+        length_range_m=(0.2, 0.3),
+        width_range_m=(0.08, 0.12),
+        margin_m=0.01,
+        endpoint_tolerance_m=0.002,
+        depth=depth,
+        index_l=i_l,
+        index_w=i_w,
+        clearance_bound_m=values,
+        endpoint_bound_m=values,
+        endpoint_clearance_upper_m=values,
+        status=np.zeros(8, dtype=int),
+    )
+    with pytest.raises(InvalidParameterError, match="split_w"):
+        RegionMap(**fields, split_w=split)
+    # Lower half: two leaves of depth 1; upper half: the eight cells of depth 2, cell (0, 3) as two strips.
+    cells = [(1, 0, 0, 0), (1, 1, 0, 0)] + [(2, i, j, 0) for i in range(4) for j in (2, 3) if (i, j) != (0, 3)]
+    cells += [(2, 0, 6, 1), (2, 0, 7, 1)]
+    d, il, iw, e = (np.array(column) for column in zip(*cells, strict=True))
+    n = d.size
+    deep = dict(fields, depth=d, index_l=il, index_w=iw, status=np.zeros(n, dtype=int))
+    deep.update(
+        {key: np.arange(n) * 1e-3 for key in ("clearance_bound_m", "endpoint_bound_m", "endpoint_clearance_upper_m")}
+    )
+    strips = RegionMap(**deep, split_w=e)
+    assert strips.cell_at(0.21, 0.119).width_range_m == pytest.approx((0.115, 0.12))
+    assert strips.cell_at(0.21, 0.114).width_range_m == pytest.approx((0.11, 0.115))
+    assert strips.bounds_at(0.21, 0.119)[0] == (n - 1) * 1e-3
+    assert strips.leaf_indices(np.array([0.21, 0.21]), np.array([0.119, 0.114])).tolist() == [n - 1, n - 2]
+
+
+def test_format_1_maps_are_read_as_unsplit(tmp_path) -> None:
+    """Maps written before strips (format /1, no split_W column) still load, every leaf a quadtree node."""
+    region_map = certify_range(
+        load_coefficients("paper"), RangeCertificateConfig(min_cell=1 / 8, boundary_cell=1 / 8, strip_split=0)
+    )
+    path = tmp_path / "old.json"
+    save_region_map(region_map, path)
+    document = json.loads(path.read_text())
+    document["format"] = "twolink-region-map/1"
+    del document["cells"]["split_W"]
+    path.write_text(json.dumps(document))
+    old = load_region_map(path)
+    assert np.all(old.split_w == 0) and np.array_equal(old.status, region_map.status)

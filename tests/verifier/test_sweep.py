@@ -423,13 +423,15 @@ def test_a_map_of_other_coefficients_is_reported_not_used(capsys, tmp_path: Path
 
 
 def test_the_map_beside_the_coefficients_is_found_and_can_be_skipped(capsys, tmp_path: Path, paper_map_file) -> None:
+    from pipeline.certify.region_map import load_region_map
     from pipeline.offline.coefficients import load_coefficients, save_coefficients
 
     source = tmp_path / "coefficients.json"
     save_coefficients(load_coefficients("paper"), source)  # the same bytes as the paper's: the map belongs
     (tmp_path / "region_map.json").write_bytes(paper_map_file.read_bytes())
     status, out, _ = run_main(capsys, "--coefficients", str(source), "--n", "1", *FAST)
-    assert f"region map      {tmp_path / 'region_map.json'} (256 cells, belongs" in out
+    cells = load_region_map(paper_map_file).depth.size
+    assert f"region map      {tmp_path / 'region_map.json'} ({cells} cells, belongs" in out
     status, out, _ = run_main(capsys, "--coefficients", str(source), "--n", "1", *FAST, "--no-region-map")
     assert "region map" not in out and status in (EXIT_OK, EXIT_FAILED)
     status, out, _ = run_main(capsys, "--coefficients", "paper", "--n", "1", *FAST)  # Eq. 9: no default map

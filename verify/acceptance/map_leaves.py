@@ -44,9 +44,8 @@ class LeafDrawing:
 
 def leaf_rectangles_m(region_map: RegionMap) -> np.ndarray:
     """(n, 4) rows (L_lo, L_hi, W_lo, W_hi) [m] of the leaves (vectorised :meth:`RegionMap.cell`)."""
-    (l_lo, l_hi), (w_lo, w_hi) = region_map.length_range_m, region_map.width_range_m
-    side = 2.0 ** region_map.depth.astype(float)
-    dl, dw = (l_hi - l_lo) / side, (w_hi - w_lo) / side
+    (l_lo, _), (w_lo, _) = region_map.length_range_m, region_map.width_range_m
+    dl, dw = region_map.leaf_sizes_m().T
     il, iw = region_map.index_l.astype(float), region_map.index_w.astype(float)
     return np.column_stack([l_lo + il * dl, l_lo + (il + 1) * dl, w_lo + iw * dw, w_lo + (iw + 1) * dw])
 

@@ -1,0 +1,162 @@
+"""Strips along W (pipeline.certify.strip_split) against independent references: the online
+generator's motions (analytic clearance, itself shown equal to Coal in test_range_certificate)
+for the strips' clearance bounds, and Coal on inverse-kinematics poses near P1 and P5 for
+their infeasibility bounds, including the strips proven by monotonicity alone."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from pipeline.certify import strip_split
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.range_model import RangeModel
+from pipeline.certify.region_map import STATUSES, RegionMap
+from pipeline.certify.strip_split import strip_clearance_bounds, strip_geometry, strip_infeasibility_bounds
+from pipeline.exceptions import InvalidParameterError
+from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
+from pipeline.model.arm import PlanarArm
+from pipeline.model.kinematics import inverse_kinematics
+from pipeline.model.obstacle import Obstacle
+from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.online.generator import generate
+
+#: The top strip of the default range, where Eq. 9's end poses lose the margin.
+TOP = {"L": (0.2, 0.21), "W": (0.118, 0.12)}
+CONFIG = RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8)
+
+
+@pytest.fixture(scope="module")
+def top() -> Coefficients:
+    return dataclasses.replace(load_coefficients("paper"), fitted_range_m=TOP)
+
+
+@pytest.fixture(scope="module")
+def maps(top: Coefficients) -> tuple[RegionMap, RegionMap]:
+    """The top strip's map with strips (the default 2^3 per cut cell) and without."""
+    return certify_range(top, CONFIG), certify_range(top, dataclasses.replace(CONFIG, strip_split=0))
+
+
+def _room_near(coefficients: Coefficients, arm: PlanarArm, L: float, W: float, tolerance_m: float) -> float:
+    """Sampled room at (L, W) by Coal: the smaller over P1 and P5 of the largest Coal clearance
+    of an inverse-kinematics pose whose tip lies within the tolerance of the end point."""
+    coal = CoalClearance(arm, Obstacle.in_scene(L, W, coefficients.scene))
+    ends = []
+    for side in (1.0, -1.0):
+        end = np.array([side * (L / 2 + coefficients.scene.start_dx_m), coefficients.scene.y1_m])
+        best = -np.inf
+        for radius in np.linspace(0.0, tolerance_m, 5):
+            for angle in np.linspace(0.0, 2 * np.pi, 90, endpoint=False):
+                tip = end + radius * np.array([np.cos(angle), np.sin(angle)])
+                q = inverse_kinematics(tip, arm.link_lengths_m, coefficients.elbow)
+                best = max(best, float(coal.link_clearance(q).min()))
+        ends.append(best)
+    return min(ends)
+
+
+def test_strips_gain_area_on_both_sides_of_the_contours(maps: tuple[RegionMap, RegionMap]) -> None:
+    """Cut cells give area to "margin" and to "infeasible" that the uncut map left below the
+    margin, and the fractions still add up."""
+    with_strips, without = maps
+    fractions = [m.summary()["area_fraction"] for m in (with_strips, without)]
+    assert fractions[0]["infeasible"] > fractions[1]["infeasible"]
+    assert fractions[0]["margin"] >= fractions[1]["margin"]
+    assert fractions[0]["collision_free"] < fractions[1]["collision_free"]
+    assert sum(fractions[0].values()) == pytest.approx(1.0, abs=1e-12)
+    assert np.count_nonzero(with_strips.split_w) > 0
+
+
+def test_strip_clearance_bounds_hold_along_the_motions(top: Coefficients, maps, arm: PlanarArm) -> None:
+    """At random points of 60 strips and 801 times each, the generator's motion clears the
+    strip's bound."""
+    region_map = maps[0]
+    strips = np.flatnonzero(region_map.split_w > 0)
+    rng = np.random.default_rng(5)
+    for k in rng.choice(strips, size=min(60, strips.size), replace=False):
+        cell = region_map.cell(int(k))
+        L, W = rng.uniform(*cell.length_range_m), rng.uniform(*cell.width_range_m)
+        answer = generate(top, L, W, out_of_range="ignore")
+        q = answer.q(np.linspace(0.0, answer.duration_s, 801))
+        lowest = float(analytic_link_clearance(q, arm, answer.obstacle).min())
+        assert lowest >= cell.clearance_bound_m - 1e-12
+
+
+def test_strip_clearance_bound_is_the_floor_or_better_and_tightens(top: Coefficients, arm: PlanarArm) -> None:
+    """Four strips of the top strip's cells, each asked for its own sampled minimum less 0.05 mm:
+    the s search proves it (a bound within 0.05 mm of the truth) and never exceeds the sampled
+    minimum; a floor above what the search proves is returned as it is."""
+    model = RangeModel.from_coefficients(top)
+    c, r = strip_geometry(model, np.full(4, 4), np.array([1, 5, 9, 13]), np.array([10, 41, 72, 103]), 3)
+    lowest = np.empty(4)
+    for k in range(4):
+        answer = generate(top, *c[k], out_of_range="ignore")
+        q = answer.q(np.linspace(0.0, answer.duration_s, 4001))
+        lowest[k] = float(analytic_link_clearance(q, arm, answer.obstacle).min())
+    for k in range(4):
+        margin = lowest[k] - 5e-5
+        bound = strip_clearance_bounds(model, c[k : k + 1], r[k : k + 1], np.full(1, -1.0), margin, 16)[0]
+        assert margin <= bound <= lowest[k] + 1e-12
+    high = strip_clearance_bounds(model, c, r, np.full(4, 0.3), 0.5, 16)
+    assert np.all(high == 0.3)
+
+
+def test_infeasible_strips_hold_no_feasible_end_poses(top: Coefficients, maps, arm: PlanarArm) -> None:
+    """Every strip proven infeasible, including those above the one proven in their column (by
+    monotonicity alone), has at its roomiest points (W0, both ends of L) no sampled Coal pose
+    within the tolerance of P1 and P5 that clears its bound; and below the lowest proven strip of
+    some column lie strips whose sampled room does reach the margin (a bound passed downwards
+    would be caught here)."""
+    region_map = maps[0]
+    tolerance, margin = region_map.endpoint_tolerance_m, region_map.margin_m
+    infeasible = np.flatnonzero((region_map.split_w > 0) & (region_map.status == STATUSES.index("infeasible")))
+    assert infeasible.size > 0
+    for k in infeasible[:: max(1, infeasible.size // 12)]:
+        cell = region_map.cell(int(k))
+        for L in cell.length_range_m:
+            room = _room_near(top, arm, L, cell.width_range_m[0], tolerance)
+            assert room <= cell.endpoint_clearance_upper_m + COAL_DISTANCE_ERROR_M
+    reaching = 0
+    for k in np.flatnonzero(region_map.split_w > 0):
+        cell = region_map.cell(int(k))
+        below_proven = cell.status != "infeasible" and any(
+            region_map.cell(int(j)).status == "infeasible"
+            for j in np.flatnonzero((region_map.index_l == region_map.index_l[k]) & (region_map.split_w > 0))
+            if region_map.index_w[j] > region_map.index_w[k]
+        )
+        if (
+            below_proven
+            and _room_near(top, arm, np.mean(cell.length_range_m), cell.width_range_m[0], tolerance) >= margin
+        ):
+            reaching += 1
+            if reaching >= 2:
+                break
+    assert reaching >= 1
+
+
+def test_a_wrong_choice_of_strips_costs_proofs_not_soundness(top: Coefficients, maps, arm, monkeypatch) -> None:
+    """The sampled room only chooses which strips to try: with the slack turned into a head
+    start (strips tried whose room is 0.1 mm above the margin) nothing false is proven, and
+    strips that were proven are now left open."""
+    model = RangeModel.from_coefficients(top)
+    region_map = maps[0]
+    strips = np.flatnonzero(region_map.split_w > 0)
+    order = np.lexsort((region_map.index_w[strips], region_map.index_l[strips]))
+    strips = strips[order]
+    e = int(region_map.split_w.max())
+    c, r = strip_geometry(model, region_map.depth[strips], region_map.index_l[strips], region_map.index_w[strips], e)
+    tolerance, margin = region_map.endpoint_tolerance_m, region_map.margin_m
+    right = strip_infeasibility_bounds(model, c, r, region_map.index_l[strips], margin, tolerance)
+    monkeypatch.setattr(strip_split, "ROOM_SLACK_M", -1e-4)
+    wrong = strip_infeasibility_bounds(model, c, r, region_map.index_l[strips], margin, tolerance)
+    assert np.count_nonzero(wrong < margin) < np.count_nonzero(right < margin)
+    for k in np.flatnonzero(wrong < margin)[:6]:
+        L0, W0 = c[k] - r[k]
+        assert _room_near(top, arm, L0, W0, tolerance) <= wrong[k] + COAL_DISTANCE_ERROR_M
+
+
+def test_strip_split_is_checked() -> None:
+    for bad in (-1, 7, 1.5):
+        with pytest.raises(InvalidParameterError, match="strip_split"):
+            RangeCertificateConfig(strip_split=bad)
