@@ -135,7 +135,10 @@ def parser() -> Parser:
     )
     p.add_argument("--family", choices=FAMILY_NAMES, default=PAPER.name, help="trajectory family")
     p.add_argument(
-        "--jobs", type=jobs_count, default=d.jobs, help="worker processes [count], 0 = every CPU; same result"
+        "--jobs",
+        type=jobs_count,
+        default="0",
+        help="worker processes [count], 0 = every CPU; the files do not depend on it (default: 0)",
     )
     p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm (default: the paper's arm)")
     _scene_arguments(p)

@@ -10,7 +10,10 @@ certificate for the margin at the endpoint tolerance, stored as a quadtree regio
   the certificate accepts.
 
 Derivations: ``duration`` (T and its gradient), ``clearance_bound`` (the three lower bounds),
-``endpoints`` (endpoint errors and infeasibility), ``search`` (branch and bound).
+``endpoints`` (endpoint errors and infeasibility), ``search`` (branch and bound),
+``strip_split`` (the smallest cells astride a contour, cut along W; the infeasibility's
+monotonicity in W). ``end_pose_room`` samples the room the end poses leave (a choice of where to
+look, never a proof).
 """
 
 from pipeline.certify.certifiable_regression import CertifiableFitConfig, fit_certifiable

@@ -50,9 +50,10 @@ from pipeline.validation import check_non_negative, check_positive, check_positi
 #: Default endpoint tolerance of the infeasibility certificate [m] (the build's regression's).
 DEFAULT_ENDPOINT_TOLERANCE_M = 0.002
 #: Default smallest cell, as a fraction of the fitted range's side. Measured on the default build
-#: (seed 0, two jobs, 2026-11-25): 1/512 certified 99.73 % of the feasible area >= the margin,
-#: 1/1024 99.81 % with a map of 12.2 s (25,498 cells), 1/2048 99.85 % in 28.3 s (63,256 cells;
-#: its lookup index would take 16 MiB, for 0.04 points that still miss the issue's 99.9 %).
+#: (seed 0, two jobs, 2026-11-25, before the strips and the refit's new settings): 1/512
+#: certified 99.73 % of the feasible area >= the margin, 1/1024 99.81 % with a map of 12.2 s
+#: (25,498 cells), 1/2048 99.85 % in 28.3 s (63,256 cells; its lookup index would take 16 MiB).
+#: Strips along W (:data:`DEFAULT_STRIP_SPLIT`) resolve the contours more cheaply.
 DEFAULT_MIN_CELL = 1.0 / 1024
 #: Default cell size to which regions below the margin are resolved, fraction of the side.
 DEFAULT_BOUNDARY_CELL = 1.0 / 64
