@@ -14,10 +14,10 @@ Each strip (L in the leaf's interval, W in one 2^-E of it) gets:
   (``clearance_bound.box_clearance_bounds``, whose docstring derives the bound): an interval
   is halved while its bound is below the margin, until the clearance at an interval's centre
   is below the margin (a value the clearance takes: the strip cannot be certified at the
-  margin; its open intervals are closed with their bounds as they are) or the deepest s
-  interval, or an interval whose bound's gap is dominated by the strip's extent in (L, W)
-  rather than in s (``BoxBounds.split_s``: cutting s would not close it; the clearance
-  search's rule at its deepest cells). The strip's bound is the minimum over the closed intervals, which cover s in
+  margin; its open intervals are closed with their bounds as they are), the deepest s interval,
+  or an interval whose bound's gap is dominated by the strip's extent in (L, W) rather than in
+  s (``BoxBounds.split_s``: cutting s would not close it; the clearance search's rule at its
+  deepest cells). The strip's bound is the minimum over the closed intervals, which cover s in
   [0, 1], or the parent leaf's bound where that is larger: both are valid lower bounds over
   the strip, which lies in the leaf.
 * its endpoint-error bound (``endpoints.endpoint_error_bounds`` over the strip);
@@ -26,17 +26,19 @@ Each strip (L in the leaf's interval, W in one 2^-E of it) gets:
   [d - W + r, d - r]), so a pose clears O(L, W') by at most what it clears O(L, W) for W' > W.
   Hence the room U(L, W) = max{c(q, O(L, W)) : tip(q) within the tolerance of P1 (or P5)} is
   non-increasing in W, and an upper bound on U over one strip bounds U over every strip above
-  it in the same cell (each of their points (L, W') lies above a point (L, W) of the proven
-  strip). So per cell only the lowest strip whose corner (L0, W0) has a sampled room below the
-  margin (``pipeline.certify.end_pose_room``, found by bisection over the strips, the sampled
-  room being monotone in W for the same reason) and the one above it are bounded, by
-  ``endpoints.infeasibility_upper_bounds`` with the polar branch and bound taken
-  :data:`POLAR_DEPTH` levels deep; the lowest proven one's bound is given to it and every strip
-  above. The sampling only chooses which strips to try: a wrong choice costs proofs, never
-  soundness. At the default 9 levels the polar bound is loose by about the width of a strip in
-  clearance (at three obstacles of the default build's strip, point cells, it proved the
-  sampled room + 20 um at 9 levels, + 5 um at 11 and + 2 um at 13, where the room changes by
-  3 um across a strip of 1/8192 of the range).
+  it with the same L interval (each of their points (L, W') lies above a point (L, W) of the
+  proven strip). The strips of all cut cells of one column (one L interval of the deepest
+  level) are taken together, W ascending: the certificate finds, by bisection, the lowest strip
+  whose sampled room at its lower edge (``pipeline.certify.end_pose_room``, the larger of its
+  values at (L0, W0) and (L1, W0); monotone in W for the same reason) is :data:`ROOM_SLACK_M`
+  below the margin, bounds it and the strip above it by ``endpoints.infeasibility_upper_bounds``
+  (:data:`SUB_CELL_LEVELS` halvings of the length, the polar branch and bound
+  :data:`POLAR_DEPTH` levels deep), and gives the lower proven one's bound to it and to every
+  strip above it in the column. The sampling only chooses which strips to try: a wrong choice
+  costs proofs, never soundness. At the default 9 polar levels the bound is loose by about the
+  width of a strip in clearance (at three obstacles of the default build's strip, point cells,
+  it proved the sampled room + 20 um at 9 levels, + 5 um at 11 and + 2 um at 13, where the
+  room changes by 3 um across a strip of 1/8192 of the range).
 """
 
 from __future__ import annotations
