@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import warnings
 from pathlib import Path
 
@@ -57,8 +58,11 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
 
 
 def test_defaults_are_the_command_lines() -> None:
+    """The command line's defaults are the library's, but for the workers: the command uses every
+    CPU (the files do not depend on it), a library call one process unless told otherwise."""
     args = build.parser().parse_args([])
-    assert build.config_from_args(args) == BuildConfig()
+    assert build.config_from_args(args) == dataclasses.replace(BuildConfig(), jobs=os.cpu_count() or 1)
+    assert BuildConfig().jobs == 1
 
 
 @pytest.mark.parametrize(
