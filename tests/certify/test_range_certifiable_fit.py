@@ -95,7 +95,9 @@ def test_refit_file_rewrites_the_coefficients_and_links_their_map(tmp_path) -> N
     fitted, _ = fit_coefficients(doe, None, EndpointConstraint())
     path = tmp_path / "coefficients.json"
     save_coefficients(fitted, path)
-    certificate = RangeCertificateConfig(min_cell=1 / 32, boundary_cell=1 / 16)
+    certificate = RangeCertificateConfig(
+        min_cell=1 / 32, boundary_cell=1 / 16, strip_split=0
+    )  # strips: tests/certify/test_strip_split.py
     config = CertifiableFitConfig(certificate=certificate, max_rounds=1)
     saved, region_map, report = refit_file_for_clearance(path, doe, config)
     assert region_map.belongs_to(load_coefficients(path)) and saved.parameters == load_coefficients(path).parameters
@@ -122,7 +124,7 @@ def test_the_last_round_certifies_with_the_final_cells(tmp_path, margin_m, toler
     path = tmp_path / "coefficients.json"
     save_coefficients(fitted, path)
     cells = {"margin_m": margin_m, "endpoint_tolerance_m": tolerance_m, "boundary_cell": 1 / 16}
-    coarse = RangeCertificateConfig(min_cell=1 / 32, **cells)
+    coarse = RangeCertificateConfig(min_cell=1 / 32, strip_split=0, **cells)  # the build's rounds: no strips
     final = RangeCertificateConfig(min_cell=1 / 128, **cells)
     config = CertifiableFitConfig(certificate=coarse, final_certificate=final, max_rounds=1)
     saved, region_map, report = refit_file_for_clearance(path, doe, config)
@@ -185,7 +187,9 @@ def test_a_refit_that_fails_is_retried_without_the_tightest_points(monkeypatch) 
         return result, converged and len(calls) > 1
 
     monkeypatch.setattr(module, "refit", failing_first)
-    certificate = RangeCertificateConfig(min_cell=1 / 64, boundary_cell=1 / 16)
+    certificate = RangeCertificateConfig(
+        min_cell=1 / 64, boundary_cell=1 / 16, strip_split=0
+    )  # strips: tests/certify/test_strip_split.py
     config = CertifiableFitConfig(certificate=certificate, max_rounds=1)
     _, _, report = module.fit_certifiable(fitted, doe.lengths_m, doe.widths_m, doe.free_parameters(), config)
     first = report["rounds"][0]
