@@ -41,9 +41,9 @@ With the final map at 1/1024 (the default since 2026-11-25), the same fit: befor
 Those maps could not see what decided the last tenths of a per cent: their cells (39 um of W at
 1/1024) were as tall as the band where the end poses' room reaches the margin and the
 regression's clearance does not (some 50 um of W near W = 0.12 m), so changes to the refit below
-that scale did not show. Measured instead by that band itself (``python
-scripts/regression_band.py``: the regression's sampled clearance against the sampled room, per
-L by bisection in W; the settings changed in this module's constants), it was 0.082 % of the
+that scale did not show. Measured instead by that band itself (the last line of ``python
+scripts/margin_gap.py``: the regression's sampled clearance against the sampled room, per L by
+bisection in W; the settings changed in this module's constants), it was 0.082 % of the
 range with the 2e-5 m feasible slack and the 0.01 headroom, 0.067 % with 5e-6 m, 0.017 % with
 slack 0 and headroom 0.0025, 0.034 % with slack 0 and headroom 0.005 (the defaults since
 2026-11-25; 0.0025 let the endpoint errors reach 2.0066 mm between the grid points). Two rounds
@@ -92,7 +92,7 @@ _CLEARANCE_SCALE = 100.0
 #: margin is constrained. Measured on the default build (seed 0, one round, 2026-11-25), by the
 #: band of the strip near W = 0.12 m where the sampled end-pose room reaches the margin and the
 #: regression's sampled clearance does not (what a map with exact cells would still leave open;
-#: ``python scripts/regression_band.py``): 2e-5 m -> 0.082 % of the range, 5e-6 m -> 0.067 %;
+#: ``python scripts/margin_gap.py``, last line): 2e-5 m -> 0.082 % of the range, 5e-6 m -> 0.067 %;
 #: with the headroom at 0.0025 as well, 0 -> 0.017 % (the refit's own maps were blind to this:
 #: 98.76 / 98.77 % with 2e-5 / 5e-6 at 1/512, cells 78 um tall in W against a band some 50 um wide).
 _DEFAULT_FEASIBLE_SLACK_M = 0.0
