@@ -42,7 +42,7 @@ from pipeline.certify.endpoints import (
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.certify.search import ClosedBoxes, SearchSettings, node_boxes, search
-from pipeline.certify.strip_split import strip_bounds, strip_geometry
+from pipeline.certify.strip_split import strip_bounds
 from pipeline.exceptions import InvalidParameterError
 from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
@@ -343,7 +343,7 @@ def split_strips(
     s_l = np.repeat(i_l[rows][order], k)
     s_w = (i_w[rows][order][:, None] * k + np.arange(k)).ravel()
     floor = np.repeat(bound[rows][order], k)
-    c, r = strip_geometry(model, s_depth, s_l, s_w, e)
+    c, r = node_boxes(model, s_depth, s_l, s_w, split_w=e)
     # Tasks of whole columns (the infeasibility's monotonicity works along a column), fixed in size.
     column_starts = np.concatenate([[0], np.flatnonzero(np.diff(s_l)) + 1])
     cuts = [*column_starts[::_STRIP_COLUMNS].tolist(), s_l.size]

@@ -103,9 +103,14 @@ class ClosedBoxes:
     evaluations: int
 
 
-def node_boxes(model: RangeModel, depth: np.ndarray, i_l: np.ndarray, i_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Centres and half widths (n, 2) [m] of (L, W) nodes."""
-    size = model.range_size / (2.0 ** np.asarray(depth, dtype=float))[:, None]
+def node_boxes(
+    model: RangeModel, depth: np.ndarray, i_l: np.ndarray, i_w: np.ndarray, split_w: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Centres and half widths (n, 2) [m] of (L, W) nodes; with ``split_w`` = e, of their strips
+    along W (1 / 2^depth of the range in L, 1 / 2^(depth + e) in W, ``i_w`` counting the latter:
+    ``pipeline.certify.strip_split``)."""
+    depth = np.asarray(depth, dtype=float)
+    size = model.range_size / 2.0 ** np.stack([depth, depth + split_w], -1)
     center = model.range_lo + (np.stack([i_l, i_w], -1) + 0.5) * size
     return center, size / 2
 

@@ -68,20 +68,8 @@ __all__ = [
     "SUB_CELL_LEVELS",
     "strip_bounds",
     "strip_clearance_bounds",
-    "strip_geometry",
     "strip_infeasibility_bounds",
 ]
-
-
-def strip_geometry(
-    model: RangeModel, depth: np.ndarray, index_l: np.ndarray, index_w: np.ndarray, split: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """Centres and half widths (n, 2) [m] of cells of 1 / 2^depth of the range in L and 1 /
-    2^(depth + split) in W (``index_w`` counts the latter)."""
-    depth = np.asarray(depth, dtype=float)
-    size = model.range_size / 2.0 ** np.stack([depth, depth + split], -1)
-    center = model.range_lo + (np.stack([index_l, index_w], -1) + 0.5) * size
-    return center, size / 2
 
 
 def strip_clearance_bounds(

@@ -14,7 +14,8 @@ from pipeline.certify import strip_split
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap
-from pipeline.certify.strip_split import strip_clearance_bounds, strip_geometry, strip_infeasibility_bounds
+from pipeline.certify.search import node_boxes
+from pipeline.certify.strip_split import strip_clearance_bounds, strip_infeasibility_bounds
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
 from pipeline.model.arm import PlanarArm
@@ -88,7 +89,7 @@ def test_strip_clearance_bound_is_the_floor_or_better_and_tightens(top: Coeffici
     the s search proves it (a bound within 0.05 mm of the truth) and never exceeds the sampled
     minimum; a floor above what the search proves is returned as it is."""
     model = RangeModel.from_coefficients(top)
-    c, r = strip_geometry(model, np.full(4, 4), np.array([1, 5, 9, 13]), np.array([10, 41, 72, 103]), 3)
+    c, r = node_boxes(model, np.full(4, 4), np.array([1, 5, 9, 13]), np.array([10, 41, 72, 103]), split_w=3)
     lowest = np.empty(4)
     for k in range(4):
         answer = generate(top, *c[k], out_of_range="ignore")
@@ -145,7 +146,7 @@ def test_a_wrong_choice_of_strips_costs_proofs_not_soundness(top: Coefficients, 
     order = np.lexsort((region_map.index_w[strips], region_map.index_l[strips]))
     strips = strips[order]
     e = int(region_map.split_w.max())
-    c, r = strip_geometry(model, region_map.depth[strips], region_map.index_l[strips], region_map.index_w[strips], e)
+    c, r = node_boxes(model, region_map.depth[strips], region_map.index_l[strips], region_map.index_w[strips], e)
     tolerance, margin = region_map.endpoint_tolerance_m, region_map.margin_m
     right = strip_infeasibility_bounds(model, c, r, region_map.index_l[strips], margin, tolerance)
     monkeypatch.setattr(strip_split, "ROOM_SLACK_M", -1e-4)
