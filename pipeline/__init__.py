@@ -1,16 +1,97 @@
 """Online trajectory generation for a planar 2-link arm around a rectangular obstacle.
 
-The public API; the subpackages follow the data flow (each imports only those before it):
+The public API. Everything a user needs is imported from here; the subpackages follow the data
+flow (each imports only those before it): ``model`` (URDF -> arm, kinematics, scene, obstacle)
+-> ``motion`` (path, sinusoids, families) -> ``geometry`` (clearance routes, certificates) ->
+``offline`` (fitness, PSO, DOE, regression, coefficients) -> ``certify`` (the range certificate
+and its map) -> ``build`` (the whole offline build as one call) -> ``online`` (loading,
+generator, certify-or-repair).
 
-``model`` (URDF -> arm, kinematics, scene, obstacle) -> ``motion`` (path, sinusoids, families)
--> ``geometry`` (clearance routes, certificates) -> ``offline`` (fitness, PSO, DOE,
-regression, coefficients) -> ``online`` (generator, certify-or-repair).
+The online names (:func:`load_coefficients`, :func:`generate`, :func:`generate_batch`, the
+errors) need NumPy only; the others (the build, the arm, certify-or-repair) load Pinocchio and
+Coal on first use.
 """
 
-from pipeline.exceptions import PipelineError
-from pipeline.model.arm import load_planar_arm
-from pipeline.offline.coefficients import load_coefficients
-from pipeline.online.generator import generate
-from pipeline.online.repair import generate_certified
+from __future__ import annotations
 
-__all__ = ["PipelineError", "generate", "generate_certified", "load_coefficients", "load_planar_arm"]
+import importlib
+
+from pipeline.exceptions import (
+    ArmMismatchError,
+    BuildNotConvergedError,
+    DataFileError,
+    InvalidParameterError,
+    NoCertifiedTrajectoryError,
+    ObstacleSizeError,
+    OutOfFittedRangeError,
+    OutOfFittedRangeWarning,
+    PipelineError,
+    RegionMapMismatchError,
+    RegionMapMismatchWarning,
+    UnreachableObstacleError,
+    WorkerPoolError,
+)
+from pipeline.online.batch import GeneratedBatch, generate_batch
+from pipeline.online.generator import GeneratedTrajectory, generate
+from pipeline.online.loading import load_coefficients
+
+#: Public names whose modules need Pinocchio or Coal: imported on first access.
+_LAZY = {
+    "BuildConfig": "pipeline.build",
+    "BuildResult": "pipeline.build",
+    "run_build": "pipeline.build",
+    "scene_from_options": "pipeline.build",
+    "load_planar_arm": "pipeline.model.arm",
+    "PlanarArm": "pipeline.model.arm",
+    "CertifiedBatch": "pipeline.online.batch_certify",
+    "certify_batch": "pipeline.online.batch_certify",
+    "CertifiedTrajectory": "pipeline.online.repair",
+    "RepairConfig": "pipeline.online.repair",
+    "generate_certified": "pipeline.online.repair",
+}
+
+__all__ = [
+    "ArmMismatchError",
+    "BuildConfig",
+    "BuildNotConvergedError",
+    "BuildResult",
+    "CertifiedBatch",
+    "CertifiedTrajectory",
+    "DataFileError",
+    "GeneratedBatch",
+    "GeneratedTrajectory",
+    "InvalidParameterError",
+    "NoCertifiedTrajectoryError",
+    "ObstacleSizeError",
+    "OutOfFittedRangeError",
+    "OutOfFittedRangeWarning",
+    "PipelineError",
+    "PlanarArm",
+    "RegionMapMismatchError",
+    "RegionMapMismatchWarning",
+    "RepairConfig",
+    "UnreachableObstacleError",
+    "WorkerPoolError",
+    "certify_batch",
+    "generate",
+    "generate_batch",
+    "generate_certified",
+    "load_coefficients",
+    "load_planar_arm",
+    "run_build",
+    "scene_from_options",
+]
+
+
+def __getattr__(name: str):
+    """The public names of :data:`_LAZY`, imported on first access (PEP 562)."""
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'pipeline' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

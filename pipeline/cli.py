@@ -20,7 +20,8 @@ from typing import NoReturn, TextIO
 from pipeline.exceptions import DataFileError, PipelineError
 from pipeline.io.output_paths import check_output_file, check_output_folder
 from pipeline.motion.families import PAPER_SOURCE
-from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.offline.coefficients import Coefficients
+from pipeline.online.loading import load_coefficients
 
 __all__ = [
     "DEFAULT_COEFFICIENTS",
@@ -30,8 +31,11 @@ __all__ = [
     "EXIT_USAGE",
     "HelpFormatter",
     "Parser",
+    "add_progress_argument",
+    "arm_for_cli",
     "check_output_file",
     "check_output_folder",
+    "count_argument",
     "describe_coefficients",
     "jobs_count",
     "load_coefficients_for_cli",
@@ -110,6 +114,17 @@ def run_cli(
         return EXIT_INTERRUPTED
 
 
+def count_argument(text: str) -> int:
+    """argparse type: a whole number >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} must be >= 0")
+    return value
+
+
 def jobs_count(text: str) -> int:
     """argparse type of ``--jobs``: a count >= 0, where 0 means every CPU of this machine."""
     try:
@@ -132,6 +147,29 @@ def load_coefficients_for_cli(source: str | Path) -> Coefficients:
         hint = f" (run python -m pipeline.build first, or pass --coefficients {PAPER_SOURCE})"
         raise DataFileError(source, "coefficients file not found" + (hint if source == DEFAULT_COEFFICIENTS else ""))
     return load_coefficients(source)
+
+
+def add_progress_argument(parser: argparse.ArgumentParser) -> None:
+    """``--no-progress``: no progress bars (they go to stderr, and only when it is a terminal)."""
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bars on stderr (they are drawn only when stderr is a terminal)",
+    )
+
+
+def arm_for_cli(coefficients: Coefficients, urdf: str | Path | None):
+    """The arm for ``coefficients``: the one recorded with them (:func:`pipeline.online.arm_check.arm_for`),
+    or the ``--urdf`` given, checked against them.
+
+    Raises:
+        DataFileError: the recorded arm's URDF is missing or changed.
+        RobotModelError: the URDF cannot be loaded.
+        ArmMismatchError: the ``--urdf`` arm differs from the one the coefficients were fitted for.
+    """
+    from pipeline.online.arm_check import arm_for  # Pinocchio: only for the commands that need the arm
+
+    return arm_for(coefficients, urdf)
 
 
 def describe_coefficients(coefficients: Coefficients) -> str:

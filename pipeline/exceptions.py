@@ -282,3 +282,22 @@ class RegionMapMismatchError(PipelineError):
             f"the region map certifies coefficients sha256 {map_coefficients_sha256[:12]}, "
             f"not these (sha256 {coefficients_sha256[:12]}); run python -m pipeline.certify_range on them"
         )
+
+
+class RegionMapMismatchWarning(UserWarning):
+    """The region map beside a coefficients file certifies other coefficients: it is not attached."""
+
+
+class WorkerPoolError(PipelineError):
+    """The worker processes of a pool stopped before finishing their work.
+
+    Attributes:
+        reason: What stopped them, as far as the caller can tell.
+    """
+
+    def __init__(self, reason: str) -> None:
+        self.reason = reason
+        super().__init__(
+            f"the worker processes stopped ({reason}); a script that starts them (jobs other than 1) must call "
+            'the work under `if __name__ == "__main__":`, since each worker re-imports the script'
+        )

@@ -3,12 +3,12 @@
     python scripts/adaptive_certificate_soundness.py [--coefficients F] [--n 10000] [--jobs 2] [--json OUT]
 
 Per case (L, W uniform in the coefficients' fitted range, seeded): the regression's trajectory is
-certified by the adaptive route in tolerance mode and in decide mode (margin), by the former dense
+certified by the adaptive route in tolerance mode and in decide mode (margin), by the dense
 route (``initial="dense"``), and sampled by Coal at 100x the adaptive route's initial samples. It counts
 the cases where a bound lies above the denser sampling's minimum (unsound; must be 0), where the
 adaptive bound is more than 0.05 mm from the dense one, and where the decide-mode verdict differs
 from the dense bound's outside a 0.05 mm band around the margin. Not part of the test suite (minutes);
-``tests/test_adaptive_certificate.py`` runs the same checks on a few hundred cases.
+``tests/geometry/test_adaptive_certificate.py`` runs the same checks on a few hundred cases.
 """
 
 from __future__ import annotations
@@ -25,10 +25,10 @@ CLOSE_M = 5e-5
 
 
 def _chunk(job: tuple[str, list[tuple[float, float]]]) -> list[dict]:
+    from pipeline import load_coefficients
     from pipeline.geometry.clearance import CoalClearance
     from pipeline.geometry.sinusoid_certificate import certify_trajectory
     from pipeline.model.arm import load_planar_arm
-    from pipeline.offline.coefficients import load_coefficients
     from pipeline.online.generator import generate
 
     source, cases = job
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
 
-    from pipeline.offline.coefficients import load_coefficients
+    from pipeline import load_coefficients
 
     coefficients = load_coefficients(args.coefficients)
     margin = coefficients.scene.margin_m

@@ -52,10 +52,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--points", type=int, default=3, help="samples per side of a cell [count] (default: 3)")
     parser.add_argument("--json", default=None, help="also write the table as JSON to this file")
     args = parser.parse_args(argv)
+    from pipeline import load_coefficients
     from pipeline.certify.region_map import STATUSES, load_region_map
     from pipeline.exceptions import PipelineError
     from pipeline.model.arm import load_planar_arm
-    from pipeline.offline.coefficients import load_coefficients
 
     try:
         region_map = load_region_map(args.map)

@@ -24,8 +24,8 @@ margin and W_room where the sampled room does; the band is W_room - W_reg where 
 room falls with W: the obstacle grows with W and P1, P5 do not move). It measures the
 regression alone, at a resolution no map has: the certifiable regression's settings
 (``REFIT_ENDPOINT_HEADROOM`` and the feasible slack in
-``pipeline/certify/certifiable_regression.py``) were chosen by it, since the refit's own maps
-(cells 39 um or more of W, the band some 20-50 um) could not show their effect.
+``pipeline/certify/certifiable_regression.py``) are chosen by it, since the refit's own maps
+(cells 39 um or more of W, the band some 20-50 um) cannot show their effect (docs/results.md).
 
 A sampling, not a proof (the proofs are the map's); not part of the test suite.
 """
@@ -80,11 +80,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     from pathlib import Path
 
+    from pipeline import load_coefficients
     from pipeline.certify.end_pose_room import end_pose_room_m
     from pipeline.certify.region_map import STATUSES, load_region_map
     from pipeline.exceptions import PipelineError
     from pipeline.io.jsonio import write_text_atomic
-    from pipeline.offline.coefficients import load_coefficients
 
     try:
         coefficients = load_coefficients(args.coefficients)

@@ -27,8 +27,9 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("geometry", ("pipeline.geometry",)),
     ("offline", ("pipeline.offline",)),
     ("certify", ("pipeline.certify",)),
+    ("build", ("pipeline.build",)),
     ("online", ("pipeline.online",)),
-    ("pipeline top level (API, CLI scaffold, CLIs)", ("pipeline",)),
+    ("pipeline top level (API, CLI scaffold, CLIs)", ("pipeline", "pipeline.build.__main__")),
     ("verify library", ("verify.acceptance", "verify.benchmark", "verify.viewer")),
     ("verify CLIs", ("verify",)),
 )
@@ -173,6 +174,8 @@ def test_layers_order_the_data_flow():
     assert layer_of("pipeline.geometry.clearance") < layer_of("pipeline.offline.doe")
     assert layer_of("pipeline.offline.doe") < layer_of("pipeline.certify.range") < layer_of("pipeline.online.repair")
     assert layer_of("pipeline.online.repair") < layer_of("pipeline.cli") == layer_of("pipeline")
+    assert layer_of("pipeline.certify.range") < layer_of("pipeline.build.run") < layer_of("pipeline.online.loading")
+    assert layer_of("pipeline.build.__main__") == layer_of("pipeline.commands.build") == layer_of("pipeline")
     assert layer_of("pipeline.build") < layer_of("verify.acceptance.run") < layer_of("verify.sweep")
     assert layer_of("verify.viewer.server") == layer_of("verify.benchmark.run") < layer_of("verify.view")
 

@@ -29,6 +29,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
+from pipeline import load_coefficients
 from pipeline.cli import (
     DEFAULT_COEFFICIENTS,
     EXIT_OK,
@@ -41,7 +42,6 @@ from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning
 from pipeline.io.output_paths import check_output_file
 from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
 from pipeline.motion.families import PAPER_SOURCE
-from pipeline.offline.coefficients import load_coefficients
 from verify.acceptance.metrics import check_arm_matches
 
 PROG = "python -m verify.view"

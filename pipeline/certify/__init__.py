@@ -14,20 +14,7 @@ Derivations: ``duration`` (T and its gradient), ``clearance_bound`` (the three l
 ``strip_split`` (the smallest cells astride a contour, cut along W; the infeasibility's
 monotonicity in W). ``end_pose_room`` samples the room the end poses leave (a choice of where to
 look, never a proof).
+
+The package's ``__init__`` imports nothing: ``region_map`` (the map and its lookups) needs NumPy
+only, and the online generator imports it without the certificate's Coal-based modules.
 """
-
-from pipeline.certify.certifiable_regression import CertifiableFitConfig, fit_certifiable
-from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import STATUSES, RegionCell, RegionMap, load_region_map, save_region_map
-
-__all__ = [
-    "STATUSES",
-    "CertifiableFitConfig",
-    "RangeCertificateConfig",
-    "RegionCell",
-    "RegionMap",
-    "certify_range",
-    "fit_certifiable",
-    "load_region_map",
-    "save_region_map",
-]

@@ -26,39 +26,25 @@ there the family cannot keep the margin at all with that tolerance, or only just
 remains a closed-form quadratic in (L, W); its certificate is the last map, so nothing here
 needs trusting beyond ``certify_range``. Paper family only (all 8 parameters regressed).
 
-Measured on the default build (seed 0, one round, final map at 1/512): before the refit, margin
-96.13 % / collision-free below it 2.90 % / infeasible 0.98 %; after it, 98.76 / 0.27 / 0.98 with
-400 points, the refit holding 1.98 mm (``REFIT_ENDPOINT_HEADROOM``) and ``feasible_slack_m``
-0.02 mm (with 200 points and 1.94 mm: 98.61 / 0.41; with 400 and 1.94 mm: 98.65 / 0.38; with
-0.005 mm: 98.77 / 0.26; with 600 points at 0.01 mm the refit failed to converge and the retry
-without the points below 0.1 mm of room gave 98.58 %). Two rounds at 1.985 mm reached 98.75 %
-but the second refit's endpoint errors broke the 2 mm proof (2.0019 mm). Until the points were
-chosen by the end poses' room, leaves whose infeasibility bound U was below margin + 1 mm were
-left out, which left the whole strip near W = 0.12 m unconstrained (98.42 % after one round).
-With the final map at 1/1024 (the default since 2026-11-25), the same fit: before the refit
-96.19 / 2.79 / 1.02, after it 98.80 / 0.18 / 1.02; two or three rounds give 98.80 % too.
-
-Those maps could not see what decided the last tenths of a per cent: their cells (39 um of W at
-1/1024) were as tall as the band where the end poses' room reaches the margin and the
-regression's clearance does not (some 50 um of W near W = 0.12 m), so changes to the refit below
-that scale did not show. Measured instead by that band itself (the last line of ``python
-scripts/margin_gap.py``: the regression's sampled clearance against the sampled room, per L by
-bisection in W; the settings changed in this module's constants), it was 0.082 % of the
-range with the 2e-5 m feasible slack and the 0.01 headroom, 0.067 % with 5e-6 m, 0.017 % with
-slack 0 and headroom 0.0025, 0.034 % with slack 0 and headroom 0.005 (the defaults since
-2026-11-25; 0.0025 let the endpoint errors reach 2.0066 mm between the grid points). Two rounds
-(slack 0, headroom 0.0025) made the map worse (99.66 % of the feasible area): the second
-round's map at 1/256 asks for points its cells cannot place. With strips along W in the final map
-(``pipeline.certify.strip_split``), the default build certifies 99.935 % of the feasible area at
-the margin (98.88 / 0.065 / 1.05).
+The refit holds the endpoint errors to tolerance (1 - ``REFIT_ENDPOINT_HEADROOM``) and
+constrains every leaf whose end poses leave room for the margin (``feasible_slack_m`` = 0). Both
+settings act on a band near W = 0.12 m, some 20-50 um of W wide, where the end poses' room reaches
+the margin and the regression's clearance does not: narrower than the cells of the refit's own
+maps, so they are chosen by that band itself (the last line of ``python scripts/margin_gap.py``:
+the regression's sampled clearance against the sampled room, per L by bisection in W). Less
+headroom narrows the band but lets the endpoint errors exceed the tolerance between the grid
+points; a second round, whose map at ``REFIT_MIN_CELL`` asks for points its cells cannot place,
+makes the final map worse. The measurements are in ``docs/results.md`` ("Settings of the
+certifiable regression").
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import minimize
@@ -67,10 +53,11 @@ from pipeline.certify.end_pose_room import configuration_clearance, end_pose_roo
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.exceptions import DataFileError, InvalidParameterError
+from pipeline.io.jsonio import dumps
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline.coefficients import Coefficients, load_coefficients, save_coefficients
+from pipeline.offline.coefficients import Coefficients, coefficients_from_json
 from pipeline.offline.doe import DoeData
 from pipeline.offline.endpoint_regression import (
     EndpointConstraint,
@@ -89,35 +76,27 @@ _FD_STEP_RAD = 1e-6
 #: Clearance constraints are given to SLSQP in centimetres, the size of the endpoint slack's terms.
 _CLEARANCE_SCALE = 100.0
 #: Default of ``CertifiableFitConfig.feasible_slack_m`` [m]: every leaf whose end poses leave the
-#: margin is constrained. Measured on the default build (seed 0, one round, 2026-11-25), by the
-#: band of the strip near W = 0.12 m where the sampled end-pose room reaches the margin and the
-#: regression's sampled clearance does not (what a map with exact cells would still leave open;
-#: ``python scripts/margin_gap.py``, last line): 2e-5 m -> 0.082 % of the range, 5e-6 m -> 0.067 %;
-#: with the headroom at 0.0025 as well, 0 -> 0.017 % (the refit's own maps were blind to this:
-#: 98.76 / 98.77 % with 2e-5 / 5e-6 at 1/512, cells 78 um tall in W against a band some 50 um wide).
+#: margin is constrained. A positive slack leaves the leaves just above the infeasibility contour
+#: unconstrained and widens the band where the end poses keep the margin and the regression does
+#: not (``python scripts/margin_gap.py``, last line; figures in docs/results.md).
 _DEFAULT_FEASIBLE_SLACK_M = 0.0
 #: Headroom of the refit's endpoint constraint (``python -m pipeline.build``'s refit holds the
 #: endpoint errors to tolerance (1 - this) at its grid and targets; the first fit keeps
 #: ``EndpointConstraint``'s default, 0.03). Each 0.01 of headroom costs the end poses about
 #: 0.0145 mm of room in the strip near W = 0.12 m (0.72 mm of clearance per mm of tolerance
-#: there). Measured on the default build (seed 0, one round of 400 points, feasible slack 0,
-#: final map at 1/1024 with strips of 1/8192 in W, 2026-11-25): 0.01 -> margin 99.886 % of the
-#: feasible area (feasible slack 2e-5), 0.005 -> 99.935 % with the endpoint bound <= 2 mm all
-#: over; 0.0025 -> 99.95 %, but its endpoint errors reach 2.0066 mm between the 21 x 21 grid
-#: points (2.0011 with 31 x 31; 41 x 41 holds 2 mm, with the refit taking 13 s longer).
+#: there), so less headroom lets the refit keep the margin closer to the infeasibility contour;
+#: but the errors between the 21 x 21 grid points must stay within the tolerance for the range
+#: certificate to prove it, which 0.005 does and 0.0025 does not (docs/results.md).
 REFIT_ENDPOINT_HEADROOM = 0.005
 #: If a refit does not converge, it is tried again without the points whose end poses keep less
-#: than margin + each of these in turn (:func:`end_pose_room_m`) [m]; the last is about the
-#: constraint set of the rounds before the end-pose room chose the points (leaves with U >=
-#: margin + 1 mm).
+#: than margin + each of these in turn (:func:`end_pose_room_m`) [m]; the last keeps about the
+#: leaves whose infeasibility bound U is at least margin + 1 mm.
 RETRY_SLACKS_M = (1e-4, 1e-3)
 #: Rounds of the build's certifiable regression (``python -m pipeline.build --clearance-rounds``).
 DEFAULT_CLEARANCE_ROUNDS = 1
 #: Smallest cell of the maps of the build's refit rounds but the last (fraction of the side);
-#: the last round, whose map the build writes, uses the build's (finer) cells. Measured on the
-#: default build (seed 0), with the earlier choice of points (200, infeasibility bound U >=
-#: margin + 1 mm): with the first round at 1/256 and the last at 1/512, margin 98.42 % of the
-#: area; with both at 1/512, the points spread over other leaves and the final map reached 98.17 %.
+#: the last round, whose map the build writes, uses the build's (finer) cells. The coarser cells
+#: keep the refit's points on the leaves that matter and the rounds fast.
 REFIT_MIN_CELL = 1.0 / 256
 
 
@@ -477,29 +456,32 @@ def _fit_block(coefficients: Coefficients, doe: DoeData, report: dict, seconds_f
     return block
 
 
-def refit_file_for_clearance(
-    path: str | Path, doe: DoeData, config: CertifiableFitConfig
-) -> tuple[Coefficients, RegionMap, dict]:
-    """Constraint generation (:func:`fit_certifiable`) on the coefficients file ``path`` (the
-    build's endpoint-constrained fit of ``doe``); writes the refitted coefficients back to
-    ``path`` atomically (their ``fit`` block records the rounds) and returns them as loaded,
-    their region map (linked to the file's sha256: the map was computed from exactly the
-    parameters the file holds, which the reload checks), and the rounds with their times.
+def refit_for_clearance(
+    start: Coefficients, doe: DoeData, config: CertifiableFitConfig, source: str
+) -> tuple[Coefficients, str, RegionMap, dict]:
+    """Constraint generation (:func:`fit_certifiable`) from ``start`` (the build's
+    endpoint-constrained fit of ``doe``, as read from its file text), in memory.
+
+    Returns:
+        The refitted coefficients as they read back from their file text (their ``fit`` block
+        records the rounds; ``source`` names the file they will be written to, their sha256 is
+        that of the text), the text, their region map (linked to that sha256: the map was
+        computed from exactly the parameters the text holds, which the read-back checks), and
+        the rounds with their times.
 
     Raises:
-        InvalidParameterError: the file's family is not the paper's.
-        DataFileError: the file cannot be read back with the certified parameters.
+        InvalidParameterError: the family is not the paper's.
+        DataFileError: the text does not read back with the certified parameters.
     """
-    start = load_coefficients(path)
     fitted, region_map, report = fit_certifiable(start, doe.lengths_m, doe.widths_m, doe.free_parameters(), config)
     timeless = [{k: v for k, v in r.items() if not k.endswith("_seconds")} for r in report["rounds"]]
     fitted = replace(fitted, extra={**fitted.extra, "fit": _fit_block(fitted, doe, report, timeless)})
-    save_coefficients(fitted, path)
-    saved = load_coefficients(path)
+    text = dumps(fitted.to_json())
+    saved = coefficients_from_json(json.loads(text), source, hashlib.sha256(text.encode("utf-8")).hexdigest())
     if saved.parameters != fitted.parameters:
-        raise DataFileError(path, "the written coefficients differ from the certified ones")
-    region_map = replace(region_map, coefficients_source=source_name(path), coefficients_sha256=saved.source_sha256)
-    return saved, region_map, report
+        raise DataFileError(source, "the coefficients' text differs from the certified ones")
+    region_map = replace(region_map, coefficients_source=source_name(source), coefficients_sha256=saved.source_sha256)
+    return saved, text, region_map, report
 
 
 def clearance_refit_lines(report: dict) -> list[str]:

@@ -55,12 +55,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.certify.interval import Jet, lower_bound, upper_bound
+from pipeline.certify.interval import FLOAT_SLACK_M, Jet, lower_bound, upper_bound
 from pipeline.certify.range_model import RangeModel
 from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, COAL_DISTANCE_ERROR_M, segment_rectangle_distance
-
-#: Slack [m] subtracted from every final bound for floating-point rounding of the whole chain.
-FLOAT_SLACK_M = 1e-9
 
 __all__ = ["COAL_DISTANCE_ERROR_M", "FLOAT_SLACK_M", "BoxBounds", "box_clearance_bounds", "obstacle_motion_m"]
 

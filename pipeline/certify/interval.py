@@ -11,7 +11,7 @@ each factor an interval, so the enclosures stay valid through any expression.
 Floating point: the operations round to nearest instead of outward. Each result is off by at
 most a few units in the last place of numbers of magnitude < 1e3, i.e. < 1e-12 absolute; the
 range certificate covers all rounding of its whole chain by one slack
-(:data:`pipeline.certify.clearance_bound.FLOAT_SLACK_M`, 1e-9 m) on every final bound.
+(:data:`FLOAT_SLACK_M`, 1e-9 m) on every final bound.
 """
 
 from __future__ import annotations
@@ -22,6 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
+
+#: Slack [m] subtracted from (or added to) every final bound for floating-point rounding of the whole chain.
+FLOAT_SLACK_M = 1e-9
 
 _TWO_PI = 2.0 * math.pi
 

@@ -15,11 +15,10 @@ from pipeline.certify.range_certificate import (
     RangeCertificateConfig,
     certify_range,
 )
-from pipeline.certify.region_map import STATUSES, RegionMap, save_region_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, RegionMap, save_region_map
 from pipeline.offline.coefficients import Coefficients
 
-#: File name of the map written beside a coefficients file.
-DEFAULT_MAP_NAME = "region_map.json"
+__all__ = ["DEFAULT_MAP_NAME", "certify_and_save", "default_config", "summary_lines"]
 
 
 def default_config(

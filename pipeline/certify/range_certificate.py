@@ -28,9 +28,10 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -44,6 +45,7 @@ from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.certify.search import ClosedBoxes, SearchSettings, node_boxes, search
 from pipeline.certify.strip_split import strip_bounds
 from pipeline.exceptions import InvalidParameterError
+from pipeline.io.progress import ProgressCallback
 from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
@@ -143,13 +145,73 @@ class RangeCertificateConfig:
         )
 
 
-def _search_task(model: RangeModel, settings: SearchSettings, roots: np.ndarray) -> ClosedBoxes:
-    return search(model, settings, roots)
+#: Stages reported to a :data:`pipeline.io.progress.ProgressCallback` by :func:`certify_range`, in
+#: order: the branch and bound (its tasks), the endpoint bounds (leaves: the total grows as leaves
+#: are cut), the infeasibility certificate's sub-cells (leaves) and the strips (strips).
+PROGRESS_STAGES = ("range map: search", "range map: refine", "range map: sub-cells", "range map: strips")
 
 
-def run_search(model: RangeModel, settings: SearchSettings, jobs: int) -> ClosedBoxes:
+def _no_progress(_stage: str, _done: int, _total: int) -> None:
+    return None
+
+
+def _run_tasks(
+    function: Callable[..., Any],
+    arguments: Sequence[tuple],
+    jobs: int,
+    on_done: Callable[[int], None] = lambda _k: None,
+) -> list[Any]:
+    """``[function(*a) for a in arguments]`` in that order, on ``jobs`` processes; ``on_done(k)``
+    as task ``k`` finishes (in the order they finish). The tasks are the caller's, fixed, so the
+    results do not depend on ``jobs``. An error (or Ctrl-C) cancels the tasks not yet started."""
+    n = len(arguments)
+    if jobs <= 1 or n <= 1:
+        results = []
+        for k, task in enumerate(arguments):
+            results.append(function(*task))
+            on_done(k)
+        return results
+    done: list[Any] = [None] * n
+    pool = ProcessPoolExecutor(max_workers=min(jobs, n))
+    try:
+        pending = {pool.submit(function, *task): k for k, task in enumerate(arguments)}
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                k = pending.pop(future)
+                done[k] = future.result()
+                on_done(k)
+    except BaseException:
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+    return done
+
+
+def _counted(
+    progress: ProgressCallback | None, stage: str, sizes: Sequence[int], before: int = 0
+) -> Callable[[int], None]:
+    """The ``on_done`` of :func:`_run_tasks` reporting ``stage`` to ``progress``: task ``k`` is
+    ``sizes[k]`` units, after ``before`` units of the stage already done (counted in the total).
+    Reports ``done == before`` at once."""
+    report = progress or _no_progress
+    total = before + sum(sizes)
+    done = before
+    report(stage, done, total)
+
+    def on_done(k: int) -> None:
+        nonlocal done
+        done += sizes[k]
+        report(stage, done, total)
+
+    return on_done
+
+
+def run_search(
+    model: RangeModel, settings: SearchSettings, jobs: int, progress: ProgressCallback | None = None
+) -> ClosedBoxes:
     """The branch and bound from the initial grid, in :data:`_SEARCH_GROUPS` tasks spread over
-    ``jobs`` processes.
+    ``jobs`` processes; ``progress`` gets "range map: search" over the tasks.
 
     The roots go to the tasks by diagonal stripes ((i_L + i_W) mod groups), so that a strip along
     either axis, where the work concentrates (near the margin's contour), is shared out (by rows
@@ -162,12 +224,8 @@ def run_search(model: RangeModel, settings: SearchSettings, jobs: int) -> Closed
     roots = np.column_stack([np.full(n * n, settings.initial_depth_lw), i.ravel(), j.ravel()])
     stripe = (roots[:, 1] + roots[:, 2]) % _SEARCH_GROUPS
     groups = [roots[stripe == k] for k in range(_SEARCH_GROUPS) if np.any(stripe == k)]
-    tasks = len(groups)
-    if jobs <= 1 or tasks == 1:
-        parts = [search(model, settings, group) for group in groups]
-    else:
-        with ProcessPoolExecutor(max_workers=min(jobs, tasks)) as pool:
-            parts = list(pool.map(_search_task, [model] * tasks, [settings] * tasks, groups))
+    on_done = _counted(progress, PROGRESS_STAGES[0], [1] * len(groups))
+    parts = _run_tasks(search, [(model, settings, group) for group in groups], jobs, on_done)
     fields = ("depth_lw", "index_l", "index_w", "depth_s", "index_s", "bound_m", "center_clearance_m")
     merged = {f: np.concatenate([getattr(p, f) for p in parts]) for f in fields}
     return ClosedBoxes(**merged, evaluations=sum(p.evaluations for p in parts))
@@ -227,31 +285,49 @@ def _in_chunks(
     model: RangeModel,
     arrays: tuple,
     *constants,
+    progress: ProgressCallback | None = None,
+    stage: str = "",
+    before: int = 0,
 ) -> list[np.ndarray]:
     """``function(model, *chunks of arrays, *constants)`` over fixed chunks of ``rows`` rows (or
     the given slices), spread over ``jobs`` processes; the list of its results in order. The
     chunks do not depend on ``jobs`` (the polar branch and bound caps its boxes per call), so
-    neither do the results."""
+    neither do the results. ``progress`` gets ``stage`` in rows, after ``before`` rows done."""
+    size = arrays[0].shape[0]
     if isinstance(rows, int):
-        chunks = [slice(k, k + rows) for k in range(0, arrays[0].shape[0], rows)]
+        chunks = [slice(k, k + rows) for k in range(0, size, rows)]
     else:
         chunks = rows
-    n = len(chunks)
-    arguments = ([model] * n, *([a[k] for k in chunks] for a in arrays), *([v] * n for v in constants))
-    if jobs <= 1 or n <= 1:
-        return list(map(function, *arguments))
-    with ProcessPoolExecutor(max_workers=min(jobs, n)) as pool:
-        return list(pool.map(function, *arguments))
+    tasks = [(model, *(a[k] for a in arrays), *constants) for k in chunks]
+    sizes = [len(range(*k.indices(size))) for k in chunks]
+    return _run_tasks(function, tasks, jobs, _counted(progress, stage, sizes, before))
 
 
 def sub_cell_bounds(
-    model: RangeModel, c: np.ndarray, r: np.ndarray, tolerance_m: float, margin_m: float, jobs: int = 1
+    model: RangeModel,
+    c: np.ndarray,
+    r: np.ndarray,
+    tolerance_m: float,
+    margin_m: float,
+    jobs: int = 1,
+    progress: ProgressCallback | None = None,
 ) -> np.ndarray:
     """``endpoints.infeasibility_upper_bounds`` over chunks of :data:`_SUB_CELL_CHUNK` leaves,
-    spread over ``jobs`` processes (the bounds do not depend on ``jobs``)."""
+    spread over ``jobs`` processes (the bounds do not depend on ``jobs``); ``progress`` gets
+    "range map: sub-cells" in leaves."""
     if c.shape[0] == 0:
         return np.empty(0)
-    parts = _in_chunks(infeasibility_upper_bounds, _SUB_CELL_CHUNK, jobs, model, (c, r), tolerance_m, margin_m)
+    parts = _in_chunks(
+        infeasibility_upper_bounds,
+        _SUB_CELL_CHUNK,
+        jobs,
+        model,
+        (c, r),
+        tolerance_m,
+        margin_m,
+        progress=progress,
+        stage=PROGRESS_STAGES[2],
+    )
     return np.concatenate(parts)
 
 
@@ -275,13 +351,16 @@ def refine_leaves(
     tolerance_m: float,
     max_depth: int,
     jobs: int = 1,
+    progress: ProgressCallback | None = None,
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Endpoint bounds and infeasibility upper bounds per leaf, cutting leaves as the module
     docstring says. ``leaves`` = [depth, i_L, i_W, clearance bound, *further columns the children
     inherit]; returns the final leaves (the same columns),
     their endpoint bounds (n,) and their endpoint clearance upper bounds (n,) (inf where not needed).
     The bounds run in ``jobs`` processes over fixed chunks of leaves (the result does not depend
-    on ``jobs``)."""
+    on ``jobs``). ``progress`` gets "range map: refine" in leaves bounded, whose total grows by
+    the children of each round's cuts, then "range map: sub-cells"."""
+    bounded = 0  # leaves whose bounds are computed, over the rounds
     endpoint = np.full(leaves[0].size, np.nan)
     centre_error = np.full(leaves[0].size, np.nan)
     upper = np.full(leaves[0].size, np.nan)
@@ -292,8 +371,20 @@ def refine_leaves(
         if np.any(todo):
             c, r = node_boxes(model, depth[todo], i_l[todo], i_w[todo])
             need = bound[todo] < margin_m
-            parts = _in_chunks(_leaf_bounds, _LEAF_CHUNK, jobs, model, (c, r, need), tolerance_m, margin_m)
+            parts = _in_chunks(
+                _leaf_bounds,
+                _LEAF_CHUNK,
+                jobs,
+                model,
+                (c, r, need),
+                tolerance_m,
+                margin_m,
+                progress=progress,
+                stage=PROGRESS_STAGES[1],
+                before=bounded,
+            )
             endpoint[todo], centre_error[todo], upper[todo] = np.concatenate(parts).T
+            bounded += int(np.count_nonzero(todo))
         deep = depth < max_depth
         close = (bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M)
         # A family that pins the endpoints has errors of rounding size: its bound is reported, not
@@ -307,7 +398,8 @@ def refine_leaves(
         if not np.any(rows):
             if np.any(close):  # smallest cells still close: try sub-cells (pipeline.certify.endpoints)
                 c, r = node_boxes(model, depth[close], i_l[close], i_w[close])
-                upper[close] = np.minimum(upper[close], sub_cell_bounds(model, c, r, tolerance_m, margin_m, jobs))
+                sub = sub_cell_bounds(model, c, r, tolerance_m, margin_m, jobs, progress)
+                upper[close] = np.minimum(upper[close], sub)
             return arrays[:-3], endpoint, upper
         arrays = _split(arrays, rows)
         for column in arrays[-3:]:  # children get their own endpoint bounds
@@ -322,12 +414,13 @@ def split_strips(
     margin_m: float,
     tolerance_m: float,
     config: RangeCertificateConfig,
+    progress: ProgressCallback | None = None,
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
     """Replace the smallest cells certified collision-free that miss the margin without being
     proven infeasible, and lie near a contour, by their 2^``config.strip_split`` strips along W
     (module docstring). ``leaves`` = [depth, i_L, i_W, clearance bound, lowest clearance at a
     box centre]; returns the leaves [depth, i_L, i_W, clearance bound], their ``split_W``,
-    endpoint and infeasibility bounds."""
+    endpoint and infeasibility bounds. ``progress`` gets "range map: strips" in strips."""
     depth, i_l, i_w, bound, centre = leaves
     leaves = leaves[:4]
     split = np.zeros(depth.size, dtype=np.int64)
@@ -349,7 +442,16 @@ def split_strips(
     cuts = [*column_starts[::_STRIP_COLUMNS].tolist(), s_l.size]
     chunks = [slice(a, b) for a, b in itertools.pairwise(cuts)]
     parts = _in_chunks(
-        strip_bounds, chunks, config.jobs, model, (c, r, floor, s_l), margin_m, tolerance_m, config.max_depth_s
+        strip_bounds,
+        chunks,
+        config.jobs,
+        model,
+        (c, r, floor, s_l),
+        margin_m,
+        tolerance_m,
+        config.max_depth_s,
+        progress=progress,
+        stage=PROGRESS_STAGES[3],
     )
     s_bound, s_endpoint, s_upper = np.concatenate(parts).T
     keep = ~rows
@@ -389,12 +491,19 @@ def statuses(bound: np.ndarray, upper: np.ndarray, margin_m: float) -> np.ndarra
     return status
 
 
-def certify_range(coefficients: Coefficients, config: RangeCertificateConfig | None = None) -> RegionMap:
+def certify_range(
+    coefficients: Coefficients,
+    config: RangeCertificateConfig | None = None,
+    progress: ProgressCallback | None = None,
+) -> RegionMap:
     """Certify the whole fitted range of ``coefficients``: the region map (module docstring).
 
     Args:
         coefficients: Loaded coefficients (any family with jets; the paper's Eq. 9 too).
         config: Settings; default :class:`RangeCertificateConfig`.
+        progress: Called as work finishes, ``progress(stage, done, total)`` for the stages of
+            :data:`PROGRESS_STAGES` that have work (e.g. :class:`pipeline.io.progress.ProgressBars`);
+            the map does not depend on it.
 
     Returns:
         The :class:`RegionMap`, linked to the coefficients by their sha256.
@@ -404,12 +513,18 @@ def certify_range(coefficients: Coefficients, config: RangeCertificateConfig | N
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     model = RangeModel.from_coefficients(coefficients)
     settings = config.search_settings(margin)
-    boxes = run_search(model, settings, config.jobs)
+    boxes = run_search(model, settings, config.jobs, progress)
     leaves, endpoint, upper = refine_leaves(
-        model, list(leaves_from_boxes(boxes)), margin, config.endpoint_tolerance_m, config.max_depth_lw, config.jobs
+        model,
+        list(leaves_from_boxes(boxes)),
+        margin,
+        config.endpoint_tolerance_m,
+        config.max_depth_lw,
+        config.jobs,
+        progress,
     )
     (d, il, iw, bound), split, endpoint, upper = split_strips(
-        model, leaves, endpoint, upper, margin, config.endpoint_tolerance_m, config
+        model, leaves, endpoint, upper, margin, config.endpoint_tolerance_m, config, progress
     )
     seconds = time.perf_counter() - start
     return RegionMap(

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.certify.clearance_bound import FLOAT_SLACK_M
+from pipeline.certify.interval import FLOAT_SLACK_M
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
 from pipeline.io.jsonio import json_safe, read_json, write_text_atomic
 from pipeline.validation import check_non_negative
@@ -46,6 +46,8 @@ FORMAT = "twolink-region-map/2"
 #: Formats read: /1 has no ``split_W`` column (every leaf a quadtree node).
 READABLE_FORMATS = ("twolink-region-map/1", FORMAT)
 STATUSES: tuple[str, ...] = ("margin", "collision_free", "infeasible", "undecided")
+#: File name of the map written beside a coefficients file.
+DEFAULT_MAP_NAME = "region_map.json"
 _COLUMNS = (
     "depth",
     "index_L",
@@ -389,7 +391,7 @@ class RegionMap:
                     [_number(v, math.inf) for v in cells["endpoint_clearance_upper_m"]]
                 ),
                 status=np.array(status, dtype=np.int64),
-                seconds=float(document.get("summary", {}).get("seconds", math.nan)),  # files before 2026-11-23
+                seconds=float(document.get("summary", {}).get("seconds", math.nan)),  # NaN unless the summary has it
                 details=dict(document.get("details", {})),
                 split_w=np.array(cells.get("split_W", [0] * len(status)), dtype=np.int64),
             )
@@ -448,9 +450,14 @@ def _number(value, infinite: float) -> float:
     return infinite if value is None else float(value)
 
 
+def region_map_text(region_map: RegionMap) -> str:
+    """The map's file content: compact JSON, newline-terminated (the bytes its sha256 is of)."""
+    return json.dumps(json_safe(region_map.to_json()), separators=(",", ":"), allow_nan=False) + "\n"
+
+
 def save_region_map(region_map: RegionMap, path: str | Path, overwrite: bool = True) -> str:
     """Write the map atomically as compact JSON; returns the sha256 of the bytes written."""
-    text = json.dumps(json_safe(region_map.to_json()), separators=(",", ":"), allow_nan=False) + "\n"
+    text = region_map_text(region_map)
     write_text_atomic(path, text, overwrite)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 

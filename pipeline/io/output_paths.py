@@ -50,16 +50,25 @@ def check_output_folder(folder: str | Path | None, option: str) -> Path | None:
 
 
 def check_output_file(path: str | Path | None, option: str) -> Path | None:
-    """Check, before any work and creating nothing, that ``path`` can be written as a file
-    (replacing an existing file; missing folders are created when it is written). None passes.
+    """Check, before any work and creating nothing, that ``path`` can be written as a file in an
+    existing folder (replacing an existing file). None passes.
 
     Raises:
-        InvalidParameterError: the path is a folder, under a file, or not writable.
+        InvalidParameterError: the path is a folder or ends in a separator, its folder does not
+            exist or is a file, or it is not writable.
     """
     if path is None:
         return None
+    text = os.fspath(path)
+    if isinstance(text, str) and text.endswith(("/", os.sep)):
+        raise InvalidParameterError(option, text, "a file name, not a folder (it ends in a path separator)")
     path = Path(path)
     if path.is_dir():
         raise InvalidParameterError(option, str(path), "a file name, not a folder")
-    _check_creatable_under(path.parent, option, str(path))
+    folder = path.parent
+    if folder.exists() and not folder.is_dir():
+        raise InvalidParameterError(option, str(path), f"a path whose parent {folder} is a folder, not a file")
+    if not folder.exists():
+        raise InvalidParameterError(option, str(path), f"a file in an existing folder ({folder} does not exist)")
+    _check_creatable_under(folder, option, str(path))
     return path

@@ -14,6 +14,13 @@ same whatever the chunking.
 
 Ctrl-C (or any error) cancels the chunks not yet started and shuts the pool down before the
 exception propagates.
+
+A worker started with ``spawn`` imports the main module of the program again. A script that
+starts a pool must therefore do so under ``if __name__ == "__main__":``; without it each worker
+would start the work again, and multiprocessing stops it: the pool breaks, and
+:func:`process_map` raises :class:`pipeline.exceptions.WorkerPoolError`, which says so. In a
+worker that is still importing the main module, :func:`process_map` ends the worker quietly
+instead of starting a pool of its own, so the message is the parent's alone.
 """
 
 from __future__ import annotations
@@ -22,10 +29,12 @@ import math
 import multiprocessing
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_EXCEPTION, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from typing import TypeVar
 
 import numpy as np
 
+from pipeline.exceptions import WorkerPoolError
 from pipeline.validation import check_positive_int
 
 Item = TypeVar("Item")
@@ -73,6 +82,8 @@ def process_map(
 
     Raises:
         InvalidParameterError: ``jobs`` or ``chunk_size`` < 1.
+        WorkerPoolError: a worker process died, or this is a worker still importing the main
+            script (a script without a ``__main__`` guard).
         Whatever ``function`` raises (the first failing chunk's error), or KeyboardInterrupt.
     """
     check_positive_int("jobs", jobs, minimum=1)
@@ -97,6 +108,10 @@ def _pool_map(
     jobs: int,
     report: Callable[[list[Result]], None],
 ) -> list[Result]:
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        # A spawned worker re-running an unguarded script: end it quietly; the parent's pool
+        # breaks and raises WorkerPoolError, which says why (one message, not one per worker).
+        raise SystemExit(1)
     done: list[list[Result] | None] = [None] * len(chunks)
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
     try:
@@ -107,6 +122,9 @@ def _pool_map(
                 index = pending.pop(future)
                 done[index] = future.result()
                 report(done[index])
+    except BrokenProcessPool:
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise WorkerPoolError("a worker process ended abruptly") from None
     except BaseException:
         pool.shutdown(wait=True, cancel_futures=True)
         raise

@@ -9,6 +9,7 @@ segment with a radius: the geometry the fast clearance route reproduces exactly.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import coal
@@ -18,8 +19,10 @@ import pinocchio as pin
 from pipeline.exceptions import RobotModelError
 from pipeline.model.kinematics import forward_kinematics, reach_annulus_m
 
-#: The paper's arm, shipped with the project.
-DEFAULT_URDF = Path(__file__).resolve().parents[2] / "urdf" / "planar_2link.urdf"
+#: The paper's arm, shipped inside the package (``pipeline/data``; ``urdf/`` of a clone links to it).
+DEFAULT_URDF = Path(str(resources.files("pipeline") / "data" / "planar_2link.urdf"))
+#: File name of another arm's URDF, copied beside the coefficients by the build (the arm travels with them).
+ARM_FILE_NAME = "arm.urdf"
 
 _TOL = 1e-9
 

@@ -8,14 +8,17 @@ and the outer shape has rounded vertical edges (the corners of the footprint).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import coal
 import numpy as np
-import pinocchio as pin
 
 from pipeline.exceptions import InvalidParameterError
 from pipeline.model.scene import Scene
 from pipeline.validation import check_finite, check_non_negative, check_positive
+
+if TYPE_CHECKING:
+    import coal
+    import pinocchio as pin
 
 
 @dataclass(frozen=True)
@@ -67,10 +70,14 @@ class Obstacle:
     @property
     def placement(self) -> pin.SE3:
         """Pose of the box in the base frame (axis-aligned)."""
+        import pinocchio as pin  # the online generator builds obstacles without Pinocchio
+
         return pin.SE3(np.eye(3), self.center_m)
 
     def coal_shape(self) -> coal.Box:
         """A new Coal box with swept-sphere radius: the rounded obstacle in its own frame."""
+        import coal  # the online generator builds obstacles without Coal
+
         box = coal.Box(*(2.0 * self.core_half_extents_m))
         box.setSweptSphereRadius(self.corner_radius_m)
         return box

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import warnings
 from dataclasses import dataclass, field, replace
 from importlib import resources
@@ -52,6 +53,10 @@ class Coefficients:
         extra: Everything else in the file (fit quality, provenance), kept as read.
         source: Where the coefficients came from (a path or PAPER_SOURCE).
         source_sha256: SHA-256 of the file's bytes.
+        region_map: The range certificate of these coefficients (a
+            :class:`pipeline.certify.region_map.RegionMap` whose sha256 link matches
+            ``source_sha256``), attached by :func:`pipeline.read_coefficients`; None without one.
+            The generator's answers carry its bounds.
     """
 
     family: TrajectoryFamily
@@ -64,6 +69,7 @@ class Coefficients:
     extra: dict = field(default_factory=dict)
     source: str = ""
     source_sha256: str = ""
+    region_map: object = field(default=None, repr=False)
 
     @property
     def converged(self) -> bool:
@@ -199,16 +205,22 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
     )
 
 
-def load_coefficients(source: str | Path) -> Coefficients:
-    """Load a coefficients file, or the paper's Eq. 9 for :data:`PAPER_SOURCE`.
+def read_coefficients(source: str | Path) -> Coefficients:
+    """Read a coefficients file, or the paper's Eq. 9 for :data:`PAPER_SOURCE` (no region map:
+    :func:`pipeline.online.loading.read_coefficients` attaches one).
 
     Warns:
         UnconvergedCoefficientsWarning: the file is marked ``"converged": false`` (a build
             with ``--allow-unconverged`` that missed its thresholds).
 
     Raises:
+        InvalidParameterError: ``source`` is not a path.
         DataFileError: the file is missing, unreadable, not JSON, or malformed.
     """
+    if isinstance(source, bytes) or not isinstance(source, str | os.PathLike):
+        raise InvalidParameterError(
+            "coefficients", source, f"a coefficients file path or {PAPER!r}, not {type(source).__name__}"
+        )
     path = paper_data_path("paper_eq9_coefficients.json") if str(source) == PAPER else Path(source)
     document = read_json(path)
     sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
@@ -219,7 +231,7 @@ def load_coefficients(source: str | Path) -> Coefficients:
         warnings.warn(
             f"{label} was written by a build that did not converge (--allow-unconverged): {reasons}",
             UnconvergedCoefficientsWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
     return coefficients
 

@@ -1,20 +1,7 @@
-"""The online stage: the generator (coefficients + (L, W) -> trajectory), the arm check and certify-or-repair."""
+"""The online stage: loading coefficients with their region map, the generator (coefficients +
+(L, W) -> trajectory, NumPy only), and, in their own modules, the arm check and
+certify-or-repair (Pinocchio and Coal: ``arm_check``, ``repair``, ``batch_certify``).
 
-from pipeline.online.arm_check import check_arm_matches
-from pipeline.online.batch import CertifiedBatch, GeneratedBatch, certify_batch, generate_batch
-from pipeline.online.generator import GeneratedTrajectory, generate, generate_parameters
-from pipeline.online.repair import CertifiedTrajectory, RepairConfig, generate_certified
-
-__all__ = [
-    "CertifiedBatch",
-    "CertifiedTrajectory",
-    "GeneratedBatch",
-    "GeneratedTrajectory",
-    "RepairConfig",
-    "certify_batch",
-    "check_arm_matches",
-    "generate",
-    "generate_batch",
-    "generate_certified",
-    "generate_parameters",
-]
+This package's ``__init__`` imports nothing heavy, so that a controller-side program that only
+generates needs NumPy alone; the public API is :mod:`pipeline`.
+"""

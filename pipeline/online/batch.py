@@ -7,8 +7,8 @@ For sweeps (``verify.sweep`` and the like), where per-query Python overhead woul
   obstacle's inverse kinematics is expanded per obstacle). The numbers equal :func:`generate`'s
   (tests compare them); sizes :func:`generate` would refuse are reported per obstacle in
   ``error`` instead of raising, so one bad case does not stop a sweep.
-* :func:`certify_batch` runs the adaptive certificate (Coal) on each of them and returns the bounds
-  and evaluation counts as arrays.
+
+:func:`pipeline.online.batch_certify.certify_batch` certifies such a batch with Coal. NumPy only here.
 """
 
 from __future__ import annotations
@@ -18,17 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.certify.region_map import RegionMap
-from pipeline.exceptions import InvalidParameterError, PipelineError, RegionMapMismatchError
-from pipeline.geometry.clearance import COAL, ClearanceRoute
-from pipeline.geometry.motion_certificate import DEFAULT_TOLERANCE_M
-from pipeline.geometry.sinusoid_certificate import certify_trajectory
-from pipeline.model.arm import PlanarArm
-from pipeline.model.obstacle import Obstacle
+from pipeline.exceptions import InvalidParameterError, PipelineError
 from pipeline.motion.path import symmetric_quartic, symmetric_quartic_lengths_m
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
-from pipeline.online.arm_check import check_arm_matches
-from pipeline.online.generator import generate, query_plan
+from pipeline.online.generator import ATTACHED, _Attached, check_region_map, generate, query_plan
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,29 +59,42 @@ class GeneratedBatch:
 
 
 def generate_batch(
-    coefficients: Coefficients, lengths_m: np.ndarray, widths_m: np.ndarray, *, region_map: RegionMap | None = None
+    coefficients: Coefficients,
+    lengths_m: np.ndarray,
+    widths_m: np.ndarray,
+    *,
+    region_map: RegionMap | _Attached | None = ATTACHED,
 ) -> GeneratedBatch:
     """:func:`pipeline.online.generator.generate` for n obstacles at once (range checks off: see ``extrapolated``).
 
     Args:
         coefficients: The regression coefficients.
-        lengths_m, widths_m: Obstacle sizes L, W [m], equal shapes (n,).
-        region_map: The coefficients' range certificate: the answers then carry its bounds.
+        lengths_m, widths_m: Obstacle sizes L, W [m], one-dimensional, equal length n (a scalar is n = 1).
+        region_map: :data:`pipeline.online.generator.ATTACHED` (default) the map attached to the
+            coefficients, None no bounds, or another map of these coefficients: the answers then
+            carry its bounds.
 
     Raises:
-        InvalidParameterError: the arrays are not numbers of equal one-dimensional shape.
+        InvalidParameterError: ``coefficients`` is not a Coefficients, or the arrays are not
+            numbers of equal one-dimensional shape.
         RegionMapMismatchError: ``region_map`` was made for other coefficients.
     """
-    if region_map is not None and not region_map.belongs_to(coefficients):
-        raise RegionMapMismatchError(region_map.coefficients_sha256, coefficients.source_sha256)
+    plan = query_plan(coefficients)
+    if region_map is ATTACHED:
+        region_map = coefficients.region_map
+    elif region_map is not None:
+        check_region_map(region_map, coefficients)
     try:
-        L = np.asarray(lengths_m, dtype=float).ravel()
-        W = np.asarray(widths_m, dtype=float).ravel()
+        L = np.atleast_1d(np.asarray(lengths_m, dtype=float))
+        W = np.atleast_1d(np.asarray(widths_m, dtype=float))
     except (TypeError, ValueError):
         raise InvalidParameterError("lengths_m / widths_m", "not numbers", "arrays of sizes [m]") from None
+    if L.ndim != 1 or W.ndim != 1:
+        raise InvalidParameterError(
+            "lengths_m / widths_m", (L.shape, W.shape), "one-dimensional arrays (flatten a grid with .ravel())"
+        )
     if L.shape != W.shape:
         raise InvalidParameterError("lengths_m / widths_m", (L.shape, W.shape), "arrays of equal length")
-    plan = query_plan(coefficients)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         x1, x2 = L / 2.0 + plan.start_dx, L / 2.0 + plan.approach_dx
         bottom = plan.top - W
@@ -134,70 +141,3 @@ def generate_batch(
             np.where(bad, -1, cells["status"]),
         )
     return GeneratedBatch(L, W, np.asarray(parameters, dtype=float), durations, extrapolated, tuple(errors), *bounds)
-
-
-@dataclass(frozen=True, eq=False)
-class CertifiedBatch:
-    """The adaptive certificate of n trajectories (NaN / 0 where the batch had no answer).
-
-    Attributes:
-        certified_clearance_m: Rigorous lower bounds over [0, T] [m], shape (n,).
-        sampled_clearance_m: Minimum over the initial samples [m], shape (n,).
-        evaluations: Clearance evaluations (configurations) per trajectory, shape (n,).
-        decide_above_m: The decide-mode threshold used [m], or None (tolerance mode).
-    """
-
-    certified_clearance_m: np.ndarray
-    sampled_clearance_m: np.ndarray
-    evaluations: np.ndarray
-    decide_above_m: float | None
-
-
-def certify_batch(
-    coefficients: Coefficients,
-    batch: GeneratedBatch,
-    arm: PlanarArm,
-    *,
-    route: ClearanceRoute = COAL,
-    decide_above_m: float | None = None,
-    tolerance_m: float = DEFAULT_TOLERANCE_M,
-) -> CertifiedBatch:
-    """Certify every answer of ``batch`` (the adaptive route of
-    :func:`pipeline.geometry.sinusoid_certificate.certify`), after one arm check.
-
-    Args:
-        coefficients: The coefficients of the batch (their scene places the obstacles).
-        batch: From :func:`generate_batch`.
-        arm: The arm the coefficients were fitted for.
-        route: Clearance route (Coal, canonical).
-        decide_above_m: Only decide whether each clearance exceeds this [m] (fastest). A bound above
-            it also certifies the case collision-free; a case at or below it (where refinement
-            stopped at the first sample below the threshold) is certified again deciding 0, so that
-            ``certified_clearance_m > 0`` always answers "collision-free?" and ``> decide_above_m``
-            "keeps the margin?". None: tolerance mode (bounds within ``tolerance_m`` of the sampled
-            minimum; several times slower).
-        tolerance_m: Tolerance of the bound [m].
-
-    Raises:
-        ArmMismatchError: the arm differs from the coefficients'.
-    """
-    check_arm_matches(coefficients, arm)
-    n = batch.lengths_m.size
-    certified, sampled, evaluations = np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, dtype=int)
-    scene = coefficients.scene
-    for i in range(n):
-        if batch.error[i] is not None:
-            continue
-        obstacle = Obstacle.in_scene(float(batch.lengths_m[i]), float(batch.widths_m[i]), scene)
-        certificate = certify_trajectory(
-            batch.trajectory(i), arm, obstacle, route=route, decide_above_m=decide_above_m, tolerance_m=tolerance_m
-        )
-        evaluations[i] = certificate.evaluations
-        if decide_above_m is not None and decide_above_m > 0.0 and certificate.certified_clearance_m <= decide_above_m:
-            certificate = certify_trajectory(
-                batch.trajectory(i), arm, obstacle, route=route, decide_above_m=0.0, tolerance_m=tolerance_m
-            )
-            evaluations[i] += certificate.evaluations
-        certified[i] = certificate.certified_clearance_m
-        sampled[i] = certificate.sampled_clearance_m
-    return CertifiedBatch(certified, sampled, evaluations, decide_above_m)

@@ -13,6 +13,8 @@ path's duration T. Per query the generator does only what the answer needs, once
 The answer's :class:`pipeline.model.obstacle.Obstacle` and :class:`pipeline.motion.path.QuarticPath`
 are built only when asked for (lazily, then cached); their T equals the answer's to the last bit.
 No URDF, Pinocchio or Coal is needed here: the arm's link lengths come from the coefficients file.
+The certified bounds come from the region map attached to the coefficients
+(:func:`pipeline.online.loading.load_coefficients`): a lookup in microseconds.
 """
 
 from __future__ import annotations
@@ -22,13 +24,11 @@ import warnings
 import weakref
 from dataclasses import dataclass, field
 from functools import cached_property
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME
-from pipeline.certify.region_map import RegionMap, load_region_map
+from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import (
     InexactEndpointsWarning,
     InvalidParameterError,
@@ -41,7 +41,7 @@ from pipeline.exceptions import (
 from pipeline.model.kinematics import inverse_kinematics, reach_annulus_m
 from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
-from pipeline.motion.families import PAPER_SOURCE, EndpointContext, TrajectoryFamily
+from pipeline.motion.families import EndpointContext, TrajectoryFamily
 from pipeline.motion.path import QuarticPath, desired_path, symmetric_quartic, symmetric_quartic_length_m
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
@@ -163,8 +163,46 @@ class QueryPlan(NamedTuple):
 _PLANS: weakref.WeakKeyDictionary[Coefficients, QueryPlan] = weakref.WeakKeyDictionary()
 
 
+class _Attached:
+    """The type of :data:`ATTACHED`."""
+
+    def __repr__(self) -> str:
+        return "ATTACHED"
+
+
+#: ``region_map=ATTACHED`` (the default of :func:`generate`): the map attached to the coefficients.
+ATTACHED = _Attached()
+
+
+def _refuse_coefficients(coefficients: object) -> InvalidParameterError:
+    return InvalidParameterError(
+        "coefficients",
+        coefficients if isinstance(coefficients, str | int | float | type(None)) else type(coefficients).__name__,
+        "a Coefficients object from pipeline.load_coefficients(path)",
+    )
+
+
+def check_region_map(region_map: object, coefficients: Coefficients) -> None:
+    """Refuse a ``region_map=`` argument that is not a map of exactly these coefficients.
+
+    Raises:
+        InvalidParameterError: not a :class:`RegionMap`.
+        RegionMapMismatchError: a map of other coefficients.
+    """
+    if not isinstance(region_map, RegionMap):
+        raise InvalidParameterError("region_map", type(region_map).__name__, "a RegionMap, ATTACHED or None")
+    if not region_map.belongs_to(coefficients):
+        raise RegionMapMismatchError(region_map.coefficients_sha256, coefficients.source_sha256)
+
+
 def query_plan(coefficients: Coefficients) -> QueryPlan:
-    """The :class:`QueryPlan` of ``coefficients``, built on first use and kept while they live."""
+    """The :class:`QueryPlan` of ``coefficients``, built on first use and kept while they live.
+
+    Raises:
+        InvalidParameterError: ``coefficients`` is not a :class:`Coefficients` (e.g. a path).
+    """
+    if not isinstance(coefficients, Coefficients):
+        raise _refuse_coefficients(coefficients)
     plan = _PLANS.get(coefficients)
     if plan is None:
         scene = coefficients.scene
@@ -222,36 +260,46 @@ def generate(
     width_m: float,
     *,
     out_of_range: str = "warn",
-    region_map: RegionMap | None = None,
+    region_map: RegionMap | _Attached | None = ATTACHED,
 ) -> GeneratedTrajectory:
     """The trajectory for the obstacle L x W [m] from regression coefficients.
 
     Args:
-        coefficients: Loaded with :func:`pipeline.offline.coefficients.load_coefficients`.
+        coefficients: Loaded with :func:`pipeline.load_coefficients` (with their region map attached).
         length_m, width_m: Obstacle size [m] (int or float; not strings).
         out_of_range: What to do outside the fitted range: "warn" (an
             OutOfFittedRangeWarning), "error" (OutOfFittedRangeError) or "ignore".
-        region_map: The range certificate of these coefficients (:func:`load_region_map_beside`);
-            inside the fitted range the answer then carries its certified clearance and endpoint
-            bounds (``certificate_source == "range"``), found in microseconds.
+        region_map: The range certificate to read the bounds from: :data:`ATTACHED` (default) the
+            map attached to the coefficients (``coefficients.region_map``), None no bounds, or
+            another map of these coefficients. Inside the fitted range the answer then carries
+            its certified clearance and endpoint bounds (``certificate_source == "range"``),
+            found in microseconds.
 
     Raises:
+        InvalidParameterError: ``coefficients`` is not a :class:`Coefficients`; an unknown
+            ``out_of_range`` policy.
         ObstacleSizeError (an InvalidParameterError): L or W not a number, not finite and positive,
             smaller than twice the corner radius, or W covering the arm's base; the message names L and W.
         UnreachableObstacleError: the path around this obstacle leaves the arm's reach.
         OutOfFittedRangeError: outside the fitted range with ``out_of_range="error"``.
-        InvalidParameterError: an unknown ``out_of_range`` policy.
         RegionMapMismatchError: ``region_map`` was made for other coefficients.
     """
-    if region_map is not None and not region_map.belongs_to(coefficients):
-        raise RegionMapMismatchError(region_map.coefficients_sha256, coefficients.source_sha256)
+    try:
+        plan = _PLANS.get(coefficients)
+    except TypeError:  # not weak-referenceable: not a Coefficients
+        raise _refuse_coefficients(coefficients) from None
+    if plan is None:
+        plan = query_plan(coefficients)
+    if region_map is ATTACHED:
+        region_map = coefficients.region_map
+    elif region_map is not None:
+        check_region_map(region_map, coefficients)
     if out_of_range not in OUT_OF_RANGE_POLICIES:
         raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
     L, W = length_m, width_m
     if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
         L = _size(length_m, (length_m, width_m), "L")
         W = _size(width_m, (length_m, width_m), "W")
-    plan = _PLANS.get(coefficients) or query_plan(coefficients)
     matrix_t, (l_lo, l_hi), (w_lo, w_hi), reach, top, y1 = plan[:6]
     start_dx, approach_dx, approach_dy, apex_dy, speed = plan[6:11]
     smallest = plan.smallest
@@ -335,15 +383,3 @@ def generate_parameters(coefficients: Coefficients, lengths_m: np.ndarray, width
 
 #: ``certificate_source`` of an answer whose bounds come from the range certificate.
 RANGE_SOURCE = "range"
-
-
-def load_region_map_beside(coefficients: Coefficients) -> RegionMap | None:
-    """The region map written beside the coefficients file by the build (``region_map.json``),
-    or None if there is none or it was made for other coefficients (an older build)."""
-    if not coefficients.source or coefficients.source == PAPER_SOURCE:
-        return None
-    path = Path(coefficients.source).with_name(DEFAULT_MAP_NAME)
-    if not path.is_file():
-        return None
-    region_map = load_region_map(path)
-    return region_map if region_map.belongs_to(coefficients) else None

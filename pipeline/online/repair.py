@@ -1,6 +1,7 @@
 """Certify-or-repair: the online generator that never returns an uncertified trajectory as safe.
 
-0. Refuse an arm the coefficients were not fitted for (:func:`pipeline.online.arm_check.check_arm_matches`).
+0. Take the arm recorded with the coefficients (:func:`pipeline.online.arm_check.arm_for`), or
+   refuse a given arm they were not fitted for (:func:`pipeline.online.arm_check.check_arm_matches`).
 1. Generate the trajectory from the regression (:func:`pipeline.online.generator.generate`).
 2. Certify it (:func:`pipeline.geometry.sinusoid_certificate.certify_trajectory`, adaptive, Coal): a
    rigorous lower bound on the clearance over the whole of [0, T]; by default it only decides
@@ -13,6 +14,9 @@
    the build's buffer, and bounded in wall time and evaluations; then certify again. Its wall
    time is returned (``CertifiedTrajectory.repair_seconds``).
 4. Return the trajectory with its certificate, or raise NoCertifiedTrajectoryError saying why.
+   A refusal quotes a tight bound (within :data:`pipeline.geometry.motion_certificate.DEFAULT_TOLERANCE_M`
+   of the sampled minimum) of the best trajectory tried, never a decide-mode bound, which only
+   says "below the margin" and may lie far below the clearance.
 """
 
 from __future__ import annotations
@@ -25,16 +29,16 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from pipeline.certify.region_map import RegionMap
-from pipeline.exceptions import NoCertifiedTrajectoryError
+from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError
 from pipeline.geometry.clearance import COAL, ClearanceRoute, CoalClearance
-from pipeline.geometry.motion_certificate import Certificate
+from pipeline.geometry.motion_certificate import DEFAULT_TOLERANCE_M, Certificate
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.arm import PlanarArm
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.fitness import FitnessConfig, FitnessProblem, fitness_problem
-from pipeline.online.arm_check import check_arm_matches
-from pipeline.online.generator import GeneratedTrajectory, generate
+from pipeline.online.arm_check import arm_for, check_arm_matches
+from pipeline.online.generator import ATTACHED, GeneratedTrajectory, _Attached, generate
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
 
@@ -190,35 +194,44 @@ def generate_certified(
     coefficients: Coefficients,
     length_m: float,
     width_m: float,
-    arm: PlanarArm,
+    arm: PlanarArm | None = None,
     *,
     out_of_range: str = "warn",
     config: RepairConfig | None = None,
-    region_map: RegionMap | None = None,
+    region_map: RegionMap | _Attached | None = ATTACHED,
 ) -> CertifiedTrajectory:
     """Generate, certify and if needed repair the trajectory for the obstacle L x W [m].
 
     Args:
         coefficients: The regression coefficients.
         length_m, width_m: Obstacle size [m].
-        arm: The arm; it must be the one the coefficients were fitted for.
+        arm: The arm; None (default): the one recorded with the coefficients
+            (:func:`pipeline.online.arm_check.arm_for`); a given arm must be the one they were fitted for.
         out_of_range: As :func:`pipeline.online.generator.generate`.
         config: Margin, route, repair budget, certificate mode.
-        region_map: The range certificate of the coefficients: inside a cell certified to keep at
+        region_map: The range certificate of the coefficients (default: the one attached to them,
+            as :func:`pipeline.online.generator.generate`): inside a cell certified to keep at
             least the margin the answer is returned at once, its bound taken from the map; elsewhere
             the per-query certify-or-repair runs.
 
     Raises:
+        InvalidParameterError: ``config`` is not a RepairConfig, ``arm`` not a PlanarArm.
+        DataFileError: ``arm`` is None and the recorded arm's URDF is missing.
         ArmMismatchError: the arm's link lengths or radii differ from the coefficients'.
         NoCertifiedTrajectoryError: neither the regression's answer nor its repair has a
             certified clearance of at least the margin.
         InvalidParameterError, UnreachableObstacleError, OutOfFittedRangeError: as
             :func:`pipeline.online.generator.generate`.
     """
-    check_arm_matches(coefficients, arm)
     config = _DEFAULT_CONFIG if config is None else config
-    margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
+    if not isinstance(config, RepairConfig):
+        raise InvalidParameterError("config", type(config).__name__, "a RepairConfig or None")
     generated = generate(coefficients, length_m, width_m, out_of_range=out_of_range, region_map=region_map)
+    if arm is None:
+        arm = arm_for(coefficients)
+    else:
+        check_arm_matches(coefficients, arm)
+    margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     if (
         generated.certificate_source is not None
         and generated.range_status == "margin"
@@ -238,7 +251,7 @@ def generate_certified(
         return CertifiedTrajectory(generated, first, margin, False, first, 0.0)
     if not config.repair:
         raise NoCertifiedTrajectoryError(
-            generated.length_m, generated.width_m, first.certified_clearance_m, margin, "repair disabled"
+            generated.length_m, generated.width_m, _tight(first, generated, arm, config), margin, "repair disabled"
         )
     started = time.perf_counter()
     repaired = _repair(generated, arm, coefficients, config)
@@ -247,10 +260,24 @@ def generate_certified(
     if second.certified_clearance_m >= margin:
         fixed = replace(generated, trajectory=repaired)
         return CertifiedTrajectory(fixed, second, margin, True, first, seconds)
-    best = max(first.certified_clearance_m, second.certified_clearance_m)
+    best = max(
+        _tight(first, generated, arm, config),
+        _tight(second, replace(generated, trajectory=repaired), arm, config),
+    )
     raise NoCertifiedTrajectoryError(
         generated.length_m, generated.width_m, best, margin, _refusal_reason(generated, arm, coefficients, margin)
     )
+
+
+def _tight(certificate: Certificate, generated: GeneratedTrajectory, arm: PlanarArm, config: RepairConfig) -> float:
+    """The certified clearance of ``generated`` to quote in a refusal [m]: ``certificate``'s if it
+    was tightened, else a tight certificate's (a decide-mode bound below the margin only says so)."""
+    if config.certificate_tolerance_m is not None:
+        return certificate.certified_clearance_m
+    tight = certify_trajectory(
+        generated.trajectory, arm, generated.obstacle, route=config.route, tolerance_m=DEFAULT_TOLERANCE_M
+    )
+    return tight.certified_clearance_m
 
 
 def _refusal_reason(generated: GeneratedTrajectory, arm: PlanarArm, coefficients: Coefficients, margin: float) -> str:

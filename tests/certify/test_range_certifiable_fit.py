@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeline import load_coefficients
 from pipeline.certify.certifiable_regression import (
     CertifiableFitConfig,
     clearance_at,
@@ -25,13 +26,7 @@ from pipeline.model.arm import PlanarArm
 from pipeline.model.kinematics import inverse_kinematics
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline.coefficients import (
-    Coefficients,
-    fit_coefficients,
-    load_coefficients,
-    paper_data_path,
-    save_coefficients,
-)
+from pipeline.offline.coefficients import Coefficients, fit_coefficients, paper_data_path, save_coefficients
 from pipeline.offline.doe import load_doe
 from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets
 from pipeline.online.generator import generate

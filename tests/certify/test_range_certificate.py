@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pipeline import load_coefficients
 from pipeline.certify.certifiable_regression import clearance_at, clearance_grid
 from pipeline.certify.clearance_bound import box_clearance_bounds
 from pipeline.certify.endpoints import (
@@ -30,7 +31,7 @@ from pipeline.model.kinematics import inverse_kinematics
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.families import family_from_name
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline.coefficients import Coefficients, fit_coefficients, load_coefficients, paper_data_path
+from pipeline.offline.coefficients import Coefficients, fit_coefficients, paper_data_path
 from pipeline.offline.doe import load_doe
 from pipeline.offline.endpoint_regression import EndpointConstraint
 from pipeline.online.generator import generate

@@ -11,11 +11,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pipeline.certify import RangeCertificateConfig, RegionMap, certify_range
+from pipeline import load_coefficients
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import RegionMapMismatchError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance
 from pipeline.model.arm import PlanarArm
-from pipeline.offline.coefficients import load_coefficients
 from pipeline.online.batch import generate_batch
 from pipeline.online.generator import RANGE_SOURCE, generate, load_region_map_beside
 from pipeline.online.repair import generate_certified

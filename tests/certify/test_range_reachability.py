@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeline import load_coefficients
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.reachability import best_clearance_at, in_family, witness_lines, witnesses_for_map
 from pipeline.exceptions import InvalidParameterError
@@ -19,7 +20,7 @@ from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import JointTrajectory
-from pipeline.offline.coefficients import Coefficients, fit_coefficients, load_coefficients, paper_data_path
+from pipeline.offline.coefficients import Coefficients, fit_coefficients, paper_data_path
 from pipeline.offline.doe import load_doe
 from pipeline.offline.endpoint_regression import EndpointConstraint
 

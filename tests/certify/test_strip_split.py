@@ -10,6 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from pipeline import load_coefficients
 from pipeline.certify import strip_split
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.range_model import RangeModel
@@ -21,7 +22,7 @@ from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, an
 from pipeline.model.arm import PlanarArm
 from pipeline.model.kinematics import inverse_kinematics
 from pipeline.model.obstacle import Obstacle
-from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.offline.coefficients import Coefficients
 from pipeline.online.generator import generate
 
 #: The top strip of the default range, where Eq. 9's end poses lose the margin.

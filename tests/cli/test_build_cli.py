@@ -18,10 +18,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pipeline import build, regress
+from pipeline import load_coefficients
+from pipeline.commands import build, regress
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline import build as build_library
-from pipeline.offline.coefficients import load_coefficients, paper_data_path
+from pipeline.build import doe_fit as build_library
+from pipeline.offline.coefficients import paper_data_path
 from pipeline.offline.doe import load_doe
 from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
 from pipeline.offline.regression import fit_quadratic, predict

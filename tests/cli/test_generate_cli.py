@@ -15,12 +15,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from pipeline import load_coefficients
 from pipeline.model.arm import DEFAULT_URDF
 from pipeline.motion.families import EXACT_ENDPOINTS
-from pipeline.offline.coefficients import Coefficients, load_coefficients, save_coefficients
+from pipeline.offline.coefficients import Coefficients, save_coefficients
 from pipeline.online.generator import generate
 
-generate_module = importlib.import_module("pipeline.generate")
+generate_module = importlib.import_module("pipeline.commands.generate")
 
 
 def run(capsys, *argv: str) -> tuple[int, str, str]:

@@ -12,13 +12,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeline import load_coefficients
 from pipeline.exceptions import ArmMismatchError
 from pipeline.geometry.clearance import COAL, CoalClearance, PinocchioCoalClearance
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.obstacle import Obstacle
-from pipeline.offline.coefficients import load_coefficients
-from pipeline.online import check_arm_matches, generate, generate_certified
+from pipeline.online.arm_check import check_arm_matches
+from pipeline.online.generator import generate
+from pipeline.online.repair import generate_certified
 
 CLOSE_M = 5e-5  # adaptive vs dense bound [m]
 

@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline import build, regress
+from pipeline import load_coefficients
+from pipeline.commands import build, regress
 from pipeline.exceptions import (
     BuildNotConvergedError,
     InfeasibleSceneError,
@@ -24,9 +25,9 @@ from pipeline.exceptions import (
 from pipeline.model.scene import Scene
 from pipeline.motion.families import EXACT_ENDPOINTS, PAPER
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline import build as build_library
-from pipeline.offline.build import BuildConfig, run_build
-from pipeline.offline.coefficients import load_coefficients, paper_data_path
+from pipeline.build import doe_fit as build_library
+from pipeline.build import BuildConfig, run_build
+from pipeline.offline.coefficients import paper_data_path
 from pipeline.offline.convergence import (
     ConvergenceCriteria,
     end_pose_collisions,

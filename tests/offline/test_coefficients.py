@@ -12,18 +12,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from pipeline import load_coefficients
 from pipeline.exceptions import DataFileError, OutputExistsError
 from pipeline.model.scene import Scene
 from pipeline.motion.families import EXACT_ENDPOINTS
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline.coefficients import (
-    FORMAT,
-    Coefficients,
-    fit_coefficients,
-    load_coefficients,
-    paper_data_path,
-    save_coefficients,
-)
+from pipeline.offline.coefficients import FORMAT, Coefficients, fit_coefficients, paper_data_path, save_coefficients
 from pipeline.offline.doe import load_doe
 from pipeline.offline.regression import BASIS
 

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from pipeline import load_coefficients
 from pipeline.exceptions import InvalidParameterError
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline.coefficients import load_coefficients, paper_data_path
+from pipeline.offline.coefficients import paper_data_path
 from pipeline.offline.doe import load_doe
 from pipeline.offline.regression import BASIS, design_matrix, fit_quadratic, predict
 

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import pytest
 
-from pipeline import build
+from pipeline import load_coefficients
+from pipeline.commands import build
 from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.model.scene import SCENE_FIELDS, Scene, read_scene_file
-from pipeline.offline import build as build_library
-from pipeline.offline.build import scene_from_options
-from pipeline.offline.coefficients import load_coefficients
+from pipeline.build import doe_fit as build_library
+from pipeline.build import scene_from_options
 
 TINY_ARGV = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--plain", "--quiet", "--allow-unconverged"]
 

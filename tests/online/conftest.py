@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeline import load_coefficients
 from pipeline.motion.families import EXACT_ENDPOINTS
-from pipeline.offline.coefficients import Coefficients, fit_coefficients, load_coefficients, paper_data_path
+from pipeline.offline.coefficients import Coefficients, fit_coefficients, paper_data_path
 from pipeline.offline.doe import DoeData, load_doe
 
 

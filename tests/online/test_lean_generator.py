@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from pipeline import load_coefficients
 from pipeline.exceptions import (
     InvalidParameterError,
     ObstacleSizeError,
@@ -24,7 +25,7 @@ from pipeline.model.obstacle import Obstacle
 from pipeline.motion.families import EndpointContext
 from pipeline.motion.path import constraint_points, desired_path
 from pipeline.motion.trajectory import JointTrajectory
-from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.offline.coefficients import Coefficients
 from pipeline.online.generator import generate
 
 

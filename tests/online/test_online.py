@@ -8,10 +8,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from pipeline import load_coefficients
 from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError
 from pipeline.geometry.clearance import analytic_link_clearance
 from pipeline.motion.families import EXACT_ENDPOINTS
-from pipeline.offline.coefficients import load_coefficients
 from pipeline.online.generator import generate
 from pipeline.online.repair import RepairConfig, generate_certified
 

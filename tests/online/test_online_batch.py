@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeline import load_coefficients
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
-from pipeline.offline.coefficients import load_coefficients
-from pipeline.online.batch import certify_batch, generate_batch
+from pipeline.online.batch import generate_batch
+from pipeline.online.batch_certify import certify_batch
 from pipeline.online.generator import generate
 
 

@@ -18,13 +18,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pipeline import load_coefficients
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, default_config
 from pipeline.certify.range_certificate import RangeCertificateConfig
 from pipeline.certify.region_map import load_region_map, save_region_map
 from pipeline.cli import EXIT_OK, EXIT_USAGE, HelpFormatter
 from pipeline.exceptions import DataFileError, EndpointConstraintWarning, InvalidParameterError
 from pipeline.io.jsonio import write_json_atomic
-from pipeline.offline.coefficients import Coefficients, load_coefficients, save_coefficients
+from pipeline.offline.coefficients import Coefficients, save_coefficients
 from pipeline.online.generator import RANGE_SOURCE, generate
 from verify.acceptance.cases import SweepRange, sample_cases
 from verify.bench import build_parser, main
@@ -381,7 +382,7 @@ def test_malformed_build_timing_is_bad_input(capsys: pytest.CaptureFixture[str],
 
 
 def test_solver_config_takes_the_builds_settings_from_provenance() -> None:
-    from pipeline.offline.coefficients import load_coefficients
+    from pipeline import load_coefficients
 
     coefficients = load_coefficients("paper")
     config, source = bench_run.solver_config(coefficients, bench_results.BenchSettings())

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
+from pipeline import load_coefficients
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M
 from pipeline.model.arm import PlanarArm
@@ -17,7 +18,6 @@ from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import JointTrajectory
-from pipeline.offline.coefficients import load_coefficients
 from verify.acceptance.metrics import (
     AcceptanceThresholds,
     MeasureSettings,

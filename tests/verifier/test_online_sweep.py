@@ -119,8 +119,9 @@ def test_workers_refuse_a_coefficients_file_that_is_not_the_one_given(tmp_path):
 
     import numpy as np
 
+    from pipeline import load_coefficients
     from pipeline.exceptions import DataFileError
-    from pipeline.offline.coefficients import load_coefficients, save_coefficients
+    from pipeline.offline.coefficients import save_coefficients
     from pipeline.online.repair import RepairConfig
     from verify.acceptance.online import run_online_cases
 

@@ -20,6 +20,7 @@ import math
 import numpy as np
 import pytest
 
+from pipeline import load_coefficients
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import (
     COAL_DISTANCE_ERROR_M,
@@ -39,7 +40,6 @@ from pipeline.geometry.polyline_certificate import (
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
-from pipeline.offline.coefficients import load_coefficients
 from pipeline.online.generator import generate
 from verify.benchmark.ompl_planner import PlannerConfig, ompl_available, plan_rrt_connect, start_goal_configurations
 

@@ -16,11 +16,13 @@ import copy
 import numpy as np
 import pytest
 
-from pipeline.certify import RangeCertificateConfig, RegionMap, certify_range
+from pipeline import load_coefficients
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.region_map import RegionMap
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME
 from pipeline.certify.region_map import save_region_map
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M
-from pipeline.offline.coefficients import load_coefficients, save_coefficients
+from pipeline.offline.coefficients import save_coefficients
 from verify.acceptance.metrics import MeasureSettings
 from verify.acceptance.range_check import (
     ENDPOINT_SLACK_M,

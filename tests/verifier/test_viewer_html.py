@@ -327,8 +327,8 @@ def test_clearance_colours_run_from_red_to_green():
 
 
 def test_sweep_page_maps_every_case_and_animates_the_worst_ones(arm):
+    from pipeline import load_coefficients
     from pipeline.exceptions import UnreachableObstacleError
-    from pipeline.offline.coefficients import load_coefficients
     from verify.viewer.sweep_view import sweep_page
 
     def regenerate_or_fail(length_m, width_m):
@@ -361,7 +361,7 @@ def test_sweep_page_maps_every_case_and_animates_the_worst_ones(arm):
 
 
 def test_coefficients_regenerate_the_worst_cases_with_the_generator():
-    from pipeline.offline.coefficients import load_coefficients
+    from pipeline import load_coefficients
     from pipeline.online.generator import generate
     from verify.viewer.sweep_view import _regenerator
 
@@ -373,7 +373,7 @@ def test_coefficients_regenerate_the_worst_cases_with_the_generator():
 
 
 def test_a_case_result_and_its_json_form_are_the_same_point(arm):
-    from pipeline.offline.coefficients import load_coefficients
+    from pipeline import load_coefficients
     from verify.acceptance.metrics import MeasureSettings, measure_case
     from verify.acceptance.results import failed_case
     from verify.viewer.sweep_view import SweepPoint, sweep_points, worst_cases
@@ -427,7 +427,7 @@ def test_region_map_mesh_puts_each_case_inside_its_own_leaf(small_region_map):
 
 
 def test_sweep_page_draws_the_region_map_under_the_cases(arm, small_region_map):
-    from pipeline.offline.coefficients import load_coefficients
+    from pipeline import load_coefficients
     from verify.viewer.sweep_view import sweep_page
 
     region_map = small_region_map

@@ -21,10 +21,11 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from pipeline import load_coefficients
 from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError, UnreachableObstacleError
 from pipeline.io.parallel import process_map
 from pipeline.model.arm import PlanarArm, load_planar_arm
-from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.offline.coefficients import Coefficients
 from pipeline.online.repair import RepairConfig, generate_certified
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 from verify.acceptance.run import load_unchanged

@@ -23,6 +23,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.colors import LinearSegmentedColormap, Normalize, TwoSlopeNorm
 from matplotlib.patches import FancyBboxPatch, Patch, Rectangle
 
+from pipeline import load_coefficients
 from pipeline.certify.region_map import STATUSES, RegionMap
 from pipeline.exceptions import PipelineError
 from pipeline.geometry.clearance import link_segments
@@ -30,7 +31,6 @@ from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import QuarticPath
 from pipeline.motion.trajectory import JointTrajectory
-from pipeline.offline.coefficients import load_coefficients
 from pipeline.online.generator import generate
 
 from .cases import DOE_L_M, DOE_W_M, SweepRange

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from pipeline import load_coefficients
 from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import DataFileError
 from pipeline.geometry.link_reach import LinkReach
@@ -30,7 +31,7 @@ from pipeline.io.provenance import package_versions, sha256_file
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.families import PAPER_SOURCE
-from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_non_negative, check_positive_int
 
 from .cases import SweepRange, case_study_sizes, sample_cases

@@ -84,7 +84,8 @@ def _table_lines(report: BenchReport) -> list[str]:
 
 
 def _ratio_lines(report: BenchReport) -> list[str]:
-    """The ratios of medians per query, measured side by side in this run, and (a*) in the issue's terms."""
+    """The ratios of medians per query, measured side by side in this run, and the (a*) line: its median
+    per query, its batched time per obstacle, and the fractions of in-range queries it certifies."""
     ratios = report.ratios()
     names = (("d_over_a", "(d) / (a)"), ("d_over_a_range", "(d) / (a*)"), ("d_over_b", "(d) / (b)"))
     shown = [f"{text} = {_format_ratio(ratios[key])}" for key, text in names if ratios[key] is not None]

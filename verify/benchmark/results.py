@@ -226,7 +226,7 @@ class BenchReport:
         }
 
     def a_range_summary(self) -> dict[str, Any] | None:
-        """The (a*) row in the issue's terms (None if it did not run): median per query and batched
+        """The (a*) row's headline figures (None if it did not run): median per query and batched
         time per obstacle [us], the fractions of in-range queries answered with a certified clearance
         (> 0) and with one >= the margin, and the ratio (d) / (a*)."""
         row, batch = self.method("a_range"), self.method("a_range_batch")

@@ -45,12 +45,13 @@ from typing import Any
 
 import numpy as np
 
+from pipeline import load_coefficients
 from pipeline.exceptions import PipelineError
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.io.provenance import PACKAGES, package_versions
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.motion.trajectory import JointTrajectory
-from pipeline.offline.coefficients import Coefficients, load_coefficients
+from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.experiment import SolverConfig
 from pipeline.offline.fitness import FitnessConfig
 from pipeline.offline.pso import PsoConfig

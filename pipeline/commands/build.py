@@ -1,14 +1,12 @@
-"""``python -m pipeline.build``: DOE -> PSO per experiment -> regression -> coefficients.
+"""``python -m pipeline.build``: DOE -> PSO per experiment -> regression -> certifiable
+regression -> range map, written as one set of files.
 
-A thin command line on :func:`pipeline.offline.build.run_build` (call that from Python, with a
-:class:`pipeline.offline.build.BuildConfig`). Writes ``DIR/doe.json`` and
-``DIR/coefficients.json`` atomically (deterministic for a seed: no timestamps, independent of
---jobs), ``DIR/region_map.json`` (the range certificate of the coefficients, linked by their
-sha256; ``--no-range-map`` skips it) and ``DIR/build_timing.json``; prints our Table 2 and Eq. 9
-beside the paper's, and the range certificate's area fractions. Before the map, a paper-family
-build with the endpoint constraint runs ``--clearance-rounds`` rounds (default 1) of the
-certifiable regression (``pipeline.certify.certifiable_regression``), which rewrites
-``coefficients.json`` with the refit (still deterministic for a seed).
+The command parses its options into a :class:`pipeline.build.BuildConfig`, calls
+:func:`pipeline.build.run_build` (which does all the work and writes ``DIR/doe.json``,
+``DIR/coefficients.json``, ``DIR/region_map.json``, ``DIR/build_timing.json`` and, for an arm
+other than the shipped one, ``DIR/arm.urdf``, all at the end; see :mod:`pipeline.build.run`),
+shows its progress on stderr, and prints our Table 2 and Eq. 9 beside the paper's, the
+certifiable regression's rounds and the range certificate's area fractions.
 
 Exit status: 0 written; 1 the build did not converge (nothing written, the failing experiments
 named; ``--allow-unconverged`` writes anyway, marked); 2 bad input (one line, before any work);
@@ -19,37 +17,25 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
-from dataclasses import replace
 from pathlib import Path
 from typing import TextIO
 
-from tqdm import tqdm
-
-from pipeline.certify.certifiable_regression import (
-    DEFAULT_CLEARANCE_ROUNDS,
-    REFIT_ENDPOINT_HEADROOM,
-    REFIT_MIN_CELL,
-    CertifiableFitConfig,
-    clearance_refit_lines,
-    refit_file_for_clearance,
-)
-from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, certify_and_save, default_config, summary_lines
-from pipeline.certify.region_map import save_region_map
-from pipeline.certify_range import count_argument
-from pipeline.cli import EXIT_FAILED, EXIT_OK, Parser, jobs_count, run_cli
+from pipeline.build import BuildConfig, BuildResult, run_build
+from pipeline.build.config import SCENE_OPTIONS, scene_from_options
+from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS, clearance_refit_lines
+from pipeline.certify.map_for_coefficients import summary_lines
+from pipeline.certify.region_map import DEFAULT_MAP_NAME
+from pipeline.cli import EXIT_FAILED, EXIT_OK, Parser, add_progress_argument, count_argument, jobs_count, run_cli
+from pipeline.commands.regress import OVERWRITE_RULE, add_regression_arguments
 from pipeline.exceptions import BuildNotConvergedError
-from pipeline.io.jsonio import write_json_atomic
+from pipeline.io.progress import ProgressBars
 from pipeline.model.arm import DEFAULT_URDF
 from pipeline.model.scene import SCENE_FIELDS, Scene
 from pipeline.motion.families import FAMILY_NAMES, PAPER, PAPER_SOURCE
 from pipeline.offline import report
-from pipeline.offline.build import SCENE_OPTIONS, BuildConfig, BuildResult, run_build, scene_from_options
-from pipeline.offline.coefficients import load_coefficients
+from pipeline.offline.coefficients import read_coefficients
 from pipeline.offline.convergence import ConvergenceCriteria
-from pipeline.offline.doe import load_doe
 from pipeline.offline.endpoint_regression import EndpointConstraint
-from pipeline.regress import OVERWRITE_RULE, add_regression_arguments
 
 PROG = "python -m pipeline.build"
 
@@ -109,16 +95,21 @@ def _convergence_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def parser() -> Parser:
-    """The command line's options (every default is :class:`pipeline.offline.build.BuildConfig`'s)."""
+    """The command line's options (every default is :class:`pipeline.build.BuildConfig`'s)."""
     d = BuildConfig()
     p = Parser(
         prog=PROG,
-        description="Run the DOE (PSO + exact Coal clearance per obstacle) and regress the coefficients.",
+        description="Run the DOE (PSO + exact Coal clearance per obstacle), regress the coefficients and certify "
+        "them over their fitted range; the files are written as one set at the end.",
         epilog=f"{OVERWRITE_RULE} Exit status: 0 written, 1 not converged (nothing written), 2 bad input, "
         "130 interrupted.",
     )
     p.add_argument(
-        "--out", type=Path, default=d.out_folder, help="output folder (doe.json, coefficients.json, build_timing.json)"
+        "--out",
+        type=Path,
+        default=d.out_folder,
+        help="output folder (doe.json, coefficients.json, region_map.json, build_timing.json; arm.urdf for a "
+        "--urdf other than the shipped arm)",
     )
     p.add_argument(
         "--seed",
@@ -140,7 +131,13 @@ def parser() -> Parser:
         default="0",
         help="worker processes [count], 0 = every CPU; the files do not depend on it (default: 0)",
     )
-    p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm (default: the paper's arm)")
+    p.add_argument(
+        "--urdf",
+        type=Path,
+        default=DEFAULT_URDF,
+        help="URDF of the arm (default: the paper's arm, shipped with the package); another URDF is copied beside "
+        "the coefficients as arm.urdf, and later commands use it from there",
+    )
     _scene_arguments(p)
     pso = p.add_argument_group("optimiser")
     pso.add_argument("--swarm-size", type=int, default=d.swarm_size, help="PSO particles per swarm [count]")
@@ -184,7 +181,8 @@ def parser() -> Parser:
         "(certify, constrain the worst point of every cell below the margin that is not proven infeasible, "
         f"refit); 0: none [count] (default: {DEFAULT_CLEARANCE_ROUNDS})",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bar or tables")
+    p.add_argument("--quiet", action="store_true", help="no progress bars or tables")
+    add_progress_argument(p)
     return p
 
 
@@ -216,6 +214,8 @@ def config_from_args(args: argparse.Namespace) -> BuildConfig:
         endpoint_tolerance_m=None if args.plain else args.endpoint_tolerance,
         doe_endpoint_error_max_m=args.max_doe_endpoint_error,
         allow_unconverged=args.allow_unconverged,
+        range_map=not args.no_range_map,
+        clearance_rounds=args.clearance_rounds,
     )
 
 
@@ -224,7 +224,7 @@ def print_report(result: BuildResult, out: TextIO) -> None:
     coefficients, timing = result.coefficients, result.timing
     print("Table 2 (ours, with the paper's row below where the design matches it):", file=out)
     print(report.table2(result.doe_document["experiments"], result.paper_rows), file=out)
-    paper_eq9 = load_coefficients(PAPER_SOURCE).parameters if coefficients.family == PAPER else None
+    paper_eq9 = read_coefficients(PAPER_SOURCE).parameters if coefficients.family == PAPER else None
     print("\nEq. 9 (ours, paper below):", file=out)
     print(report.equation9(coefficients.parameters, paper_eq9, coefficients.extra["fit"]), file=out)
     print(report.regression_method(coefficients.extra["fit"]), file=out)
@@ -242,22 +242,17 @@ def _problem_lines(problems) -> str:
 
 
 def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
-    """Run the build for parsed options; returns the exit status (0 written, 1 not converged).
+    """Run the build for parsed options and print what it did; returns the exit status (0
+    written, 1 not converged).
 
     Raises:
         PipelineError: bad input (``main`` prints it as one line).
     """
     out = sys.stdout if out is None else out
     config = config_from_args(args)
-    bar: list[tqdm] = []
-
-    def progress(done: int, total: int) -> None:
-        if not bar:
-            bar.append(tqdm(total=total, desc="DOE", unit="exp", disable=args.quiet, file=sys.stderr))
-        bar[0].update(done - bar[0].n)
-
     try:
-        result = run_build(config, progress=progress)
+        with ProgressBars(enabled=not (args.quiet or args.no_progress)) as bars:
+            result = run_build(config, progress=bars)
     except BuildNotConvergedError as exc:
         print(
             f"{PROG}: error: the build did not converge, nothing written (--allow-unconverged writes it, marked):"
@@ -265,68 +260,27 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
             file=sys.stderr,
         )
         return EXIT_FAILED
-    finally:
-        if bar:
-            bar[0].close()
     if not args.quiet:
         print_report(result, out)
-    for path, replaced in result.written[:2]:
-        print(f"{'replaced' if replaced else 'wrote'} {path}", file=out)
     print(f"solver: {', '.join(sorted({r.solver for r in result.experiments}))}", file=out)
+    if result.refit_report is not None:
+        print("\n".join(clearance_refit_lines(result.refit_report)), file=out)
+    if result.region_map is not None:
+        print("\n".join(summary_lines(result.region_map)), file=out)
+    elif config.range_map:
+        print("range certificate: skipped, the build did not converge", file=out)
     if not result.converged:
         print(
             f'{PROG}: warning: the build did not converge; written with "converged": false:'
             + _problem_lines(result.problems),
             file=sys.stderr,
         )
-    if not args.no_range_map and result.converged:
-        _certify_range(result, args, out)
-    elif not args.no_range_map:
-        print("range certificate: skipped, the build did not converge", file=out)
+    for path, replaced in result.written:
+        print(f"{'replaced' if replaced else 'wrote'} {path}", file=out)
+    timing = result.timing
+    total = timing.get("total_with_range_certificate_s", timing["total_s"])
+    print(f"build {total:.1f} s (sha256 of coefficients.json {result.coefficients.source_sha256[:12]})", file=out)
     return EXIT_OK
-
-
-def _certify_range(result: BuildResult, args: argparse.Namespace, out: TextIO) -> None:
-    """Certify the written coefficients over their fitted range (after the certifiable
-    regression's rounds, if asked and applicable), write the region map beside them, and add
-    the times to build_timing.json."""
-    coefficients_path, timing_path = result.written[1][0], result.written[2][0]
-    coefficients = load_coefficients(coefficients_path)  # as written: the map links to the file's sha256
-    config = default_config(
-        coefficients,
-        endpoint_tolerance_m=None if args.plain or coefficients.family.pins_endpoints else args.endpoint_tolerance,
-        jobs=args.jobs,
-    )
-    map_path = coefficients_path.with_name(DEFAULT_MAP_NAME)
-    timing = dict(result.timing)
-    if args.clearance_rounds > 0 and not args.plain and coefficients.family == PAPER:
-        refit = CertifiableFitConfig(
-            # The rounds but the last only pick constraint points: coarser cells, no strips.
-            certificate=replace(config, min_cell=max(config.min_cell, REFIT_MIN_CELL), strip_split=0),
-            final_certificate=config,
-            endpoint=EndpointConstraint(tolerance_m=args.endpoint_tolerance, headroom=REFIT_ENDPOINT_HEADROOM),
-            max_rounds=args.clearance_rounds,
-        )
-        doe = load_doe(result.written[0][0])
-        started = time.perf_counter()
-        coefficients, region_map, report = refit_file_for_clearance(coefficients_path, doe, refit)
-        digest = save_region_map(region_map, map_path)
-        timing["clearance_refit_s"] = time.perf_counter() - started - region_map.seconds
-        timing["clearance_refit_rounds"] = report["rounds"]
-        print("\n".join(clearance_refit_lines(report)), file=out)
-    else:
-        region_map, digest = certify_and_save(coefficients, config, map_path)
-    timing["range_certificate_s"] = region_map.seconds
-    timing["total_with_range_certificate_s"] = (
-        result.timing["total_s"] + region_map.seconds + timing.get("clearance_refit_s", 0.0)
-    )
-    write_json_atomic(timing_path, timing)
-    print("\n".join(summary_lines(region_map)), file=out)
-    print(
-        f"wrote {coefficients_path.with_name(DEFAULT_MAP_NAME)} (sha256 {digest[:12]}); build and range "
-        f"certificate {timing['total_with_range_certificate_s']:.1f} s",
-        file=out,
-    )
 
 
 def main(argv: list[str] | None = None) -> int:

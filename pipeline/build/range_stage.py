@@ -1,0 +1,109 @@
+"""The build's second stage: the certifiable regression's rounds (if they apply) and the range
+certificate of the final coefficients, in memory.
+
+The coefficients are certified as they read back from their file text, so that the map links
+to the sha256 of exactly the bytes the build writes (:func:`pipeline.certify.region_map.RegionMap.belongs_to`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import dataclass, replace
+
+from pipeline.build.config import BuildConfig
+from pipeline.certify.certifiable_regression import (
+    REFIT_ENDPOINT_HEADROOM,
+    REFIT_MIN_CELL,
+    CertifiableFitConfig,
+    refit_for_clearance,
+)
+from pipeline.certify.map_for_coefficients import default_config
+from pipeline.certify.range_certificate import certify_range
+from pipeline.certify.region_map import RegionMap, region_map_text
+from pipeline.io.jsonio import dumps
+from pipeline.io.progress import ProgressCallback
+from pipeline.offline.coefficients import Coefficients, coefficients_from_json
+from pipeline.offline.doe import DoeData
+from pipeline.offline.endpoint_regression import EndpointConstraint
+
+__all__ = ["REFIT_STAGE", "CertifiedCoefficients", "as_written", "certify_coefficients"]
+
+#: Progress stage names of the certifiable regression's rounds and of the final map.
+REFIT_STAGE = "certifiable regression"
+
+
+@dataclass(frozen=True, eq=False)
+class CertifiedCoefficients:
+    """The final coefficients with their range certificate, not yet written.
+
+    Attributes:
+        coefficients: As they read back from ``text`` (source: their file's path; sha256: of ``text``).
+        text: The content of coefficients.json.
+        region_map: Their range certificate; ``map_text`` the content of region_map.json.
+        refit_report: The certifiable regression's rounds (None if it did not run).
+        timing: ``clearance_refit_s``, ``clearance_refit_rounds`` (if it ran) and ``range_certificate_s``.
+    """
+
+    coefficients: Coefficients
+    text: str
+    region_map: RegionMap
+    map_text: str
+    refit_report: dict | None
+    timing: dict
+
+
+def as_written(coefficients: Coefficients, source: str) -> tuple[Coefficients, str]:
+    """``coefficients`` as they read back from their file text, and the text (``source``: the path
+    they will be written to; their sha256: of the text)."""
+    text = dumps(coefficients.to_json())
+    digest = hashlib.sha256(text.encode("utf-8")).hexdigest()
+    return coefficients_from_json(json.loads(text), source, digest), text
+
+
+def certify_coefficients(
+    config: BuildConfig,
+    doe: DoeData,
+    coefficients: Coefficients,
+    text: str,
+    progress: ProgressCallback | None = None,
+) -> CertifiedCoefficients:
+    """Run the certifiable regression's rounds if ``config.certifiable_refit``, then certify the
+    final coefficients over their fitted range.
+
+    Args:
+        config: The build's configuration.
+        doe: The DOE the coefficients were regressed from.
+        coefficients: The regression, as read back from ``text``.
+        text: Its file content.
+        progress: Reports the refit (one unit) and the map's stages.
+    """
+    pinned = coefficients.family.pins_endpoints
+    map_config = default_config(
+        coefficients,
+        endpoint_tolerance_m=None if config.endpoint_tolerance_m is None or pinned else config.endpoint_tolerance_m,
+        jobs=config.workers,
+    )
+    timing: dict = {}
+    report = None
+    if config.certifiable_refit:
+        refit = CertifiableFitConfig(
+            # The rounds but the last only pick constraint points: coarser cells, no strips.
+            certificate=replace(map_config, min_cell=max(map_config.min_cell, REFIT_MIN_CELL), strip_split=0),
+            final_certificate=map_config,
+            endpoint=EndpointConstraint(tolerance_m=config.endpoint_tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM),
+            max_rounds=config.clearance_rounds,
+        )
+        if progress is not None:
+            progress(REFIT_STAGE, 0, 1)
+        started = time.perf_counter()
+        coefficients, text, region_map, report = refit_for_clearance(coefficients, doe, refit, coefficients.source)
+        timing["clearance_refit_s"] = time.perf_counter() - started - region_map.seconds
+        timing["clearance_refit_rounds"] = report["rounds"]
+        if progress is not None:
+            progress(REFIT_STAGE, 1, 1)
+    else:
+        region_map = certify_range(coefficients, map_config)
+    timing["range_certificate_s"] = region_map.seconds
+    return CertifiedCoefficients(coefficients, text, region_map, region_map_text(region_map), report, timing)
