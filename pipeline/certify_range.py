@@ -3,7 +3,8 @@
 Certifies, for every (L, W) of the fitted range and every t in [0, T(L, W)], a lower bound on the
 clearance of both links, an upper bound on the endpoint errors, and where the margin cannot be
 kept by the family at the endpoint tolerance; writes the region map (``pipeline.certify``) and
-prints the area fraction of each status and the time it took.
+prints the area fraction of each status and the time it took. While it works, a progress bar per
+stage on stderr (when it is a terminal; ``--no-progress`` turns them off).
 """
 
 from __future__ import annotations
@@ -14,21 +15,29 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, certify_and_save, default_config, summary_lines
-from pipeline.certify.range_certificate import DEFAULT_BOUNDARY_CELL, DEFAULT_ENDPOINT_TOLERANCE_M, DEFAULT_MIN_CELL
+from pipeline.certify.map_for_coefficients import default_config, summary_lines
+from pipeline.certify.range_certificate import (
+    DEFAULT_BOUNDARY_CELL,
+    DEFAULT_ENDPOINT_TOLERANCE_M,
+    DEFAULT_MIN_CELL,
+    certify_range,
+)
 from pipeline.certify.reachability import witness_lines, witnesses_for_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, save_region_map
 from pipeline.cli import (
     EXIT_OK,
     Parser,
+    add_progress_argument,
+    arm_for_cli,
     check_output_file,
     describe_coefficients,
     jobs_count,
-    load_coefficients_for_cli,
     run_cli,
 )
 from pipeline.io.jsonio import write_json_atomic
-from pipeline.model.arm import load_planar_arm
+from pipeline.io.progress import ProgressBars
 from pipeline.motion.families import PAPER_SOURCE
+from pipeline.online.loading import load_coefficients, map_path_beside
 
 
 def _fraction(text: str) -> float:
@@ -125,15 +134,18 @@ def parser() -> argparse.ArgumentParser:
         help="cell size to which regions that miss the margin are resolved, fraction of the side [-] "
         f"(default: {DEFAULT_BOUNDARY_CELL})",
     )
+    add_progress_argument(p)
     return p
 
 
 def _work(args: argparse.Namespace) -> int:
     output = check_output_file(args.output, "--output")
     summary_path = check_output_file(args.json, "--json")
-    coefficients = load_coefficients_for_cli(args.coefficients)
-    if output is None and args.coefficients != PAPER_SOURCE:
-        output = Path(args.coefficients).with_name(DEFAULT_MAP_NAME)
+    # Without the map beside them: it is the one this command replaces (an older build's, or a
+    # broken file, must neither warn nor stop it).
+    coefficients = load_coefficients(args.coefficients, region_map=None)
+    if output is None:
+        output = map_path_beside(coefficients)  # None for the paper's Eq. 9
     config = default_config(
         coefficients,
         margin_m=args.margin,
@@ -143,14 +155,16 @@ def _work(args: argparse.Namespace) -> int:
         jobs=args.jobs,
     )
     print(describe_coefficients(coefficients))
-    region_map, digest = certify_and_save(coefficients, config, output)
+    with ProgressBars(enabled=not args.no_progress) as progress:
+        region_map = certify_range(coefficients, config, progress)
+    digest = save_region_map(region_map, output) if output is not None else None
     print("\n".join(summary_lines(region_map)))
     summary = region_map.summary()
     if args.witnesses > 0:
         witnesses = witnesses_for_map(
             coefficients,
             region_map,
-            load_planar_arm(),
+            arm_for_cli(coefficients, None),
             args.witnesses,
             args.witness_restarts,
             np.random.default_rng(args.seed),

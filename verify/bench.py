@@ -21,17 +21,19 @@ from pipeline.cli import (
     DEFAULT_COEFFICIENTS,
     EXIT_OK,
     Parser,
+    add_progress_argument,
     describe_coefficients,
-    load_coefficients_for_cli,
     run_cli,
 )
 from pipeline.exceptions import PipelineError
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.io.output_paths import check_output_file
+from pipeline.io.progress import ProgressBars
 from pipeline.motion.families import PAPER_SOURCE
 from verify.benchmark.report import format_report
 from verify.benchmark.results import DEFAULT_BUILD_TIMING, BenchSettings
 from verify.benchmark.run import run_bench
+from verify.cli_support import arm_for_verify, load_coefficients_for_verify
 
 PROG = "python -m verify.bench"
 
@@ -66,8 +68,9 @@ def _add_method_options(parser: argparse.ArgumentParser, defaults: BenchSettings
         metavar="FILE",
         default=None,
         help="region map (range certificate) of the coefficients for (a*) (default: region_map.json beside the "
-        "coefficients; if there is none, e.g. for 'paper', the coefficients are certified in-process first, "
-        "which takes tens of seconds and is reported); a map of other coefficients is refused",
+        "coefficients, if it certifies them; if there is none, e.g. for 'paper', the coefficients are certified "
+        "first, with the build's settings in one process, not timed but reported: that takes minutes, about 1 min "
+        "for the default build and 4.5 min for 'paper'); a map of other coefficients is refused",
     )
     parser.add_argument(
         "--slow-repeats",
@@ -154,9 +157,16 @@ def _add_output_options(parser: argparse.ArgumentParser) -> None:
         help="also run a build of LEVELS x LEVELS experiments (>= 3; with the PSO settings of (c), so reduced "
         "with the --pso-* options) in a temporary folder and report its time [levels per factor] (default: off)",
     )
-    parser.add_argument("--urdf", type=Path, default=None, help="URDF of the arm (default: urdf/planar_2link.urdf)")
+    parser.add_argument(
+        "--urdf",
+        type=Path,
+        metavar="FILE",
+        default=None,
+        help="URDF of the arm (default: the one recorded with the coefficients; given, it must match them)",
+    )
     parser.add_argument("--json", type=Path, metavar="FILE", default=None, help="write the report as JSON")
-    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr (default: show them)")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines or bars on stderr (default: show them)")
+    add_progress_argument(parser)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -206,18 +216,29 @@ def settings_from_args(args: argparse.Namespace) -> BenchSettings:
 
 
 def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    def log(message: str) -> None:
-        if not args.quiet:
-            print(message, file=sys.stderr, flush=True)
-
     settings = settings_from_args(args)
     check_output_file(args.json, "--json")
-    coefficients = load_coefficients_for_cli(args.coefficients)
+    # With --region-map, the map beside the coefficients is not read (the named one replaces it).
+    coefficients = load_coefficients_for_verify(PROG, args.coefficients, beside=args.region_map is None)
+    arm = arm_for_verify(coefficients, args.urdf)
     print(describe_coefficients(coefficients), flush=True)
     try:
-        report = run_bench(
-            args.coefficients, settings, command=" ".join([PROG, *argv]), log=log, coefficients=coefficients
-        )
+        with ProgressBars(enabled=not (args.quiet or args.no_progress)) as bars:
+
+            def log(message: str) -> None:
+                if not args.quiet:
+                    bars.close()  # a finished stage's bar stays above the line
+                    print(message, file=sys.stderr, flush=True)
+
+            report = run_bench(
+                args.coefficients,
+                settings,
+                command=" ".join([PROG, *argv]),
+                log=log,
+                coefficients=coefficients,
+                arm=arm,
+                progress=bars,
+            )
         print(format_report(report))
         if args.json is not None:
             write_json_atomic(args.json, report.to_json())

@@ -5,7 +5,9 @@ For each sampled (L, W) the online generator runs with certification on
 clearance of at least the margin or be a refusal that says why; this sweep checks that
 invariant on every case and reports how many answers came straight from the regression,
 how many were repaired, and how many were refused. ``--beyond 0.2`` widens the fitted range
-by 20 % of its width on each side, to exercise extrapolation.
+by 20 % of its width on each side, to exercise extrapolation. Every query runs the per-query
+certificate (a region map beside the coefficients is not used), with the arm recorded with the
+coefficients (``--urdf`` names one, which must match them).
 
 Exit status: 0 if every answer is certified at least the margin or refused, 1 if an answer
 breaks that, 2 on bad input (one line on stderr), 130 if interrupted.
@@ -25,24 +27,23 @@ from pipeline.cli import (
     EXIT_FAILED,
     EXIT_OK,
     Parser,
+    add_progress_argument,
     describe_coefficients,
     jobs_count,
-    load_coefficients_for_cli,
     run_cli,
 )
 from pipeline.exceptions import InvalidParameterError, PipelineError
 from pipeline.geometry.clearance import ROUTES, route_from_name
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.io.output_paths import check_output_file
-from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
 from pipeline.online.repair import RepairConfig
 from pipeline.validation import check_positive, check_positive_int
 from verify.acceptance.cases import SweepRange, sample_cases
-from verify.acceptance.metrics import check_arm_matches
 from verify.acceptance.online import format_online_report, run_online_cases, summarize_online
+from verify.cli_support import arm_for_verify, load_coefficients_for_verify
 
 PROG = "python -m verify.online_sweep"
 #: --beyond must be below this [fraction of the fitted range's width per side].
@@ -84,12 +85,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--urdf",
         type=Path,
-        default=DEFAULT_URDF,
+        default=None,
         metavar="FILE",
-        help="URDF of the arm (default: the project's urdf/planar_2link.urdf)",
+        help="URDF of the arm (default: the one recorded with the coefficients; given, it must match them)",
     )
     p.add_argument("--json", type=Path, metavar="FILE", help="write cases and summary to this JSON file")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_argument(p)
     return p
 
 
@@ -121,9 +122,8 @@ def _widened_range(coefficients: Coefficients, beyond: float) -> SweepRange:
 
 def _work(args: argparse.Namespace) -> int:
     _check_args(args)
-    coefficients = load_coefficients_for_cli(args.coefficients)
-    arm = load_planar_arm(args.urdf)
-    check_arm_matches(coefficients, arm)
+    coefficients = load_coefficients_for_verify(PROG, args.coefficients, beside=False)  # per-query certificates
+    arm = arm_for_verify(coefficients, args.urdf)
     print(describe_coefficients(coefficients), flush=True)
     sweep_range = _widened_range(coefficients, args.beyond)
     config = RepairConfig(route=route_from_name(args.route), max_seconds=args.max_seconds, repair=not args.no_repair)
@@ -132,7 +132,7 @@ def _work(args: argparse.Namespace) -> int:
         args.coefficients,
         cases,
         config,
-        args.urdf,
+        arm.urdf_path,
         args.jobs,
         not args.no_progress,
         coefficients=coefficients,

@@ -13,9 +13,13 @@ runs both on the same sampled cases and prints them side by side.
 
 The range certificate (``region_map.json``, written by the build beside the coefficients) is
 reported and every sampled case is cross-checked against it
-(:mod:`verify.acceptance.range_check`); a case that contradicts it fails the run. ``--region-map
-FILE`` names another map (the only way for ``paper``), ``--no-region-map`` skips it; a map made
-for other coefficients is reported as not belonging and not checked.
+(:mod:`verify.acceptance.range_check`); a case that contradicts it fails the run. One beside the
+coefficients that was made for other coefficients is not used (a warning says so). ``--region-map
+FILE`` names another map (the only way for ``paper``), reported as not belonging and not checked
+if it was made for other coefficients (with ``--compare`` it belongs to one of them at most);
+``--no-region-map`` skips the map.
+
+The arm is the one recorded with the coefficients (``--urdf`` names one, which must match them).
 
 This module only parses the command line and calls the library.
 """
@@ -29,6 +33,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from pipeline.certify.region_map import RegionMap, load_region_map
 from pipeline.cli import (
     DEFAULT_COEFFICIENTS,
     EXIT_FAILED,
@@ -36,16 +41,17 @@ from pipeline.cli import (
     Parser,
     describe_coefficients,
     jobs_count,
-    load_coefficients_for_cli,
     run_cli,
 )
 from pipeline.exceptions import InvalidParameterError, PipelineError
 from pipeline.geometry.motion_certificate import DEFAULT_MAX_EVALUATIONS, DEFAULT_TOLERANCE_M
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.io.output_paths import check_output_file, check_output_folder
-from pipeline.model.arm import load_planar_arm
+from pipeline.io.progress import progress_enabled
+from pipeline.model.arm import PlanarArm
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
+from pipeline.online.loading import map_path_beside
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 from verify.acceptance.cases import SweepRange, sample_cases
 from verify.acceptance.metrics import (
@@ -53,11 +59,10 @@ from verify.acceptance.metrics import (
     TRACKING_RESOLUTION_M,
     AcceptanceThresholds,
     MeasureSettings,
-    check_arm_matches,
 )
-from verify.acceptance.range_check import find_region_map
 from verify.acceptance.report import format_comparison, format_summary
 from verify.acceptance.run import DEFAULT_CASES, DEFAULT_SEED, SweepRun, run_sweep, source_label
+from verify.cli_support import arm_for_verify, load_coefficients_for_verify
 
 PROG = "python -m verify.sweep"
 
@@ -92,7 +97,7 @@ def _add_region_map_options(parser: argparse.ArgumentParser) -> None:
         type=Path,
         default=None,
         help="region map (python -m pipeline.certify_range) to report and cross-check the cases against "
-        "(default: region_map.json beside the coefficients file, if there is one; none for "
+        "(default: region_map.json beside the coefficients file, if it certifies them; none for "
         f"'{PAPER_SOURCE}')",
     )
     choice.add_argument("--no-region-map", action="store_true", help="do not report or cross-check a region map")
@@ -204,7 +209,10 @@ def _add_threshold_options(parser: argparse.ArgumentParser) -> None:
 
 def _add_output_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--urdf", metavar="FILE", default=None, help="URDF of the arm (default: the project's urdf/planar_2link.urdf)"
+        "--urdf",
+        metavar="FILE",
+        default=None,
+        help="URDF of the arm (default: the one recorded with the coefficients; given, it must match them)",
     )
     parser.add_argument(
         "--json", metavar="FILE", type=Path, default=None, help="write cases, summary and provenance as JSON"
@@ -239,7 +247,10 @@ def _add_output_options(parser: argparse.ArgumentParser) -> None:
         help="list at most K failing cases on stdout (default: all; --json has all)",
     )
     parser.add_argument(
-        "--progress", action=argparse.BooleanOptionalAction, default=True, help="progress bar on stderr"
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="progress bar on stderr (drawn only when stderr is a terminal)",
     )
 
 
@@ -340,13 +351,16 @@ def _viewer(args: argparse.Namespace) -> Any:
 
 
 def _show(
-    viewer: Any, runs: Sequence[SweepRun], coefficients: Sequence[Coefficients], args: argparse.Namespace
+    viewer: Any,
+    runs: Sequence[SweepRun],
+    coefficients: Sequence[Coefficients],
+    arms: Sequence[PlanarArm],
+    args: argparse.Namespace,
 ) -> None:
     """Write the HTML view (one file per run) and/or serve the Meshcat view (first run) of the sweep."""
     from pipeline.online.generator import generate
 
-    arm = load_planar_arm(args.urdf)
-    for k, (run, coefficient_set) in enumerate(zip(runs, coefficients, strict=True)):
+    for k, (run, coefficient_set, arm) in enumerate(zip(runs, coefficients, arms, strict=True)):
 
         def regenerate(length_m: float, width_m: float, chosen: Coefficients = coefficient_set) -> Any:
             return generate(chosen, length_m, width_m, out_of_range="ignore")
@@ -400,8 +414,21 @@ def _write_outputs(args: argparse.Namespace, runs: Sequence[SweepRun]) -> None:
 
         for run in runs:
             directory = args.plots if len(runs) == 1 else args.plots / run.label.replace(" ", "_")
-            for path in write_plots(run, directory, urdf_path=args.urdf):
+            for path in write_plots(run, directory):  # with the run's arm
                 print(f"wrote {path}")
+
+
+def _region_maps(
+    args: argparse.Namespace, coefficients: Sequence[Coefficients]
+) -> list[tuple[RegionMap | None, str | None]]:
+    """Per coefficients set, the map to report and check and its file: ``--region-map``'s (whether
+    it belongs or not: the report says), else the one attached to them (beside their file)."""
+    if args.no_region_map:
+        return [(None, None)] * len(coefficients)
+    if args.region_map is not None:
+        named = load_region_map(args.region_map)
+        return [(named, str(args.region_map))] * len(coefficients)
+    return [(None, None) if c.region_map is None else (c.region_map, str(map_path_beside(c))) for c in coefficients]
 
 
 def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
@@ -409,12 +436,14 @@ def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
     settings = _settings_from_args(args)
     viewer = _viewer(args)
     sources = list(args.compare) if args.compare else [args.coefficients]
-    coefficients = [load_coefficients_for_cli(s) for s in sources]
-    arm = load_planar_arm(args.urdf)
+    beside = not (args.no_region_map or args.region_map is not None)
+    coefficients = [
+        load_coefficients_for_verify(PROG, s, beside=beside, malformed_hint="--no-region-map skips it") for s in sources
+    ]
+    arms = [arm_for_verify(c, args.urdf) for c in coefficients]
     for coefficient_set in coefficients:
-        check_arm_matches(coefficient_set, arm)
         print(describe_coefficients(coefficient_set), flush=True)
-    maps = [(None, None) if args.no_region_map else find_region_map(c, args.region_map) for c in coefficients]
+    maps = _region_maps(args, coefficients)
     chosen = _chosen_range(args, sources, coefficients)
     cases = sample_cases(chosen or SweepRange.from_fitted(coefficients[0].fitted_range_m), args.n, args.seed)
     runs = [
@@ -425,17 +454,17 @@ def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
             sweep_range=chosen,
             settings=settings,
             jobs=args.jobs,
-            urdf_path=args.urdf,
-            progress=args.progress,
+            progress=progress_enabled(args.progress),
             label=label,
             cases_m=cases,
             argv=["python", "-m", "verify.sweep", *argv],
             coefficients=coefficient_set,
+            arm=arm,
             region_map=region_map,
             region_map_path=region_map_path,
         )
-        for source, label, coefficient_set, (region_map, region_map_path) in zip(
-            sources, _labels(sources), coefficients, maps, strict=True
+        for source, label, coefficient_set, arm, (region_map, region_map_path) in zip(
+            sources, _labels(sources), coefficients, arms, maps, strict=True
         )
     ]
     for run in runs:
@@ -445,7 +474,7 @@ def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
         print(format_comparison(runs))
     _write_outputs(args, runs)
     if viewer is not None:
-        _show(viewer, runs, coefficients, args)
+        _show(viewer, runs, coefficients, arms, args)
     return EXIT_OK if all(run.passed for run in runs) else EXIT_FAILED  # a contradicted map fails its run
 
 

@@ -35,14 +35,12 @@ from pipeline.cli import (
     EXIT_OK,
     Parser,
     describe_coefficients,
-    load_coefficients_for_cli,
     run_cli,
 )
 from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning
 from pipeline.io.output_paths import check_output_file
-from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
 from pipeline.motion.families import PAPER_SOURCE
-from verify.acceptance.metrics import check_arm_matches
+from verify.cli_support import arm_for_verify, load_coefficients_for_verify
 
 PROG = "python -m verify.view"
 
@@ -84,9 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--urdf",
         type=Path,
-        default=DEFAULT_URDF,
+        default=None,
         metavar="FILE",
-        help="URDF of the arm (default: the project's urdf/planar_2link.urdf)",
+        help="URDF of the arm (default: the one recorded with the coefficients; given, it must match them)",
     )
     output = parser.add_mutually_exclusive_group()
     output.add_argument(
@@ -182,16 +180,15 @@ def _work(args: argparse.Namespace) -> int:
         return _run(args)
 
 
-def _case(args: argparse.Namespace, arm: PlanarArm):  # -> TrajectoryCase (the viewer's, imported lazily)
+def _case(args: argparse.Namespace):  # -> TrajectoryCase (the viewer's, imported lazily)
     from verify.viewer.trajectory_view import case_from_generated, paper_test1_case
 
-    if args.paper_test1:
-        check_arm_matches(load_coefficients(PAPER_SOURCE), arm)  # Table 2 is for the paper's arm
-        return paper_test1_case(arm)
+    if args.paper_test1:  # Table 2 is for the paper's arm
+        return paper_test1_case(arm_for_verify(load_coefficients(PAPER_SOURCE, region_map=None), args.urdf))
     from pipeline.online.generator import generate
 
-    coefficients = load_coefficients_for_cli(args.coefficients)
-    check_arm_matches(coefficients, arm)
+    coefficients = load_coefficients_for_verify(PROG, args.coefficients, beside=False)  # the view shows no bounds
+    arm = arm_for_verify(coefficients, args.urdf)
     print(describe_coefficients(coefficients), flush=True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", OutOfFittedRangeWarning)
@@ -207,7 +204,7 @@ def _run(args: argparse.Namespace) -> int:
     from verify.viewer.drawing import ViewStyle
     from verify.viewer.trajectory_view import screenshot_trajectory, show_trajectory, trajectory_html, write_html
 
-    case = _case(args, load_planar_arm(args.urdf))
+    case = _case(args)
     changes = {"fps": args.fps, "samples": args.samples, "play": not args.no_play}
     if args.screenshot is not None:
         width, height = args.size

@@ -100,7 +100,8 @@ def write_file_set(folder: str | Path, files: Mapping[str, bytes | str | None]) 
             if aside is not None:
                 os.replace(path, aside)
             if name in staged:
-                os.replace(staged.pop(name), path)
+                os.replace(staged[name], path)
+                del staged[name]
     except BaseException:
         for path, aside in reversed(moved):
             if aside is None:

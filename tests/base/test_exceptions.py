@@ -17,6 +17,7 @@ EXAMPLES = [
     ex.ObstacleSizeError("W", 0.001, "W > 2 corner radii", (0.25, 0.001)),
     ex.ArmMismatchError((0.3, 0.35), (0.01, 0.01), (0.3, 0.3), (0.01, 0.01), "arm.urdf"),
     ex.RobotModelError("arm.urdf: not planar"),
+    ex.WorkerPoolError("a worker process ended abruptly"),
     ex.UnreachableObstacleError("P5", 0.71, (0.05, 0.65), (0.3, 0.12)),
     ex.OutOfFittedRangeError("L", 0.31, (0.2, 0.3)),
     ex.DataFileError("coefficients.json", "changed while the sweep was running (sha256 differs)"),

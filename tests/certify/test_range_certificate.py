@@ -6,7 +6,10 @@ direct sampling of the poses near P1 and P5 for the infeasibility certificate.""
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,9 +24,16 @@ from pipeline.certify.endpoints import (
     endpoint_error_bounds,
     infeasibility_upper_bounds,
 )
-from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range, refine_leaves
+from pipeline.certify.range_certificate import (
+    PROGRESS_STAGES,
+    RangeCertificateConfig,
+    _run_tasks,
+    certify_range,
+    refine_leaves,
+    sub_cell_bounds,
+)
 from pipeline.certify.range_model import RangeModel
-from pipeline.certify.region_map import STATUSES
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, load_region_map, region_map_text
 from pipeline.certify.search import SearchSettings, node_boxes, search
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
 from pipeline.model.arm import PlanarArm
@@ -31,7 +41,7 @@ from pipeline.model.kinematics import inverse_kinematics
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.families import family_from_name
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline.coefficients import Coefficients, fit_coefficients, paper_data_path
+from pipeline.offline.coefficients import Coefficients, fit_coefficients, paper_data_path, save_coefficients
 from pipeline.offline.doe import load_doe
 from pipeline.offline.endpoint_regression import EndpointConstraint
 from pipeline.online.generator import generate
@@ -461,3 +471,88 @@ def test_pinned_endpoint_bound_is_sound_where_the_pose_meets_the_margin(eq9: Coe
     # margin by less than 0.1 mm (the bound's own first-order term in L is about 40 um here).
     first = np.flatnonzero(proven)[0]
     assert pose_clearance(*(center[first] - radius[first])) > 0.01 - 1e-4
+
+
+# --------------------------------------------------------------------------------------------
+# Progress: what certify_range reports while it works, and that it changes nothing.
+
+#: The paper's Eq. 9 at 1/16 (900 leaves, about 3 s): every stage but the sub-cells has work.
+COARSE = RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8)
+
+
+def _check_progress(calls: list[tuple[str, int, int]]) -> dict[str, int]:
+    """Each stage reported in the order of PROGRESS_STAGES, once, from 0 up to its total, never
+    going back; returns the total of each stage."""
+    stages = [stage for stage, _, _ in calls]
+    runs = [stage for k, stage in enumerate(stages) if k == 0 or stages[k - 1] != stage]
+    assert runs == sorted(set(runs), key=PROGRESS_STAGES.index)
+    totals = {}
+    for stage in runs:
+        mine = [(done, total) for name, done, total in calls if name == stage]
+        assert mine[0][0] == 0 and mine[-1][0] == mine[-1][1] > 0
+        assert all(0 <= done <= total for done, total in mine)
+        assert all(b[0] >= a[0] and b[1] >= a[1] for a, b in itertools.pairwise(mine))
+        totals[stage] = mine[-1][1]
+    return totals
+
+
+def test_progress_reports_every_stage_and_changes_no_byte(eq9: Coefficients) -> None:
+    """With a callback, and with two worker processes whose tasks are collected as they finish,
+    the map is byte for byte the one made without either."""
+    plain = region_map_text(certify_range(eq9, COARSE))
+    serial: list[tuple[str, int, int]] = []
+    pooled: list[tuple[str, int, int]] = []
+    assert region_map_text(certify_range(eq9, COARSE, progress=lambda *call: serial.append(call))) == plain
+    pooled_map = certify_range(eq9, dataclasses.replace(COARSE, jobs=2), progress=lambda *call: pooled.append(call))
+    assert region_map_text(pooled_map) == plain
+    totals = _check_progress(serial)
+    assert _check_progress(pooled) == totals
+    assert list(totals) == ["range map: search", "range map: refine", "range map: strips"]
+    assert [call for call in pooled if call[0] == "range map: search"] == [
+        ("range map: search", k, 4) for k in range(5)
+    ]
+    # The refine stage counts leaves bounded; its total grows by the children of each round's cuts.
+    assert totals["range map: refine"] >= 256 and totals["range map: strips"] == np.count_nonzero(pooled_map.split_w)
+
+
+def test_chunked_bounds_in_a_pool_are_the_serial_ones_and_count_leaves(eq9: Coefficients) -> None:
+    """Three chunks of sub-cell bounds on two processes: the same bounds, in order, and the leaves
+    of each chunk reported as it finishes."""
+    model = RangeModel.from_coefficients(eq9)
+    index = np.arange(300)
+    c, r = node_boxes(model, np.full(300, 5), index // 32, index % 32)
+    calls: list[tuple[str, int, int]] = []
+    pooled = sub_cell_bounds(model, c, r, 0.002, 0.01, jobs=2, progress=lambda *call: calls.append(call))
+    np.testing.assert_array_equal(pooled, sub_cell_bounds(model, c, r, 0.002, 0.01))
+    assert _check_progress(calls) == {"range map: sub-cells": 300}
+    steps = sorted(b[1] - a[1] for a, b in itertools.pairwise(calls))
+    assert steps == [44, 128, 128]
+
+
+def test_tasks_are_collected_in_order_and_an_error_stops_them() -> None:
+    finished: list[int] = []
+    assert _run_tasks(pow, [(k, 2) for k in range(12)], 2, finished.append) == [k**2 for k in range(12)]
+    assert sorted(finished) == list(range(12))
+    with pytest.raises(ValueError, match="math domain error"):
+        _run_tasks(math.sqrt, [(4.0,), (-1.0,), (9.0,)], 2)
+
+
+def test_the_command_line_replaces_a_broken_map_and_draws_no_bar_off_a_terminal(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, eq9: Coefficients
+) -> None:
+    """``python -m pipeline.certify_range`` does not read the map it replaces (a broken one beside
+    the coefficients neither stops nor warns); its progress bars go to stderr only on a terminal,
+    and ``--no-progress`` is accepted."""
+    from pipeline.certify_range import main
+
+    source = tmp_path / "coefficients.json"
+    save_coefficients(eq9, source)
+    (tmp_path / DEFAULT_MAP_NAME).write_text("{not json")
+    options = ["--min-cell", "0.0625", "--boundary-cell", "0.125", "--json", str(tmp_path / "summary.json")]
+    for extra in ([], ["--no-progress"]):
+        assert main([str(source), *options, *extra]) == 0
+        out, err = capsys.readouterr()
+        assert err == "" and f"wrote {tmp_path / DEFAULT_MAP_NAME}" in out
+        written = load_region_map(tmp_path / DEFAULT_MAP_NAME)
+        assert written.belongs_to(load_coefficients(source, region_map=None))
+        assert json.loads((tmp_path / "summary.json").read_text())["cells"] == written.depth.size

@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 
 import pipeline
+from pipeline.build import BuildConfig, run_build, scene_from_options
+from pipeline.build import doe_fit as build_library
 from pipeline.commands import build, regress
 from pipeline.exceptions import PipelineError
-from pipeline.build import doe_fit as build_library
-from pipeline.build import BuildConfig, run_build, scene_from_options
 from pipeline.offline.doe import Design, load_doe
 
 TINY = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--quiet"]

@@ -19,9 +19,10 @@ import pytest
 from numpy.testing import assert_allclose
 
 from pipeline import load_coefficients
-from pipeline.commands import build, regress
-from pipeline.motion.trajectory import PARAMETER_NAMES
 from pipeline.build import doe_fit as build_library
+from pipeline.commands import build, regress
+from pipeline.io import file_set
+from pipeline.motion.trajectory import PARAMETER_NAMES
 from pipeline.offline.coefficients import paper_data_path
 from pipeline.offline.doe import load_doe
 from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
@@ -306,7 +307,9 @@ def test_interrupt_in_run_doe_leaves_outputs_untouched(
     assert snapshot(tmp_path) == before
 
 
-@pytest.mark.parametrize("where", ["writing coefficients.json", "os.replace of coefficients.json"])
+@pytest.mark.parametrize(
+    "where", ["writing coefficients.json", "os.replace of coefficients.json", "os.replace of build_timing.json"]
+)
 def test_crash_while_writing_leaves_no_half_written_or_mismatched_outputs(
     reference: dict, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, where: str
 ) -> None:
@@ -319,19 +322,22 @@ def test_crash_while_writing_leaves_no_half_written_or_mismatched_outputs(
     changed = [type(r)(**{**r.__dict__, "fitness": r.fitness * 1.5}) for r in results]
     monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: changed)
     if where == "writing coefficients.json":
-        real_write = build_library.write_text_atomic
+        real_stage = file_set._stage
 
         def crash(path, *args, **kwargs):
             if Path(path).name == "coefficients.json":
                 raise OSError("disk full")
-            return real_write(path, *args, **kwargs)
+            return real_stage(path, *args, **kwargs)
 
-        monkeypatch.setattr(build_library, "write_text_atomic", crash)
+        monkeypatch.setattr(file_set, "_stage", crash)
     else:
-        real_replace = os.replace
+        real_replace, target, failed = os.replace, where.rpartition(" ")[2], []
 
         def replace(src, dst):
-            if Path(dst).name == "coefficients.json":
+            # Once, as the new file goes in (for build_timing.json, the last of the set, the others
+            # are in place by then); putting the old file back works.
+            if Path(dst).name == target and str(src).endswith(".tmp") and not failed:
+                failed.append(dst)
                 raise OSError("disk full")
             return real_replace(src, dst)
 
@@ -343,6 +349,7 @@ def test_crash_while_writing_leaves_no_half_written_or_mismatched_outputs(
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary files
     for name in OUTPUTS:
         json.loads(after[name])  # never half-written
+    assert snapshot(tmp_path) == before  # the earlier set, nothing new beside it
     assert after["coefficients.json"] == before["coefficients.json"]
     provenance = json.loads(after["coefficients.json"])["provenance"]
     assert provenance["doe_sha256"] == sha256(tmp_path / "doe.json"), "doe.json no longer matches coefficients.json"

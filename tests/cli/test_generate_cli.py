@@ -82,7 +82,7 @@ def test_npz_reproduces_generate(tmp_path: Path, capsys) -> None:
 
 
 def test_ros_json_has_the_urdf_joint_names_and_reproduces_generate(tmp_path: Path, capsys) -> None:
-    out = tmp_path / "sub" / "trajectory.json"
+    out = tmp_path / "trajectory.json"
     status, _, _ = run(
         capsys, "--L", "0.25", "--W", "0.1", "--coefficients", "paper", "--rate", "20", "--out", str(out)
     )

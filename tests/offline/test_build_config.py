@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.build import BuildConfig, run_build
+from pipeline.build import doe_fit as build_library
 from pipeline.commands import build, regress
 from pipeline.exceptions import (
     BuildNotConvergedError,
@@ -22,11 +24,10 @@ from pipeline.exceptions import (
     InvalidParameterError,
     UnconvergedCoefficientsWarning,
 )
+from pipeline.io import file_set
 from pipeline.model.scene import Scene
 from pipeline.motion.families import EXACT_ENDPOINTS, PAPER
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.build import doe_fit as build_library
-from pipeline.build import BuildConfig, run_build
 from pipeline.offline.coefficients import paper_data_path
 from pipeline.offline.convergence import (
     ConvergenceCriteria,
@@ -59,11 +60,13 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
 
 
 def test_defaults_are_the_command_lines() -> None:
-    """The command line's defaults are the library's, but for the workers: the command uses every
-    CPU (the files do not depend on it), a library call one process unless told otherwise."""
+    """The command line's defaults are the library's: both use every CPU (the files do not depend
+    on it), the library by ``jobs=0``, the command by resolving ``--jobs 0``; both certify the range."""
     args = build.parser().parse_args([])
     assert build.config_from_args(args) == dataclasses.replace(BuildConfig(), jobs=os.cpu_count() or 1)
-    assert BuildConfig().jobs == 1
+    assert BuildConfig().jobs == 0 and BuildConfig().workers == (os.cpu_count() or 1)
+    assert BuildConfig(jobs=3).workers == 3
+    assert BuildConfig().range_map and BuildConfig().certifiable_refit
 
 
 @pytest.mark.parametrize(
@@ -71,7 +74,10 @@ def test_defaults_are_the_command_lines() -> None:
     [
         ({"seed": -1}, "--seed"),
         ({"seed": 1.5}, "--seed"),
-        ({"jobs": 0}, "--jobs"),
+        ({"jobs": -1}, "--jobs"),
+        ({"jobs": 1.5}, "--jobs"),
+        ({"clearance_rounds": -1}, "--clearance-rounds"),
+        ({"range_map": "yes"}, "--no-range-map"),
         ({"levels": 2}, "--levels"),
         ({"length_range_m": (0.3, 0.2)}, "--L-range"),
         ({"width_range_m": (float("nan"), 0.1)}, "--W-range"),
@@ -254,10 +260,10 @@ def test_progress_starts_after_the_checks(tiny: dict, tmp_path: Path, monkeypatc
     monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: list(tiny["result"].experiments))
     calls = []
     run_build(BuildConfig(out_folder=tmp_path, allow_unconverged=True, **TINY), progress=lambda *a: calls.append(a))
-    assert calls == [(0, 9)]  # run_doe is replayed here, so only the start is reported
+    assert calls == [("DOE", 0, 9)]  # run_doe is replayed here, so only the start is reported
     with pytest.raises(InvalidParameterError):
         run_build(BuildConfig(out_folder=tmp_path / "doe.json", **TINY), progress=lambda *a: calls.append(a))
-    assert calls == [(0, 9)]
+    assert calls == [("DOE", 0, 9)]
 
 
 # --------------------------------------------------------------------------------------------
@@ -305,14 +311,14 @@ def test_a_crash_while_writing_removes_the_folders_the_build_created(
     tiny: dict, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: list(tiny["result"].experiments))
-    real_write = build_library.write_text_atomic
+    real_stage = file_set._stage
 
     def crash(path, *args, **kwargs):
         if Path(path).name == "coefficients.json":
             raise OSError("disk full")
-        return real_write(path, *args, **kwargs)
+        return real_stage(path, *args, **kwargs)
 
-    monkeypatch.setattr(build_library, "write_text_atomic", crash)
+    monkeypatch.setattr(file_set, "_stage", crash)
     with pytest.raises(OSError, match="disk full"):
         run_build(BuildConfig(out_folder=tmp_path / "new" / "out", allow_unconverged=True, **TINY))
     assert list(tmp_path.iterdir()) == []  # neither new/ nor new/out/ is left

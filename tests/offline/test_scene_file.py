@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.build import doe_fit as build_library
+from pipeline.build import scene_from_options
 from pipeline.commands import build
 from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.model.scene import SCENE_FIELDS, Scene, read_scene_file
-from pipeline.build import doe_fit as build_library
-from pipeline.build import scene_from_options
 
 TINY_ARGV = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--plain", "--quiet", "--allow-unconverged"]
 

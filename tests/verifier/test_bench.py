@@ -23,7 +23,12 @@ from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, default_conf
 from pipeline.certify.range_certificate import RangeCertificateConfig
 from pipeline.certify.region_map import load_region_map, save_region_map
 from pipeline.cli import EXIT_OK, EXIT_USAGE, HelpFormatter
-from pipeline.exceptions import DataFileError, EndpointConstraintWarning, InvalidParameterError
+from pipeline.exceptions import (
+    DataFileError,
+    EndpointConstraintWarning,
+    InvalidParameterError,
+    RegionMapMismatchWarning,
+)
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.offline.coefficients import Coefficients, save_coefficients
 from pipeline.online.generator import RANGE_SOURCE, generate
@@ -301,17 +306,43 @@ def test_without_a_map_the_coefficients_are_certified_in_process(built: Path, tm
     path = tmp_path / "coefficients.json"
     save_coefficients(other, path)
     (tmp_path / DEFAULT_MAP_NAME).write_bytes(built.with_name(DEFAULT_MAP_NAME).read_bytes())
-    coefficients = load_coefficients(path)
+    with pytest.warns(RegionMapMismatchWarning, match="not attached"):
+        coefficients = load_coefficients(path)
     messages: list[str] = []
+    stages: list[tuple[str, int, int]] = []
     chosen = bench_range_map.bench_region_map(
-        coefficients, None, config=coarse_config(coefficients), log=messages.append
+        coefficients,
+        None,
+        config=coarse_config(coefficients),
+        log=messages.append,
+        progress=lambda *call: stages.append(call),
     )
     assert chosen.origin == "certified" and chosen.path is None
     assert chosen.region_map.belongs_to(coefficients)
     assert chosen.certify_s is not None and chosen.certify_s > 0
     assert "certifies other coefficients" in chosen.reason and "in-process" in messages[0]
+    assert stages[0] == ("range map: search", 0, 4) and stages[-1][1] == stages[-1][2]  # certify_range's stages
     assert "certified in-process in" in chosen.describe() and chosen.to_json()["origin"] == "certified"
     assert "no region map exists for 'paper'" in bench_range_map._missing_reason(load_coefficients("paper"))
+
+
+def test_a_named_region_map_replaces_the_one_beside_unread_and_the_arm_is_the_recorded_one(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, built: Path
+) -> None:
+    """--region-map FILE: the (here broken) map beside the coefficients is not read; without
+    --urdf the arm is the one recorded with the coefficients; --no-progress is accepted and no bar
+    is drawn off a terminal anyway."""
+    source = tmp_path / "coefficients.json"
+    source.write_bytes(built.read_bytes())  # the same coefficients: the built map certifies them
+    (tmp_path / DEFAULT_MAP_NAME).write_text("{not json")
+    common = ["--coefficients", str(source), "--n", "2", "--repeats", "2", "--slow-repeats", "1"]
+    common += ["--pso-cases", "0", "--no-ompl", "--build-timing", str(tmp_path / "none.json")]
+    named = ["--region-map", str(built.with_name(DEFAULT_MAP_NAME))]
+    status, out, err = run_main(capsys, *common, *named, "--no-progress", "--json", str(tmp_path / "b.json"))
+    assert status == EXIT_OK and "named by --region-map" in out and "Traceback" not in err
+    assert "%" not in err  # progress lines only, no bar
+    status, _, err = run_main(capsys, *common, "--quiet")  # the broken map beside them, found: one line
+    assert status == EXIT_USAGE and str(tmp_path / DEFAULT_MAP_NAME) in err and len(err.strip().splitlines()) == 1
 
 
 def test_missing_ompl_skips_d_with_a_clear_line(

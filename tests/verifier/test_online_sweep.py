@@ -137,3 +137,43 @@ def test_workers_refuse_a_coefficients_file_that_is_not_the_one_given(tmp_path):
     save_coefficients(changed, path)  # the file under the same name now holds other coefficients
     with pytest.raises(DataFileError, match="sha256 differs"):
         run_online_cases(str(path), cases, RepairConfig(), jobs=2, progress=False, coefficients=held)
+
+
+def test_queries_run_the_per_query_certificate_even_with_a_map_attached():
+    """The online sweep checks certify-or-repair: a region map attached to the coefficients (which
+    would answer these cells at once, without a per-query certificate) is not used."""
+    import dataclasses
+
+    from pipeline import load_coefficients
+    from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+    from pipeline.online.arm_check import arm_for
+    from pipeline.online.repair import RepairConfig, generate_certified
+    from verify.acceptance.online import query
+
+    paper = load_coefficients("paper")
+    region_map = certify_range(paper, RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8))
+    with_map = dataclasses.replace(paper, region_map=region_map)
+    assert generate_certified(with_map, 0.25, 0.09).regression_certificate is None  # the map's answer
+    answer = query(with_map, arm_for(paper), 0.25, 0.09, RepairConfig())
+    alone = query(paper, arm_for(paper), 0.25, 0.09, RepairConfig())
+    assert answer.regression_certified_clearance_m == alone.regression_certified_clearance_m is not None
+
+
+def test_the_arm_is_the_one_recorded_with_the_coefficients(tmp_path):
+    """Without --urdf the arm is the one the coefficients record; missing, it is a one-line error."""
+    import dataclasses
+    import hashlib
+
+    from pipeline import load_coefficients
+    from pipeline.model.arm import DEFAULT_URDF
+    from pipeline.offline.coefficients import save_coefficients
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(DEFAULT_URDF.read_text() + "\n<!-- the arm of this build -->\n")
+    paper = load_coefficients("paper", region_map=None)
+    record = {"urdf": "arm.urdf", "urdf_sha256": hashlib.sha256(urdf.read_bytes()).hexdigest()}
+    source = tmp_path / "coefficients.json"
+    save_coefficients(dataclasses.replace(paper, extra={**paper.extra, "provenance": record}), source)
+    assert online_sweep.main(["--coefficients", str(source), "--n", "2", "--no-progress"]) == 0
+    urdf.unlink()
+    assert online_sweep.main(["--coefficients", str(source), "--n", "2", "--no-progress"]) == 2

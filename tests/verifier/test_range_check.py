@@ -17,22 +17,23 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
-from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import RegionMap
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME
-from pipeline.certify.region_map import save_region_map
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.region_map import RegionMap, save_region_map
+from pipeline.exceptions import DataFileError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M
 from pipeline.offline.coefficients import save_coefficients
+from pipeline.online.loading import map_path_beside
 from verify.acceptance.metrics import MeasureSettings
 from verify.acceptance.range_check import (
     ENDPOINT_SLACK_M,
     SAMPLED_SLACK_M,
     check_range,
     clearance_slack_m,
-    find_region_map,
 )
 from verify.acceptance.results import failed_case
 from verify.acceptance.run import run_cases
+from verify.cli_support import load_coefficients_for_verify
 
 SETTINGS = MeasureSettings(time_samples=200, certificate_mode="tight")  # every bound tight: every case compared
 COARSE = RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8)
@@ -192,22 +193,34 @@ def test_cases_out_of_range_or_not_generated_are_counted_not_checked(region_map,
     assert check.endpoint.checked == 10 and check.passed
 
 
-def test_find_region_map_beside_a_coefficients_file(tmp_path, paper) -> None:
+def test_the_commands_attach_the_map_beside_a_coefficients_file_only_if_it_certifies_them(
+    capsys, tmp_path, paper
+) -> None:
+    """verify's commands load the coefficients as pipeline.load_coefficients does: the map beside
+    them attached if it certifies them; one of other coefficients not attached, with a one-line
+    warning; a broken one an error that says how to go on; none read when the command asks for
+    none."""
     source = tmp_path / "coefficients.json"
     save_coefficients(paper, source)
-    coefficients = load_coefficients(source)
-    assert find_region_map(coefficients) == (None, None)
+    assert load_coefficients_for_verify("prog", str(source)).region_map is None
     beside = tmp_path / DEFAULT_MAP_NAME
-    save_region_map(certify_range(coefficients, COARSE), beside)
-    found, where = find_region_map(coefficients)
-    assert where == str(beside) and found.belongs_to(coefficients)
+    save_region_map(certify_range(load_coefficients(source, region_map=None), COARSE), beside)
+    found = load_coefficients_for_verify("prog", str(source))
+    assert found.region_map is not None and found.region_map.belongs_to(found)
+    assert map_path_beside(found) == beside and capsys.readouterr().err == ""
     source.write_text(source.read_text() + "\n")  # other bytes, other sha256: the map no longer belongs
-    changed = load_coefficients(source)
-    stale, where = find_region_map(changed)
-    assert where == str(beside) and stale is not None and not stale.belongs_to(changed)
-    assert find_region_map(load_coefficients("paper")) == (None, None)  # Eq. 9 has no file beside it
-    named, where = find_region_map(changed, beside)  # named explicitly: loaded whether it belongs or not
-    assert where == str(beside) and not named.belongs_to(changed)
+    changed = load_coefficients_for_verify("prog", str(source))
+    err = capsys.readouterr().err
+    assert changed.region_map is None and err.startswith("prog: warning: ") and len(err.splitlines()) == 1
+    assert str(beside) in err and "python -m pipeline.certify_range" in err
+    assert load_coefficients_for_verify("prog", "paper").region_map is None  # Eq. 9 has no file beside it
+    beside.write_text("{not json")
+    with pytest.raises(DataFileError, match="--no-region-map skips it") as info:
+        load_coefficients_for_verify("prog", str(source), malformed_hint="--no-region-map skips it")
+    assert info.value.path == beside
+    assert load_coefficients_for_verify("prog", str(source), beside=False).region_map is None  # not read
+    with pytest.raises(DataFileError, match="coefficients file not found"):  # as pipeline.cli says
+        load_coefficients_for_verify("prog", str(tmp_path / "missing.json"), beside=False)
 
 
 def test_in_decide_mode_only_tight_bounds_are_compared(region_map, paper, cases) -> None:

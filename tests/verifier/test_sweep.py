@@ -490,3 +490,93 @@ def test_a_malformed_map_beside_the_coefficients_names_the_way_past_it(capsys, t
     assert len(err.strip().splitlines()) == 1 and "region_map.json" in err and "--no-region-map" in err
     status, out, err = run_main(capsys, "--coefficients", str(coefficients), "--n", "2", "--no-region-map", *FAST)
     assert status in (EXIT_OK, EXIT_FAILED) and "Traceback" not in err and "region map" not in out
+
+
+def test_a_map_beside_of_other_coefficients_is_a_one_line_warning_and_not_used(
+    capsys, tmp_path: Path, paper_map_file: Path
+) -> None:
+    from pipeline.offline.coefficients import paper_data_path
+
+    source = tmp_path / "coefficients.json"
+    source.write_text(paper_data_path("paper_eq9_coefficients.json").read_text() + "\n")  # other sha256
+    (tmp_path / "region_map.json").write_bytes(paper_map_file.read_bytes())
+    status, out, err = run_main(capsys, "--coefficients", str(source), "--n", "1", *FAST)
+    assert status in (EXIT_OK, EXIT_FAILED) and "region map" not in out
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("python -m verify.sweep: warning: ")
+    assert str(tmp_path / "region_map.json") in lines[0] and "python -m pipeline.certify_range" in lines[0]
+
+
+# --------------------------------------------------------------------------------------------
+# The arm recorded with the coefficients; progress.
+
+
+@pytest.fixture
+def own_arm_coefficients(tmp_path: Path) -> Path:
+    """The paper's Eq. 9 saved as a build of another URDF would leave it: fitted (by its record)
+    for arm.urdf beside it, here the shipped arm's geometry under other bytes."""
+    import dataclasses
+    import hashlib
+
+    from pipeline import load_coefficients
+    from pipeline.model.arm import DEFAULT_URDF
+    from pipeline.offline.coefficients import save_coefficients
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(DEFAULT_URDF.read_text() + "\n<!-- the arm of this build -->\n")
+    paper = load_coefficients("paper", region_map=None)
+    record = {"urdf": "arm.urdf", "urdf_sha256": hashlib.sha256(urdf.read_bytes()).hexdigest()}
+    source = tmp_path / "coefficients.json"
+    save_coefficients(dataclasses.replace(paper, extra={**paper.extra, "provenance": record}), source)
+    return source
+
+
+def test_the_arm_recorded_with_the_coefficients_is_measured_and_recorded(
+    capsys, tmp_path: Path, own_arm_coefficients: Path
+) -> None:
+    out_file = tmp_path / "sweep.json"
+    argv = ["--coefficients", str(own_arm_coefficients), "--n", "2", *FAST, "--json", str(out_file)]
+    status, _, err = run_main(capsys, *argv)
+    assert status in (EXIT_OK, EXIT_FAILED) and err == ""
+    assert json.loads(out_file.read_text())["provenance"]["urdf"]["path"] == str(tmp_path / "arm.urdf")
+    from pipeline.model.arm import DEFAULT_URDF
+
+    status, _, _ = run_main(capsys, *argv, "--urdf", str(DEFAULT_URDF))  # the same links: accepted
+    assert json.loads(out_file.read_text())["provenance"]["urdf"]["path"] == str(DEFAULT_URDF)
+    (tmp_path / "arm.urdf").unlink()
+    status, _, err = run_main(capsys, *argv)
+    assert status == EXIT_USAGE and len(err.strip().splitlines()) == 1 and "--urdf" in err and "arm.urdf" in err
+
+
+def test_worker_processes_load_the_arm_the_sweep_resolved(monkeypatch, own_arm_coefficients: Path) -> None:
+    """With --jobs > 1 the workers get the resolved URDF (arm.urdf beside the coefficients), in
+    chunks small enough for the progress bar to advance."""
+    import verify.acceptance.run as run_module
+
+    seen = {}
+
+    def in_process(function, items, *, jobs, chunk_size, on_done):
+        seen.update(urdf=function.args[0].urdf_path, jobs=jobs, chunk_size=chunk_size)
+        results = [function(item) for item in items]
+        on_done(results)
+        return results
+
+    monkeypatch.setattr(run_module, "process_map", in_process)
+    cases = sample_cases(SweepRange((0.2, 0.3), (0.08, 0.12)), 3, 0)
+    results = run_cases(str(own_arm_coefficients), cases, MeasureSettings(time_samples=200), jobs=2)
+    assert seen == {"urdf": str(own_arm_coefficients.with_name("arm.urdf")), "jobs": 2, "chunk_size": 1}
+    assert len(results) == 3
+
+
+def test_chunks_are_small_enough_for_the_bar_to_advance() -> None:
+    from verify.acceptance.run import chunk_size
+
+    assert chunk_size(20_000, 2) == 16  # 1,250 chunks
+    assert chunk_size(1000, 2) == 8 and chunk_size(3, 4) == 1  # about 64 chunks per process
+
+
+def test_no_progress_bar_when_stderr_is_not_a_terminal(capsys) -> None:
+    status, _, err = run_main(capsys, "--coefficients", "paper", "--n", "2", "--samples", "200")  # bars requested
+    assert status in (EXIT_OK, EXIT_FAILED) and err == ""
+    status, _, err = run_main(capsys, "--coefficients", "paper", "--n", "2", "--samples", "200", "--progress")
+    assert err == ""

@@ -24,11 +24,12 @@ from tqdm import tqdm
 from pipeline import load_coefficients
 from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError, UnreachableObstacleError
 from pipeline.io.parallel import process_map
+from pipeline.io.progress import progress_enabled
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.offline.coefficients import Coefficients
 from pipeline.online.repair import RepairConfig, generate_certified
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
-from verify.acceptance.run import load_unchanged
+from verify.acceptance.run import arm_for_sweep, chunk_size, load_unchanged
 
 #: The outcomes of one query.
 STATUSES = ("certified", "repaired", "refused")
@@ -82,10 +83,14 @@ class OnlineCase:
 def query(
     coefficients: Coefficients, arm: PlanarArm, length_m: float, width_m: float, config: RepairConfig
 ) -> OnlineCase:
-    """One certify-or-repair query, its outcome recorded rather than raised."""
+    """One certify-or-repair query, its outcome recorded rather than raised. The per-query
+    certificate always runs: a region map attached to ``coefficients`` is not used (the sweep
+    checks the certify-or-repair, not the map)."""
     start = time.perf_counter()
     try:
-        answer = generate_certified(coefficients, length_m, width_m, arm, out_of_range="ignore", config=config)
+        answer = generate_certified(
+            coefficients, length_m, width_m, arm, out_of_range="ignore", config=config, region_map=None
+        )
     except NoCertifiedTrajectoryError as exc:
         return OnlineCase(
             length_m, width_m, "refused", None, exc.certified_clearance_m, exc.reason, time.perf_counter() - start
@@ -104,14 +109,14 @@ def query(
 
 
 @functools.lru_cache(maxsize=4)
-def _loaded(source: str, sha256: str, urdf: str | None) -> tuple[Coefficients, PlanarArm]:
+def _loaded(source: str, sha256: str, urdf: str) -> tuple[Coefficients, PlanarArm]:
     """The worker's coefficients and arm, loaded once per (file, content): a file rewritten under
     the same name is never served from the cache, it is refused (``run.load_unchanged``)."""
     return load_unchanged(source, sha256), load_planar_arm(urdf)
 
 
 def _query_in_worker(
-    source: str, sha256: str, urdf: str | None, config: RepairConfig, case: tuple[float, float]
+    source: str, sha256: str, urdf: str, config: RepairConfig, case: tuple[float, float]
 ) -> OnlineCase:
     coefficients, arm = _loaded(source, sha256, urdf)
     return query(coefficients, arm, case[0], case[1], config)
@@ -129,28 +134,37 @@ def run_online_cases(
 ) -> list[OnlineCase]:
     """Query every case (L, W) of ``cases_m`` (shape (n, 2) [m]); results in case order whatever ``jobs``.
 
+    Every query runs the per-query certify-or-repair (:func:`query`: no region map, even one
+    attached to ``coefficients``).
+
     Args:
         source: Coefficients file or the paper's name (loaded by each worker process).
         config: Certify-or-repair settings.
-        urdf: URDF of the arm (None: the project's).
+        urdf: URDF of the arm (None: the one recorded with the coefficients; ignored if ``arm``
+            is given).
         jobs: Processes (1: in this one).
-        progress: tqdm progress bar on stderr.
-        coefficients, arm: Already loaded objects for the in-process path (optional).
+        progress: tqdm progress bar on stderr (only if it is a terminal).
+        coefficients, arm: Already loaded objects (optional); ``arm`` must be the coefficients'.
     """
     cases = [(float(length), float(width)) for length, width in np.asarray(cases_m, dtype=float).reshape(-1, 2)]
-    urdf_text = None if urdf is None else str(urdf)
+    loaded = coefficients if coefficients is not None else load_coefficients(source, region_map=None)
+    arm = arm if arm is not None else arm_for_sweep(loaded, urdf)
     if jobs == 1:
-        loaded = coefficients or load_coefficients(source)
-        arm = arm or load_planar_arm(urdf_text)
 
         def function(case: tuple[float, float]) -> OnlineCase:
             return query(loaded, arm, case[0], case[1], config)
 
     else:
-        sha256 = (coefficients or load_coefficients(source)).source_sha256
-        function = functools.partial(_query_in_worker, source, sha256, urdf_text, config)
-    with tqdm(total=len(cases), desc="certify-or-repair", unit="case", disable=not progress, file=sys.stderr) as bar:
-        return process_map(function, cases, jobs=jobs, on_done=lambda done: bar.update(len(done)))
+        function = functools.partial(_query_in_worker, source, loaded.source_sha256, str(arm.urdf_path), config)
+    shown = progress_enabled(progress)
+    with tqdm(total=len(cases), desc="certify-or-repair", unit="case", disable=not shown, file=sys.stderr) as bar:
+        return process_map(
+            function,
+            cases,
+            jobs=jobs,
+            chunk_size=chunk_size(len(cases), jobs),
+            on_done=lambda done: bar.update(len(done)),
+        )
 
 
 @dataclass(frozen=True)

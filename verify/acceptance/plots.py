@@ -357,7 +357,8 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
     region map that belongs to its coefficients, region_map.png for ``run`` into ``directory``.
 
     The case studies' trajectories are regenerated from the run's coefficients (as an online
-    user would); cases that cannot be generated are left out of the figure.
+    user would) and drawn with the run's arm (its URDF, recorded in ``run.provenance``; or
+    ``urdf_path``); cases that cannot be generated are left out of the figure.
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -399,8 +400,8 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
             )
         )
     if run.case_studies:
-        coefficients = load_coefficients(run.source)
-        arm = load_planar_arm(urdf_path)
+        coefficients = load_coefficients(run.source, region_map=None)
+        arm = load_planar_arm(urdf_path if urdf_path is not None else run.provenance["urdf"]["path"])
         studies = []
         for result in run.case_studies:
             try:

@@ -37,17 +37,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from pipeline.certify.clearance_bound import FLOAT_SLACK_M
-from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME
-from pipeline.certify.region_map import STATUSES, RegionMap, load_region_map
-from pipeline.exceptions import DataFileError, InvalidParameterError
+from pipeline.certify.region_map import STATUSES, RegionMap
+from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M
-from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_non_negative
 
@@ -301,26 +298,3 @@ def check_range(
         endpoint=BoundCheck.of(bound_e[measured] - col["endpoint"][measured], col["index"][measured], ENDPOINT_SLACK_M),
         region_map=region_map,
     )
-
-
-def find_region_map(coefficients: Coefficients, path: str | Path | None = None) -> tuple[RegionMap | None, str | None]:
-    """The map to check ``coefficients`` against, and its file: ``path`` if given; else the
-    ``region_map.json`` the build wrote beside the coefficients file, whether it belongs to them
-    or to other coefficients (so that the sweep can say so); else (None, None). The paper's
-    Eq. 9 has no file beside it: only an explicit ``path``.
-
-    Raises:
-        DataFileError: the map file is missing (if named), unreadable or malformed (the map
-            found beside the coefficients: the message names ``--no-region-map``).
-    """
-    if path is not None:
-        return load_region_map(path), str(path)
-    if not coefficients.source or coefficients.source == PAPER_SOURCE:
-        return None, None
-    beside = Path(coefficients.source).with_name(DEFAULT_MAP_NAME)
-    if not beside.is_file():
-        return None, None
-    try:  # read once: the report says whether it belongs (``RegionMap.belongs_to``)
-        return load_region_map(beside), str(beside)
-    except DataFileError as exc:  # found, not asked for: say how to go on without it
-        raise DataFileError(exc.path, f"{exc.reason}; --no-region-map skips it") from None

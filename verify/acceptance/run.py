@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime
 import functools
+import math
 import os
 import sys
 import time
@@ -27,11 +28,13 @@ from pipeline.exceptions import DataFileError
 from pipeline.geometry.link_reach import LinkReach
 from pipeline.io.jsonio import json_safe
 from pipeline.io.parallel import process_map
+from pipeline.io.progress import progress_enabled
 from pipeline.io.provenance import package_versions, sha256_file
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
+from pipeline.online.arm_check import arm_for
 from pipeline.validation import check_non_negative, check_positive_int
 
 from .cases import SweepRange, case_study_sizes, sample_cases
@@ -66,27 +69,55 @@ class _WorkerContext:
 
     source: str
     sha256: str
-    urdf_path: str | None
+    urdf_path: str
     settings: MeasureSettings
 
 
 def load_unchanged(source: str, sha256: str) -> Coefficients:
     """The coefficients at ``source`` if their sha256 is still ``sha256`` (what a worker process
-    loads for the sweep that started it).
+    loads for the sweep that started it), without a region map (a worker measures cases, it
+    reads no bounds).
 
     Raises:
         DataFileError: the file changed since the sweep read it.
     """
-    coefficients = load_coefficients(source)
+    coefficients = load_coefficients(source, region_map=None)
     if coefficients.source_sha256 != sha256:
         raise DataFileError(source, "changed while the sweep was running (sha256 differs)")
     return coefficients
 
 
 @functools.lru_cache(maxsize=4)
-def _loaded(source: str, sha256: str, urdf_path: str | None) -> tuple[Coefficients, PlanarArm, LinkReach]:
-    arm = load_planar_arm(urdf_path)
+def _loaded(source: str, sha256: str, urdf_path: str) -> tuple[Coefficients, PlanarArm, LinkReach]:
+    arm = load_planar_arm(urdf_path)  # the main process's arm, already checked against the coefficients
     return load_unchanged(source, sha256), arm, LinkReach.from_arm(arm)
+
+
+def arm_for_sweep(coefficients: Coefficients, urdf_path: str | Path | None = None) -> PlanarArm:
+    """The arm to measure ``coefficients`` with: the one recorded with them
+    (:func:`pipeline.online.arm_check.arm_for`), or the URDF ``urdf_path`` if given, which must
+    match them.
+
+    Raises:
+        InvalidParameterError: the arm of ``urdf_path`` is not the coefficients' (named ``--urdf``).
+        DataFileError: the recorded arm's URDF is missing or changed.
+    """
+    if urdf_path is None:
+        return arm_for(coefficients)
+    arm = load_planar_arm(urdf_path)
+    check_arm_matches(coefficients, arm)
+    return arm
+
+
+#: Most cases per chunk of work sent to a worker process (progress is reported per chunk).
+MAX_CHUNK_CASES = 16
+
+
+def chunk_size(n_cases: int, jobs: int) -> int:
+    """Cases per chunk for ``jobs`` worker processes: about 64 chunks per process, at most
+    :data:`MAX_CHUNK_CASES` cases each (so that the progress bar advances smoothly; the results
+    do not depend on it)."""
+    return max(1, min(MAX_CHUNK_CASES, math.ceil(n_cases / (64 * jobs))))
 
 
 def _measure_in_worker(context: _WorkerContext, case: tuple[int, float, float]) -> CaseResult:
@@ -111,35 +142,43 @@ def run_cases(
 
     The results do not depend on ``jobs``: each case is measured independently and
     deterministically (:func:`pipeline.io.parallel.process_map`). ``jobs`` > 1 uses that many
-    worker processes; each loads the coefficients and the arm itself and checks the
-    coefficients' hash.
+    worker processes; each loads the coefficients and the arm (from its URDF file) itself and
+    checks the coefficients' hash.
 
     Args:
         source: Coefficients file, or the paper's name.
         cases_m: Obstacle sizes, shape (n, 2) [m].
         settings: Measurement settings.
         jobs: Worker processes (0: every CPU; 1: in this process).
-        urdf_path: URDF of the arm (default: the project's).
-        progress: Show a tqdm progress bar on stderr.
+        urdf_path: URDF of the arm (default: the one recorded with the coefficients; ignored if
+            ``arm`` is given).
+        progress: Show a tqdm progress bar on stderr (only if it is a terminal).
         label: Progress-bar label.
-        coefficients, arm: Already loaded objects for the in-process path (optional).
+        coefficients, arm: Already loaded objects (optional); ``arm`` must be the coefficients'.
     """
     jobs = resolve_jobs(jobs)
     cases = np.asarray(cases_m, dtype=float).reshape(-1, 2)
-    coefficients = coefficients if coefficients is not None else load_coefficients(source)
+    coefficients = coefficients if coefficients is not None else load_coefficients(source, region_map=None)
+    arm = arm if arm is not None else arm_for_sweep(coefficients, urdf_path)
     indexed = [(i, float(length), float(width)) for i, (length, width) in enumerate(cases)]
     if jobs == 1:
-        arm = arm or load_planar_arm(urdf_path)
         reach = LinkReach.from_arm(arm)
 
         def function(case: tuple[int, float, float]) -> CaseResult:
             return measure_case(coefficients, case[1], case[2], arm, settings, index=case[0], reach=reach)
 
     else:
-        context = _WorkerContext(source, coefficients.source_sha256, urdf_path, settings)
+        context = _WorkerContext(source, coefficients.source_sha256, str(arm.urdf_path), settings)
         function = functools.partial(_measure_in_worker, context)
-    with tqdm(total=len(indexed), desc=label or "cases", unit="case", file=sys.stderr, disable=not progress) as bar:
-        results = process_map(function, indexed, jobs=jobs, on_done=lambda done: bar.update(len(done)))
+    shown = progress_enabled(progress)
+    with tqdm(total=len(indexed), desc=label or "cases", unit="case", file=sys.stderr, disable=not shown) as bar:
+        results = process_map(
+            function,
+            indexed,
+            jobs=jobs,
+            chunk_size=chunk_size(len(indexed), jobs),
+            on_done=lambda done: bar.update(len(done)),
+        )
     return tuple(results)
 
 
@@ -224,6 +263,7 @@ def run_sweep(
     case_studies: bool = True,
     argv: Sequence[str] | None = None,
     coefficients: Coefficients | None = None,
+    arm: PlanarArm | None = None,
     region_map: RegionMap | None = None,
     region_map_path: str | None = None,
 ) -> SweepRun:
@@ -238,13 +278,15 @@ def run_sweep(
         sweep_range: Sampled range; default the coefficients' fitted range.
         settings: Measurement settings; default :class:`MeasureSettings`.
         jobs: Worker processes (0: every CPU).
-        urdf_path: URDF of the arm; default the project's.
-        progress: Show a progress bar on stderr.
+        urdf_path: URDF of the arm; default the one recorded with the coefficients (it must
+            match them; ignored if ``arm`` is given).
+        progress: Show a progress bar on stderr (only if it is a terminal).
         label: Name of the run; default :func:`source_label`.
         cases_m: Explicit cases (n, 2) [m] instead of sampling (``seed`` is then only recorded).
         case_studies: Also measure the four case studies.
         argv: Command line to record in the provenance.
         coefficients: ``source`` already loaded (optional).
+        arm: The arm already loaded (optional; checked against the coefficients).
         region_map: The range certificate to check (optional; one of other coefficients is
             reported as not belonging and not checked).
         region_map_path: Its file, for the report.
@@ -253,12 +295,14 @@ def run_sweep(
         PipelineError: bad coefficients, range or settings, or coefficients fitted for another arm.
     """
     settings = settings or MeasureSettings()
-    coefficients = coefficients if coefficients is not None else load_coefficients(source)
+    coefficients = coefficients if coefficients is not None else load_coefficients(source, region_map=None)
     fitted = SweepRange.from_fitted(coefficients.fitted_range_m)
     chosen = sweep_range or fitted
     cases = sample_cases(chosen, n, seed) if cases_m is None else np.asarray(cases_m, dtype=float).reshape(-1, 2)
-    arm = load_planar_arm(urdf_path)
-    check_arm_matches(coefficients, arm)
+    if arm is None:
+        arm = arm_for_sweep(coefficients, urdf_path)
+    else:
+        check_arm_matches(coefficients, arm)
     for length, width in ((chosen.L_m[0], chosen.W_m[0]), (chosen.L_m[1], chosen.W_m[1])):
         Obstacle.in_scene(length, width, coefficients.scene)  # fails early on impossible sizes
     name = label or source_label(source)
@@ -268,7 +312,6 @@ def run_sweep(
         cases,
         settings,
         jobs=jobs,
-        urdf_path=urdf_path,
         progress=progress,
         label=name,
         coefficients=coefficients,
@@ -276,9 +319,7 @@ def run_sweep(
     )
     elapsed = time.perf_counter() - start
     studies = measure_case_studies(coefficients, arm, settings, fitted) if case_studies else ()
-    provenance = _provenance(
-        source, coefficients, chosen, fitted, settings, seed=seed, n_cases=len(results), arm=arm, urdf_path=urdf_path
-    )
+    provenance = _provenance(source, coefficients, chosen, fitted, settings, seed=seed, n_cases=len(results), arm=arm)
     provenance.update(
         cases_given_explicitly=cases_m is not None,
         range_is_fitted_range=sweep_range is None,
@@ -325,11 +366,10 @@ def _provenance(
     seed: int,
     n_cases: int,
     arm: PlanarArm,
-    urdf_path: str | None,
 ) -> dict[str, Any]:
     """Where a sweep's numbers came from: coefficients (hash, family, range), seed, range, settings,
     URDF (hash), scene, package versions and the time; the caller adds what only it knows."""
-    urdf = Path(urdf_path) if urdf_path else arm.urdf_path
+    urdf = Path(arm.urdf_path)
     return {
         "coefficients": {
             "source": source,

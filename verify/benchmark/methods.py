@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.build import BuildConfig, run_build
 from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import DataFileError, NoCertifiedTrajectoryError, PipelineError
 from pipeline.geometry.polyline_certificate import certify_path
@@ -23,7 +24,6 @@ from pipeline.io.jsonio import read_json
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory
-from pipeline.offline.build import BuildConfig, run_build
 from pipeline.offline.experiment import SolverConfig, solve_experiment
 from pipeline.online.batch import GeneratedBatch, generate_batch
 from pipeline.online.generator import RANGE_SOURCE, generate, generate_parameters
@@ -147,13 +147,14 @@ def batch_range_counts(batch: GeneratedBatch, margin_m: float, first: int | None
 def bench_certified(
     coefficients: Any, cases: np.ndarray, arm: PlanarArm, repeats: int
 ) -> tuple[list[float], list[float | None], int]:
-    """(b): time ``generate_certified`` per query.
+    """(b): time ``generate_certified`` per query, with the per-query certificate every time (no
+    region map, even one attached to the coefficients: that is (a*)).
 
     Returns:
         (times [s], certified clearance of each answer or None where it refused, repairs made).
     """
     with contextlib.suppress(PipelineError):
-        generate_certified(coefficients, float(cases[0, 0]), float(cases[0, 1]), arm)
+        generate_certified(coefficients, float(cases[0, 0]), float(cases[0, 1]), arm, region_map=None)
     times: list[float] = []
     clearances: list[float | None] = []
     repairs = 0
@@ -161,7 +162,7 @@ def bench_certified(
         for length, width in cases:
             started = time.perf_counter()
             try:
-                answer = generate_certified(coefficients, float(length), float(width), arm)
+                answer = generate_certified(coefficients, float(length), float(width), arm, region_map=None)
             except NoCertifiedTrajectoryError:
                 answer = None
             times.append(time.perf_counter() - started)
@@ -370,7 +371,7 @@ def read_build_timing(path: Path) -> dict[str, Any] | None:
 def run_reduced_build(
     levels: int, config: SolverConfig, seed: int, urdf: Path | None, coefficients: Any
 ) -> dict[str, Any]:
-    """Run the build (:func:`pipeline.offline.build.run_build`) with ``levels`` levels per factor (>= 3)
+    """Run the build (:func:`pipeline.build.run_build`) with ``levels`` levels per factor (>= 3)
     into a temporary folder, with the PSO and objective settings of (c) and the coefficients' scene and
     fitted range; its build_timing.json, summarised. The files are written even if the reduced
     build does not converge (a tiny PSO rarely does): it is timed here, not judged.
@@ -399,6 +400,8 @@ def run_reduced_build(
                 penalty_weight=fitness.penalty_weight,
                 margin_buffer_m=fitness.margin_buffer_m,
                 allow_unconverged=True,
+                jobs=1,  # the DOE's cost in one process, as the per-query methods
+                range_map=False,  # the DOE and regression are timed here, not the map
             )
         )
         summary = read_build_timing(Path(folder) / "build_timing.json")

@@ -1,11 +1,13 @@
 """The region map (range certificate) that row (a*) of the benchmark looks its bounds up in.
 
-By default the map the build wrote beside the coefficients
-(:func:`pipeline.online.generator.load_region_map_beside`); ``--region-map FILE`` names one. Where
+By default the map attached to the coefficients (:func:`pipeline.load_coefficients` attaches the
+one the build wrote beside them if it certifies them); ``--region-map FILE`` names one. Where
 there is none (the paper's Eq. 9 has no file, or an older build's map certifies other
 coefficients), the coefficients are certified here with the build's settings
-(:func:`pipeline.certify.map_for_coefficients.default_config`), and the report says so and how
-long it took (tens of seconds: it is not part of any timed row).
+(:func:`pipeline.certify.map_for_coefficients.default_config`, one process), and the report says
+so and how long it took; it is not part of any timed row. That takes minutes: measured on two
+shared cores, about 1 min for the default build's coefficients and 4.5 min for the paper's
+Eq. 9 (whose margin contour crosses much of the range).
 """
 
 from __future__ import annotations
@@ -16,13 +18,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, default_config
+from pipeline.certify.map_for_coefficients import default_config
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import RegionMap, load_region_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap, load_region_map
 from pipeline.exceptions import DataFileError, InvalidParameterError
-from pipeline.motion.families import PAPER_SOURCE
+from pipeline.io.progress import ProgressCallback
 from pipeline.offline.coefficients import Coefficients
-from pipeline.online.generator import load_region_map_beside
+from pipeline.online.loading import map_path_beside
 
 #: How the map was obtained (``BenchRegionMap.origin``).
 ORIGINS = ("file", "beside", "certified")
@@ -79,10 +81,10 @@ class BenchRegionMap:
 
 
 def _missing_reason(coefficients: Coefficients) -> str:
-    """Why there is no usable map beside ``coefficients``, in words."""
-    if not coefficients.source or coefficients.source == PAPER_SOURCE:
+    """Why no map is attached to ``coefficients`` (loaded with the one beside them), in words."""
+    beside = map_path_beside(coefficients)
+    if beside is None:
         return f"no region map exists for '{coefficients.source or '<memory>'}'"
-    beside = Path(coefficients.source).with_name(DEFAULT_MAP_NAME)
     if beside.is_file():
         return f"{beside} certifies other coefficients"
     return f"no {DEFAULT_MAP_NAME} beside {coefficients.source}"
@@ -94,9 +96,13 @@ def bench_region_map(
     *,
     config: RangeCertificateConfig | None = None,
     log: Callable[[str], None] = lambda _: None,
+    progress: ProgressCallback | None = None,
 ) -> BenchRegionMap:
-    """The region map of ``coefficients`` for (a*): ``path`` if given, else the one beside them,
-    else certified here with ``config`` (default: the build's, :func:`default_config`).
+    """The region map of ``coefficients`` for (a*): ``path`` if given, else the one attached to
+    them (``coefficients.region_map``: :func:`pipeline.load_coefficients` attaches the one beside
+    their file), else certified here with ``config`` (default: the build's, :func:`default_config`),
+    its stages reported to ``progress``
+    (:func:`pipeline.certify.range_certificate.certify_range`).
 
     Raises:
         DataFileError: ``path`` is missing or malformed, or certifies other coefficients.
@@ -111,11 +117,11 @@ def bench_region_map(
                 "pipeline.certify_range on them",
             )
         return BenchRegionMap(region_map, "file", Path(path))
-    region_map = load_region_map_beside(coefficients)
-    if region_map is not None:
-        return BenchRegionMap(region_map, "beside", Path(coefficients.source).with_name(DEFAULT_MAP_NAME))
+    if coefficients.region_map is not None:
+        return BenchRegionMap(coefficients.region_map, "beside", map_path_beside(coefficients))
     reason = _missing_reason(coefficients)
-    log(f"certifying the coefficients' range for (a*) in-process ({reason}) ...")
+    log(f"certifying the coefficients' range for (a*) in-process ({reason}); this takes minutes ...")
     started = time.perf_counter()
-    region_map = certify_range(coefficients, config if config is not None else default_config(coefficients))
+    config = config if config is not None else default_config(coefficients)
+    region_map = certify_range(coefficients, config, progress)
     return BenchRegionMap(region_map, "certified", None, time.perf_counter() - started, reason)

@@ -48,15 +48,18 @@ import numpy as np
 from pipeline import load_coefficients
 from pipeline.exceptions import PipelineError
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
+from pipeline.io.progress import ProgressCallback
 from pipeline.io.provenance import PACKAGES, package_versions
-from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.arm import PlanarArm
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.experiment import SolverConfig
 from pipeline.offline.fitness import FitnessConfig
 from pipeline.offline.pso import PsoConfig
+from pipeline.online.loading import BESIDE
 from verify.acceptance.cases import SweepRange, sample_cases
 from verify.acceptance.metrics import check_arm_matches
+from verify.acceptance.run import arm_for_sweep
 
 from . import ompl_planner as planner
 from .methods import (
@@ -335,7 +338,7 @@ def _build_info(ctx: _Context, timing: dict[str, Any] | None, config: SolverConf
     if settings.run_build_levels is not None:
         levels = settings.run_build_levels
         ctx.log(f"running a reduced build ({levels} x {levels} levels) ...")
-        reduced = run_reduced_build(levels, config, settings.seed, settings.urdf, ctx.coefficients)
+        reduced = run_reduced_build(levels, config, settings.seed, ctx.arm.urdf_path, ctx.coefficients)
         return {"file": timing, "reduced": reduced}
     if timing is not None:
         return {"file": timing, "reduced": None}
@@ -355,6 +358,8 @@ def run_bench(
     command: str = "",
     log: Callable[[str], None] = lambda _: None,
     coefficients: Coefficients | None = None,
+    arm: PlanarArm | None = None,
+    progress: ProgressCallback | None = None,
 ) -> BenchReport:
     """Run every method on the same random obstacles and collect the report.
 
@@ -363,7 +368,11 @@ def run_bench(
         settings: What to run.
         command: The command line, recorded in the report.
         log: Progress messages.
-        coefficients: ``source`` already loaded (optional).
+        coefficients: ``source`` already loaded (optional; with the region map beside it, as
+            :func:`pipeline.load_coefficients` loads it, unless ``settings.region_map`` names one).
+        arm: The arm already loaded (optional; default ``settings.urdf``'s, else the one recorded
+            with the coefficients; checked against them).
+        progress: Progress of long stages (the in-process range certificate, if one is needed).
 
     Raises:
         DataFileError: missing or malformed coefficients / build timing file / region map, or a
@@ -372,15 +381,18 @@ def run_bench(
     """
     started = time.perf_counter()
     machine = machine_info()  # load average at the start
-    coefficients = coefficients if coefficients is not None else load_coefficients(source)
-    arm = load_planar_arm(settings.urdf)
-    check_arm_matches(coefficients, arm)
+    if coefficients is None:
+        coefficients = load_coefficients(source, region_map=None if settings.region_map is not None else BESIDE)
+    if arm is None:
+        arm = arm_for_sweep(coefficients, settings.urdf)
+    else:
+        check_arm_matches(coefficients, arm)
     cases = sample_cases(SweepRange.from_fitted(coefficients.fitted_range_m), settings.n, settings.seed)
     ctx = _Context(source, coefficients, arm, cases, coefficients.scene.margin_m, settings, log)
     # Build timing first (a missing or malformed file is reported before minutes of work).
     timing = read_build_timing(settings.build_timing) if settings.build_timing is not None else None
     config, pso_source = solver_config(coefficients, settings)
-    bench_map = bench_region_map(coefficients, settings.region_map, log=log)
+    bench_map = bench_region_map(coefficients, settings.region_map, log=log, progress=progress)
     methods, sweep_info, answers_a = _sweep_and_generator(ctx)
     methods.extend(_range_methods(ctx, bench_map, answers_a))
     methods.append(_certified_method(ctx))
