@@ -13,6 +13,6 @@ if __name__ != "__main__":
         "or import pipeline.commands.generate"
     )
 
-from pipeline.commands.generate import main  # noqa: E402
+from pipeline.commands.generate import main
 
 sys.exit(main())

@@ -77,7 +77,8 @@ def certify_coefficients(
         doe: The DOE the coefficients were regressed from.
         coefficients: The regression, as read back from ``text``.
         text: Its file content.
-        progress: Reports the refit (one unit) and the map's stages.
+        progress: Gets the stages of the refit's rounds (prefixed "certifiable regression round k: ";
+            the last round's certificate is the final map) or of the map.
     """
     pinned = coefficients.family.pins_endpoints
     map_config = default_config(
@@ -95,15 +96,16 @@ def certify_coefficients(
             endpoint=EndpointConstraint(tolerance_m=config.endpoint_tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM),
             max_rounds=config.clearance_rounds,
         )
-        if progress is not None:
-            progress(REFIT_STAGE, 0, 1)
         started = time.perf_counter()
-        coefficients, text, region_map, report = refit_for_clearance(coefficients, doe, refit, coefficients.source)
+        stages = (
+            None if progress is None else (lambda stage, done, total: progress(f"{REFIT_STAGE} {stage}", done, total))
+        )
+        coefficients, text, region_map, report = refit_for_clearance(
+            coefficients, doe, refit, coefficients.source, stages
+        )
         timing["clearance_refit_s"] = time.perf_counter() - started - region_map.seconds
         timing["clearance_refit_rounds"] = report["rounds"]
-        if progress is not None:
-            progress(REFIT_STAGE, 1, 1)
     else:
-        region_map = certify_range(coefficients, map_config)
+        region_map = certify_range(coefficients, map_config, progress=progress)
     timing["range_certificate_s"] = region_map.seconds
     return CertifiedCoefficients(coefficients, text, region_map, region_map_text(region_map), report, timing)

@@ -54,6 +54,7 @@ from pipeline.certify.range_certificate import RangeCertificateConfig, certify_r
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.io.jsonio import dumps
+from pipeline.io.progress import ProgressCallback
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import PARAMETER_NAMES
@@ -332,12 +333,20 @@ def refit(
     return replace(start, parameters=parameters, source_sha256=""), converged
 
 
+def _prefixed(progress: ProgressCallback | None, prefix: str) -> ProgressCallback | None:
+    """``progress`` with ``prefix`` before each stage name (None stays None)."""
+    if progress is None:
+        return None
+    return lambda stage, done, total: progress(prefix + stage, done, total)
+
+
 def fit_certifiable(
     coefficients: Coefficients,
     length_m: np.ndarray,
     width_m: np.ndarray,
     values: Mapping[str, np.ndarray],
     config: CertifiableFitConfig | None = None,
+    progress: ProgressCallback | None = None,
 ) -> tuple[Coefficients, RegionMap, dict]:
     """Constraint generation (module docstring) from ``coefficients`` (e.g. the build's fit).
 
@@ -346,6 +355,7 @@ def fit_certifiable(
         length_m, width_m: The DOE's obstacle sizes [m], (n,).
         values: The DOE optima per parameter (canonical form), name -> (n,).
         config: Settings; default :class:`CertifiableFitConfig`.
+        progress: Gets each round's certificate stages, prefixed "round k: ", and its refit.
 
     Returns:
         (the final coefficients, their region map, a report per round: area fractions, points,
@@ -370,7 +380,7 @@ def fit_certifiable(
     for round_index in range(config.max_rounds + 1):
         start = time.perf_counter()
         settings = final if round_index == config.max_rounds else config.certificate
-        region_map = certify_range(current, settings)
+        region_map = certify_range(current, settings, progress=_prefixed(progress, f"round {round_index}: "))
         summary = region_map.summary()
         new_points, loose = worst_points(
             current, region_map, config.points_per_round, config.feasible_slack_m, config.endpoint.fit_tolerance_m
@@ -388,7 +398,7 @@ def fit_certifiable(
         )
         if (new_points.shape[0] == 0 and loose.shape[0] == 0) or round_index == config.max_rounds:
             if round_index < config.max_rounds and final != config.certificate:  # clean early: final cells
-                region_map = certify_range(current, final)
+                region_map = certify_range(current, final, progress=_prefixed(progress, f"round {round_index}: "))
                 rounds[-1]["final_area_fraction"] = region_map.summary()["area_fraction"]
                 rounds[-1]["final_cells"] = _cells(final)
             break
@@ -457,10 +467,15 @@ def _fit_block(coefficients: Coefficients, doe: DoeData, report: dict, seconds_f
 
 
 def refit_for_clearance(
-    start: Coefficients, doe: DoeData, config: CertifiableFitConfig, source: str
+    start: Coefficients,
+    doe: DoeData,
+    config: CertifiableFitConfig,
+    source: str,
+    progress: ProgressCallback | None = None,
 ) -> tuple[Coefficients, str, RegionMap, dict]:
     """Constraint generation (:func:`fit_certifiable`) from ``start`` (the build's
-    endpoint-constrained fit of ``doe``, as read from its file text), in memory.
+    endpoint-constrained fit of ``doe``, as read from its file text), in memory; ``progress``
+    gets its rounds (:func:`fit_certifiable`).
 
     Returns:
         The refitted coefficients as they read back from their file text (their ``fit`` block
@@ -473,7 +488,9 @@ def refit_for_clearance(
         InvalidParameterError: the family is not the paper's.
         DataFileError: the text does not read back with the certified parameters.
     """
-    fitted, region_map, report = fit_certifiable(start, doe.lengths_m, doe.widths_m, doe.free_parameters(), config)
+    fitted, region_map, report = fit_certifiable(
+        start, doe.lengths_m, doe.widths_m, doe.free_parameters(), config, progress
+    )
     timeless = [{k: v for k, v in r.items() if not k.endswith("_seconds")} for r in report["rounds"]]
     fitted = replace(fitted, extra={**fitted.extra, "fit": _fit_block(fitted, doe, report, timeless)})
     text = dumps(fitted.to_json())

@@ -50,10 +50,13 @@ class ProgressBars:
     def __call__(self, stage: str, done: int, total: int) -> None:
         if not self.enabled:
             return
-        if stage != self._stage or self._bar is None or self._bar.total != total:
+        if stage != self._stage or self._bar is None or done < self._bar.n:
             self.close()
             self._stage = stage
             self._bar = tqdm(total=total, desc=stage, unit=self.unit, file=self.stream, dynamic_ncols=True)
+        elif total != self._bar.total:  # the same stage found more work (or less): one bar, a new total
+            self._bar.total = total
+            self._bar.refresh()
         self._bar.update(max(0, done - self._bar.n))
 
     def close(self) -> None:

@@ -1,0 +1,129 @@
+"""The build as one library call (:func:`pipeline.build.run_build`): the same files as the command
+line, the files written as one set, and a build stopped in any phase leaves its folder as it was."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import pytest
+
+from pipeline import BuildConfig, load_coefficients, run_build
+from pipeline.build import doe_fit, range_stage
+from pipeline.certify import certifiable_regression
+from pipeline.commands import build as build_command
+from pipeline.io import file_set
+from pipeline.offline import coefficients as coefficients_module
+
+SET = ("doe.json", "coefficients.json", "region_map.json")
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())} if folder.exists() else {}
+
+
+def test_library_and_command_line_write_the_same_bytes(replayed: list, tmp_path: Path) -> None:
+    library, command = tmp_path / "library", tmp_path / "command"
+    result = run_build(BuildConfig(out_folder=library, jobs=1))
+    assert build_command.main(["--out", str(command), "--quiet", "--no-progress"]) == 0
+    for name in SET:
+        assert (library / name).read_bytes() == (command / name).read_bytes(), name
+    # The refit ran, the map belongs to the coefficients as written, and both are in the result.
+    assert result.refit_report is not None and result.refit_report["rounds"]
+    digest = hashlib.sha256((library / "coefficients.json").read_bytes()).hexdigest()
+    assert result.region_map.coefficients_sha256 == digest == result.coefficients.source_sha256
+    assert result.coefficients.region_map is result.region_map
+    assert [path.name for path, _ in result.written] == [*SET, "build_timing.json"]
+    timing = json.loads((library / "build_timing.json").read_text())
+    assert {"total_s", "clearance_refit_s", "range_certificate_s", "total_with_range_certificate_s"} <= set(timing)
+    # What a user then loads carries the map.
+    assert load_coefficients(library / "coefficients.json").region_map is not None
+
+
+def test_without_a_range_map_no_stale_map_stays(replayed: list, tmp_path: Path) -> None:
+    run_build(BuildConfig(out_folder=tmp_path, jobs=1, clearance_rounds=0))
+    assert (tmp_path / "region_map.json").is_file()
+    result = run_build(BuildConfig(out_folder=tmp_path, jobs=1, range_map=False, seed=1))
+    assert result.region_map is None and not (tmp_path / "region_map.json").exists()
+    assert load_coefficients(tmp_path / "coefficients.json").region_map is None
+
+
+def _interrupt(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+#: Where a build can be stopped: (module, function) replaced by one that raises KeyboardInterrupt.
+PHASES = {
+    "DOE": (doe_fit, "run_doe"),
+    "regression": (coefficients_module, "fit_with_endpoints"),
+    "certifiable regression": (certifiable_regression, "fit_certifiable"),
+    "range map": (range_stage, "certify_range"),
+    "staging the files": (file_set, "_stage"),
+}
+
+
+@pytest.mark.parametrize("phase", [*PHASES, "renaming the last file"])
+def test_a_build_stopped_in_any_phase_leaves_its_folder_as_it_was(
+    replayed: list, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, phase: str
+) -> None:
+    out = tmp_path / "results"
+    rounds = 0 if phase == "range map" else 1  # with a refit round, the final map is the refit's
+    run_build(BuildConfig(out_folder=out, jobs=1, clearance_rounds=rounds))
+    (out / "notes.txt").write_text("a file of the user's", encoding="utf-8")
+    before = snapshot(out)
+    if phase in PHASES:
+        module, name = PHASES[phase]
+        monkeypatch.setattr(module, name, _interrupt)
+    else:
+        real_replace, seen = file_set.os.replace, []
+
+        def replace(src, dst):
+            if Path(dst).name == "build_timing.json" and str(src).endswith(".tmp") and not seen:
+                seen.append(dst)
+                raise KeyboardInterrupt
+            return real_replace(src, dst)
+
+        monkeypatch.setattr(file_set.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        run_build(BuildConfig(out_folder=out, jobs=1, seed=1, clearance_rounds=rounds))
+    monkeypatch.undo()
+    assert snapshot(out) == before  # no new file beside the old ones, no temporary file, nothing lost
+
+
+def test_a_new_folder_is_not_left_behind(replayed: list, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(range_stage, "certify_range", _interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        run_build(BuildConfig(out_folder=tmp_path / "new" / "results", jobs=1, clearance_rounds=0))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupted_command_line_exits_130_and_writes_nothing(
+    replayed: list, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    monkeypatch.setattr(range_stage, "certify_range", _interrupt)
+    status = build_command.main(["--out", str(tmp_path / "out"), "--quiet", "--clearance-rounds", "0"])
+    assert status == 130 and "interrupted" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_another_arm_travels_with_the_coefficients(replayed: list, tmp_path: Path) -> None:
+    from pipeline.exceptions import DataFileError
+    from pipeline.model.arm import DEFAULT_URDF
+    from pipeline.online.arm_check import arm_for
+
+    urdf = tmp_path / "my_arm.urdf"  # the same geometry, other bytes: another arm as far as the files go
+    urdf.write_text(DEFAULT_URDF.read_text(encoding="utf-8") + "<!-- my arm -->\n", encoding="utf-8")
+    out = tmp_path / "results"
+    run_build(BuildConfig(out_folder=out, jobs=1, urdf_path=urdf, clearance_rounds=0))
+    assert (out / "arm.urdf").read_bytes() == urdf.read_bytes()
+    urdf.unlink()  # the arm now lives beside the coefficients only
+    moved = tmp_path / "moved"
+    out.rename(moved)
+    coefficients = load_coefficients(moved / "coefficients.json")
+    assert coefficients.provenance["urdf"] == "arm.urdf"
+    assert arm_for(coefficients).urdf_path == moved / "arm.urdf"
+    (moved / "arm.urdf").write_text(DEFAULT_URDF.read_text(encoding="utf-8"), encoding="utf-8")
+    with pytest.raises(DataFileError, match=r"arm\.urdf"):
+        arm_for(load_coefficients(moved / "coefficients.json"))
+    assert arm_for(coefficients, DEFAULT_URDF).urdf_path == DEFAULT_URDF  # given explicitly: checked, accepted
