@@ -31,7 +31,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError
 from pipeline.model.kinematics import forward_kinematics, reach_annulus_m
@@ -203,6 +202,8 @@ def _solve(
 ) -> tuple[np.ndarray, bool, str]:
     """One SLSQP solve: least squares subject to the endpoint slack >= 0 at ``targets``."""
     X_grid = design_matrix(targets.lengths_m, targets.widths_m)
+    from scipy.optimize import minimize  # SciPy only where a fit runs: loading coefficients needs NumPy alone
+
     result = minimize(
         objective,
         start,

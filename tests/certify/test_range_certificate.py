@@ -543,7 +543,7 @@ def test_the_command_line_replaces_a_broken_map_and_draws_no_bar_off_a_terminal(
     """``python -m pipeline.certify_range`` does not read the map it replaces (a broken one beside
     the coefficients neither stops nor warns); its progress bars go to stderr only on a terminal,
     and ``--no-progress`` is accepted."""
-    from pipeline.certify_range import main
+    from pipeline.commands.certify_range import main
 
     source = tmp_path / "coefficients.json"
     save_coefficients(eq9, source)

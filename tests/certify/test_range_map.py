@@ -12,7 +12,7 @@ import pytest
 from pipeline import load_coefficients
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import STATUSES, RegionMap, load_region_map, save_region_map
-from pipeline.certify_range import main
+from pipeline.commands.certify_range import main
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
 from pipeline.offline.coefficients import save_coefficients
 

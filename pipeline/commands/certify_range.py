@@ -1,0 +1,178 @@
+"""``python -m pipeline.certify_range COEFFICIENTS``: the range certificate of a coefficients file.
+
+Certifies, for every (L, W) of the fitted range and every t in [0, T(L, W)], a lower bound on the
+clearance of both links, an upper bound on the endpoint errors, and where the margin cannot be
+kept by the family at the endpoint tolerance; writes the region map (``pipeline.certify``) and
+prints the area fraction of each status and the time it took. While it works, a progress bar per
+stage on stderr (when it is a terminal; ``--no-progress`` turns them off).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.certify.map_for_coefficients import default_config, summary_lines
+from pipeline.certify.range_certificate import (
+    DEFAULT_BOUNDARY_CELL,
+    DEFAULT_ENDPOINT_TOLERANCE_M,
+    DEFAULT_MIN_CELL,
+    certify_range,
+)
+from pipeline.certify.reachability import witness_lines, witnesses_for_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, save_region_map
+from pipeline.cli import (
+    EXIT_OK,
+    Parser,
+    add_progress_argument,
+    arm_for_cli,
+    check_output_file,
+    count_argument,
+    describe_coefficients,
+    jobs_count,
+    run_cli,
+)
+from pipeline.io.jsonio import write_json_atomic
+from pipeline.io.progress import ProgressBars
+from pipeline.motion.families import PAPER_SOURCE
+from pipeline.online.loading import load_coefficients, map_path_beside
+
+
+def _fraction(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 2.0**-20 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"{value} must be a fraction of the range's side in [2^-20, 1]")
+    return value
+
+
+def _metres(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of metres") from None
+    if not value >= 0.0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"{value} must be a finite length >= 0 [m]")
+    return value
+
+
+def parser() -> argparse.ArgumentParser:
+    p = Parser(
+        prog="python -m pipeline.certify_range",
+        description="Certify a coefficients file over its whole fitted (L, W) range and all of [0, T]: "
+        "clearance lower bounds, endpoint-error upper bounds and infeasibility, as a region map.",
+    )
+    p.add_argument("coefficients", help=f"coefficients file, or {PAPER_SOURCE!r} for the paper's Eq. 9")
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help=f"region map to write (default: {DEFAULT_MAP_NAME} beside the coefficients file; "
+        f"none for {PAPER_SOURCE!r})",
+    )
+    p.add_argument("--json", type=Path, default=None, help="also write the summary (area fractions, bounds, seconds)")
+    p.add_argument(
+        "--margin", type=_metres, default=None, help="clearance margin [m] (default: the coefficients' scene margin)"
+    )
+    p.add_argument(
+        "--endpoint-tolerance",
+        type=_metres,
+        default=None,
+        help=f"endpoint tolerance of the infeasibility certificate [m] (default: {DEFAULT_ENDPOINT_TOLERANCE_M}, "
+        "0 for a family that pins the endpoints)",
+    )
+    p.add_argument("--jobs", type=jobs_count, default=1, help="worker processes [count], 0 = every CPU")
+    p.add_argument(
+        "--min-cell",
+        type=_fraction,
+        default=None,
+        help=f"smallest (L, W) cell, as a fraction of the fitted range's side [-] (default: {DEFAULT_MIN_CELL})",
+    )
+    p.add_argument(
+        "--witnesses",
+        type=count_argument,
+        default=0,
+        metavar="N",
+        help="paper family: at N cells that keep neither the margin nor are proven infeasible (spread over them), "
+        "search the family for the largest clearance with the endpoint tolerance and certify it (a witness of "
+        "what is reachable; pipeline.certify.reachability) [count] (default: 0)",
+    )
+    p.add_argument(
+        "--witness-restarts",
+        type=count_argument,
+        default=0,
+        metavar="K",
+        help="random restarts of each witness search besides the start at the coefficients' trajectory [count] "
+        "(default: 0)",
+    )
+    p.add_argument(
+        "--seed",
+        type=count_argument,
+        default=0,
+        help="seed of the witness searches' restarts (numpy.random.default_rng) [integer >= 0] (default: 0)",
+    )
+    p.add_argument(
+        "--boundary-cell",
+        type=_fraction,
+        default=None,
+        help="cell size to which regions that miss the margin are resolved, fraction of the side [-] "
+        f"(default: {DEFAULT_BOUNDARY_CELL})",
+    )
+    add_progress_argument(p)
+    return p
+
+
+def _work(args: argparse.Namespace) -> int:
+    output = check_output_file(args.output, "--output")
+    summary_path = check_output_file(args.json, "--json")
+    # Without the map beside them: it is the one this command replaces (an older build's, or a
+    # broken file, must neither warn nor stop it).
+    coefficients = load_coefficients(args.coefficients, region_map=None)
+    if output is None:
+        output = map_path_beside(coefficients)  # None for the paper's Eq. 9
+    config = default_config(
+        coefficients,
+        margin_m=args.margin,
+        endpoint_tolerance_m=args.endpoint_tolerance,
+        min_cell=args.min_cell,
+        boundary_cell=args.boundary_cell,
+        jobs=args.jobs,
+    )
+    print(describe_coefficients(coefficients))
+    with ProgressBars(enabled=not args.no_progress) as progress:
+        region_map = certify_range(coefficients, config, progress)
+    digest = save_region_map(region_map, output) if output is not None else None
+    print("\n".join(summary_lines(region_map)))
+    summary = region_map.summary()
+    if args.witnesses > 0:
+        witnesses = witnesses_for_map(
+            coefficients,
+            region_map,
+            arm_for_cli(coefficients, None),
+            args.witnesses,
+            args.witness_restarts,
+            np.random.default_rng(args.seed),
+        )
+        print("\n".join(witness_lines(witnesses)))
+        summary["witnesses"] = [w.to_json() for w in witnesses]
+    if output is not None:
+        print(f"wrote {output} (sha256 {digest[:12]}, for coefficients sha256 {coefficients.source_sha256[:12]})")
+    if summary_path is not None:
+        write_json_atomic(summary_path, summary)
+        print(f"wrote {summary_path}")
+    return EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit status (0 done, 2 bad input, 130 interrupted)."""
+    return run_cli(parser(), _work, argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
