@@ -39,8 +39,8 @@ tolerance and the margin anywhere in the cell: the cell is *infeasible*. An uppe
   contains O0 = O(L0, W0), the obstacle of its smallest corner, and a pose's clearance against
   any obstacle of the cell is at most its clearance against O0 (distance to a superset is no
   larger). So the bound is taken against O0 alone and the obstacle's change across the cell
-  costs nothing (an earlier form used the centre's obstacle plus its Hausdorff motion
-  sqrt((h_L / 2)^2 + h_W^2), about 0.06 mm on a 1/512 cell of the default range). O0 is formed
+  costs nothing (the alternative, the centre's obstacle plus its Hausdorff motion
+  sqrt((h_L / 2)^2 + h_W^2), costs about 0.06 mm on a 1/512 cell of the default range). O0 is formed
   from the cell's centre minus its half widths in floating point, a few ulps (1e-17 m) from the
   true corner; distance is 1-Lipschitz in that, and the float slack covers it.
 * Over a (th1, th2) box with half widths (D1, D2) around q_m, links move by at most

@@ -51,11 +51,10 @@ from pipeline.validation import check_non_negative, check_positive, check_positi
 
 #: Default endpoint tolerance of the infeasibility certificate [m] (the build's regression's).
 DEFAULT_ENDPOINT_TOLERANCE_M = 0.002
-#: Default smallest cell, as a fraction of the fitted range's side. Measured on the default build
-#: (seed 0, two jobs, 2026-11-25, before the strips and the refit's new settings): 1/512
-#: certified 99.73 % of the feasible area >= the margin, 1/1024 99.81 % with a map of 12.2 s
-#: (25,498 cells), 1/2048 99.85 % in 28.3 s (63,256 cells; its lookup index would take 16 MiB).
-#: Strips along W (:data:`DEFAULT_STRIP_SPLIT`) resolve the contours more cheaply.
+#: Default smallest cell, as a fraction of the fitted range's side: finer cells resolve the
+#: margin's contour better but cost time and lookup memory (at 1/2048 the index takes 16 MiB);
+#: strips along W (:data:`DEFAULT_STRIP_SPLIT`) resolve the contours more cheaply
+#: (measurements: docs/results.md, "The range certificate").
 DEFAULT_MIN_CELL = 1.0 / 1024
 #: Default cell size to which regions below the margin are resolved, fraction of the side.
 DEFAULT_BOUNDARY_CELL = 1.0 / 64
@@ -76,9 +75,9 @@ _LEAF_CHUNK = 4096
 #: Tasks of the clearance branch and bound (diagonal stripes of the initial grid, run_search).
 _SEARCH_GROUPS = 4
 #: Default halvings along W of the smallest cells that miss the margin without being proven
-#: infeasible (``pipeline.certify.strip_split``). Measured on the default build's coefficients
-#: (seed 0, 2026-11-25, ``b7e644b8``), margin as a fraction of the feasible area: 0 -> 99.863 %
-#: (30,421 cells), 2 -> 99.927 % (34,681), 3 -> 99.935 % (40,361; 23.3 s with two jobs).
+#: infeasible (``pipeline.certify.strip_split``). On the default build, the margin's fraction of the
+#: feasible area by halvings: 0 -> 99.863 % (30,421 cells), 2 -> 99.927 % (34,681), 3 -> 99.935 %
+#: (40,361 cells).
 DEFAULT_STRIP_SPLIT = 3
 #: Columns (i_L) of strips per task of the strips' bounds (fixed, so that the map does not depend
 #: on the worker count).

@@ -32,7 +32,7 @@ Derivation
    in time, per link, so that no point of that link moves more than :data:`COARSE_RESOLUTION_M`
    (15 cm) between its samples (speed bound from the peak joint rates ``|A_i w_i|``), at least
    :data:`MIN_INITIAL_SAMPLES` samples: a few dozen for link 2 of the paper's motions and about
-   ten for the slower link 1, against about 3,300 configurations at today's 1 mm. Then, **per
+   ten for the slower link 1, against about 3,300 configurations for the dense route's 1 mm. Then, **per
    link**, only the intervals that need it are split, with one clearance evaluation of that link
    per new point. In tolerance mode the intervals whose bound is more than ``tolerance_m`` below
    the smallest sampled value (both links) are bisected. In decide mode (``decide_above_m``) the

@@ -126,7 +126,7 @@ def _run_once(executable: str, html_path: Path, png_path: Path, config: BrowserC
     """
     with tempfile.TemporaryDirectory(prefix="viewer-chromium-") as profile:
         command = chromium_command(executable, html_path, png_path, Path(profile), config)
-        # Own session, so that on a timeout the browser and its helpers go as one group.
+        # A process group of its own, so that on a timeout the browser and its helpers go together.
         proc = subprocess.Popen(
             command,
             stdin=subprocess.DEVNULL,
