@@ -75,3 +75,26 @@ def test_default_chunks_are_small_and_about_four_per_process():
     assert default_chunk_size(1000, 2) == 16
     assert default_chunk_size(40, 2) == 5
     assert default_chunk_size(1, 8) == 1
+
+
+def test_a_script_without_a_main_guard_gets_one_clear_error(tmp_path) -> None:
+    """Spawned workers re-import the script: without ``if __name__ == "__main__":`` they would start
+    the work again. They end quietly and the caller gets one WorkerPoolError saying what to add."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "unguarded.py"
+    script.write_text("from pipeline.io.parallel import process_map\nprint(process_map(abs, range(-40, 0), jobs=2))\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == 1
+    assert done.stderr.count("Traceback") == 1, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("pipeline.exceptions.WorkerPoolError:") and 'if __name__ == "__main__":' in last
+    guarded = tmp_path / "guarded.py"
+    guarded.write_text(
+        "from pipeline.io.parallel import process_map\n"
+        "if __name__ == '__main__':\n    print(process_map(abs, range(-40, 0), jobs=2))\n"
+    )
+    done = subprocess.run([sys.executable, str(guarded)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == str(list(range(40, 0, -1)))

@@ -132,10 +132,31 @@ def _api_cases(tmp: Path) -> list[tuple[str, object, str]]:
         ("scene misspelt", lambda: scene_from_options(tmp / "misspelt.toml"), "top_y"),
         ("scene option", lambda: scene_from_options(speed_m_s=-1.0), "--speed"),
         ("run_build out", lambda: run_build(BuildConfig(out_folder=tmp / "a_file")), "--out"),
+        ("BuildConfig jobs", lambda: BuildConfig(jobs=-1), "--jobs"),
+        ("load_coefficients 42", lambda: pipeline.load_coefficients(42), "coefficients"),
+        ("load_coefficients region_map", lambda: pipeline.load_coefficients("paper", region_map=3), "region_map"),
+        ("generate None", lambda: pipeline.generate(None, 0.27, 0.09), "load_coefficients"),
+        ("generate path", lambda: pipeline.generate(str(tmp / "c.json"), 0.27, 0.09), "load_coefficients"),
+        (
+            "generate_batch 2-D",
+            lambda: pipeline.generate_batch(_paper(), [[0.2, 0.3]], [[0.1, 0.1]]),
+            "one-dimensional",
+        ),
+        ("generate_certified arm", lambda: pipeline.generate_certified(_paper(), 0.27, 0.09, arm="a"), "PlanarArm"),
+        ("generate_certified config", lambda: pipeline.generate_certified(_paper(), 0.27, 0.09, config=1), "config"),
+        ("certify_batch arrays", lambda: pipeline.certify_batch(_paper(), [0.27], [0.09]), "generate_batch"),
     ]
 
 
-@pytest.mark.parametrize("index", range(11))
+def _paper():
+    return pipeline.load_coefficients("paper")
+
+
+def test_jobs_0_means_every_cpu() -> None:
+    assert BuildConfig(jobs=0).workers == (os.cpu_count() or 1)
+
+
+@pytest.mark.parametrize("index", range(len(_api_cases(Path(".")))))
 def test_public_api_raises_the_projects_error(index: int, place: dict) -> None:
     tmp = place["tmp"]
     name, call, needle = _api_cases(tmp)[index]
@@ -150,6 +171,22 @@ def test_public_api_raises_the_projects_error(index: int, place: dict) -> None:
 @pytest.mark.parametrize(
     ("module", "arguments", "needle"),
     [
+        (
+            "pipeline.generate",
+            ["--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--rate", "1e9", "--out", "t.csv"],
+            "--rate",
+        ),
+        (
+            "pipeline.generate",
+            ["--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--out", "nodir/x.json"],
+            "does not exist",
+        ),
+        (
+            "pipeline.generate",
+            ["--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--out", "x.json/"],
+            "separator",
+        ),
+        ("pipeline.generate", ["--L", "0.27", "--W", "0.09", "--coefficients", "TMP/broken.json"], "broken.json"),
         ("pipeline.build", ["--seed", "-1"], "--seed"),
         ("pipeline.build", ["--out", "/proc/twolink-out"], "--out"),
         ("pipeline.build", ["--scene", "TMP/misspelt.toml"], "top_y"),

@@ -191,3 +191,41 @@ def test_the_package_function_survives_importing_the_cli_module() -> None:
     paper = load_coefficients("paper")
     assert exported(paper, 0.27, 0.09).trajectory.parameters == generate(paper, 0.27, 0.09).trajectory.parameters
     assert pipeline.generate(paper, 0.25, 0.1).duration_s == generate(paper, 0.25, 0.1).duration_s
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """coefficients.json (the paper's Eq. 9 as a file) with a coarse region map of it beside."""
+    import shutil
+
+    from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+    from pipeline.certify.region_map import DEFAULT_MAP_NAME, save_region_map
+    from pipeline.offline.coefficients import paper_data_path
+
+    folder = tmp_path_factory.mktemp("results")
+    shutil.copyfile(paper_data_path("paper_eq9_coefficients.json"), folder / "coefficients.json")
+    coefficients = load_coefficients(folder / "coefficients.json")
+    config = RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8, strip_split=0)
+    save_region_map(certify_range(coefficients, config), folder / DEFAULT_MAP_NAME)
+    return folder / "coefficients.json"
+
+
+def test_the_maps_certified_bounds_are_printed(built: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "t.json"
+    status, stdout, _ = run(capsys, "--L", "0.27", "--W", "0.09", "--coefficients", str(built), "--out", str(out))
+    assert status == 0 and out.is_file()
+    cell = load_coefficients(built).region_map.cell_at(0.27, 0.09)
+    assert (
+        f"range certificate: clearance >= {cell.clearance_bound_m * 1e3:.3f} mm over all of [0, T], "
+        f"endpoint error <= {cell.endpoint_bound_m * 1e3:.3f} mm (map cell: {cell.status})"
+    ) in stdout
+
+
+def test_certify_in_a_margin_cell_answers_from_the_map(built: Path, capsys) -> None:
+    region_map = load_coefficients(built).region_map
+    cell = region_map.cell_at(0.22, 0.085)
+    assert cell.status == "margin"  # Eq. 9 keeps the margin there
+    status, stdout, _ = run(capsys, "--L", "0.22", "--W", "0.085", "--coefficients", str(built), "--certify")
+    assert status == 0
+    assert "the region map's cell keeps the margin 10.000 mm" in stdout
+    assert f"clearance >= {cell.clearance_bound_m * 1e3:.3f} mm" in stdout

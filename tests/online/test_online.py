@@ -60,6 +60,23 @@ def test_unreachable_margin_is_refused_not_returned(arm, paper):
         generate_certified(paper, 0.25, 0.10, arm, config=RepairConfig(margin_m=0.2, max_seconds=0.2))
 
 
+def test_a_refusal_quotes_a_tight_bound_not_a_decide_mode_one(arm, paper):
+    """Below a margin it cannot reach, the refusal quotes the best trajectory's clearance within the
+    certificate's tolerance of a dense Coal sampling (a decide-mode bound, which only says "below the
+    margin", may lie tens of millimetres lower), and never above it."""
+    from pipeline.geometry.clearance import CoalClearance
+
+    with pytest.raises(NoCertifiedTrajectoryError) as info:
+        generate_certified(paper, 0.27, 0.09, arm, config=RepairConfig(margin_m=0.05, repair=False))
+    answer = generate(paper, 0.27, 0.09)
+    times = np.linspace(0.0, answer.duration_s, 20001)
+    sampled = CoalClearance(arm, answer.obstacle).link_clearance(answer.q(times)).min()
+    quoted = info.value.certified_clearance_m
+    assert quoted <= sampled + 1e-9
+    assert sampled - quoted < 1e-4  # tight: within 0.1 mm of the sampled minimum
+    assert f"{quoted * 1e3:.3f} mm" in str(info.value)
+
+
 def test_bad_config_is_refused():
     with pytest.raises(InvalidParameterError):
         RepairConfig(max_seconds=0.0)
