@@ -301,3 +301,24 @@ class WorkerPoolError(PipelineError):
             f"the worker processes stopped ({reason}); a script that starts them (jobs other than 1) must call "
             'the work under `if __name__ == "__main__":`, since each worker re-imports the script'
         )
+
+
+class ExecutionRefusedError(PipelineError):
+    """A trajectory certified collision-free is not certified to execute: an endpoint error
+    beyond the tolerance, or a joint angle, speed, acceleration or torque beyond the arm's limits.
+
+    Attributes:
+        length_m, width_m: The obstacle, L and W [m].
+        timing_name: The timing that was certified ("paper" or "rest-to-rest").
+        reasons: One line per failed check, naming the joint, the bound, the limit and the excess.
+    """
+
+    def __init__(self, length_m: float, width_m: float, timing_name: str, reasons: tuple[str, ...]) -> None:
+        self.length_m = length_m
+        self.width_m = width_m
+        self.timing_name = timing_name
+        self.reasons = tuple(reasons)
+        super().__init__(
+            f"no executable trajectory for L = {length_m:.4f} m, W = {width_m:.4f} m with the {timing_name} timing: "
+            + "; ".join(self.reasons)
+        )

@@ -78,22 +78,23 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--json", default=None, help="also write the tables as JSON to this file")
     args = parser.parse_args(argv)
-    from pathlib import Path
 
     from pipeline import load_coefficients
     from pipeline.certify.end_pose_room import end_pose_room_m
-    from pipeline.certify.region_map import STATUSES, load_region_map
+    from pipeline.certify.region_map import STATUSES
     from pipeline.exceptions import PipelineError
     from pipeline.io.jsonio import write_text_atomic
 
-    try:
-        coefficients = load_coefficients(args.coefficients)
-        region_map = load_region_map(args.map or Path(args.coefficients).with_name("region_map.json"))
+    try:  # the map beside the coefficients, or --map; either must certify them
+        from pipeline.online.loading import BESIDE
+
+        coefficients = load_coefficients(args.coefficients, region_map=args.map or BESIDE)
     except PipelineError as error:
         print(f"margin_gap: {error}", file=sys.stderr)
         return 2
-    if not region_map.belongs_to(coefficients):
-        print("margin_gap: the map does not belong to these coefficients", file=sys.stderr)
+    region_map = coefficients.region_map
+    if region_map is None:
+        print("margin_gap: no region map of these coefficients beside them (--map names one)", file=sys.stderr)
         return 2
     margin, tolerance = region_map.margin_m, region_map.endpoint_tolerance_m
     cell = region_map.leaf_sizes_m()

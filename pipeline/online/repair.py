@@ -13,7 +13,12 @@
    difference, stopped at the first point whose sampled clearance exceeds the margin by half
    the build's buffer, and bounded in wall time and evaluations; then certify again. Its wall
    time is returned (``CertifiedTrajectory.repair_seconds``).
-4. Return the trajectory with its certificate, or raise NoCertifiedTrajectoryError saying why.
+4. Certify that it executes (:mod:`pipeline.online.execution`): endpoint errors within the
+   tolerance, and, for the chosen timing (the paper's by default, or the shortest rest-to-rest
+   timing within the limits), joint angles, speeds, accelerations and torques within the arm's
+   limits over all of [0, T'].
+5. Return the trajectory with its certificates, or raise NoCertifiedTrajectoryError (clearance)
+   or ExecutionRefusedError (endpoints, limits) saying why.
    A refusal quotes a tight bound (within :data:`pipeline.geometry.motion_certificate.DEFAULT_TOLERANCE_M`
    of the sampled minimum) of the best trajectory tried, never a decide-mode bound, which only
    says "below the margin" and may lie far below the clearance.
@@ -34,10 +39,15 @@ from pipeline.geometry.clearance import COAL, ClearanceRoute, CoalClearance
 from pipeline.geometry.motion_certificate import DEFAULT_TOLERANCE_M, Certificate
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.arm import PlanarArm
+from pipeline.model.limits import ArmLimits
+from pipeline.motion.rest_to_rest import ShortestRestToRest
+from pipeline.motion.timed_trajectory import TimedTrajectory
+from pipeline.motion.timing import PAPER_TIMING, PaperTiming
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.fitness import FitnessConfig, FitnessProblem, fitness_problem
 from pipeline.online.arm_check import arm_for, check_arm_matches
+from pipeline.online.execution import Execution, certify_answer_execution
 from pipeline.online.generator import ATTACHED, GeneratedTrajectory, _Attached, generate
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
@@ -53,9 +63,13 @@ class RepairConfig:
         max_seconds: Wall-time budget of the repair's optimisation [s].
         max_evaluations: Budget of objective evaluations of the repair.
         fitness: Objective of the repair (the build's, by default).
-        certificate_tolerance_m: None (default): the certificate only decides whether the clearance
-            exceeds the margin, and its bound may lie well below the true minimum; a value [m]: the
-            bound is tightened to within that of the smallest sampled clearance (slower).
+        certificate_tolerance_m: None (default): the certificates only decide whether the clearance
+            exceeds the margin and whether each limit is kept, and their bounds may lie well
+            beyond the true extremes; a value [m]: the clearance bound is tightened to within that
+            of the smallest sampled clearance, and the limit bounds to within 0.01 % of the
+            sampled maxima (slower).
+        endpoint_tolerance_m: Largest endpoint error accepted [m]; None: the coefficients' own
+            (:func:`endpoint_tolerance_of`).
     """
 
     margin_m: float | None = None
@@ -65,6 +79,7 @@ class RepairConfig:
     max_evaluations: int = 400
     fitness: FitnessConfig = field(default_factory=FitnessConfig)
     certificate_tolerance_m: float | None = None
+    endpoint_tolerance_m: float | None = None
 
     def __post_init__(self) -> None:
         if self.margin_m is not None:
@@ -73,6 +88,8 @@ class RepairConfig:
         check_positive_int("max_evaluations", self.max_evaluations)
         if self.certificate_tolerance_m is not None:
             check_positive("certificate_tolerance_m", self.certificate_tolerance_m)
+        if self.endpoint_tolerance_m is not None:
+            check_non_negative("endpoint_tolerance_m", self.endpoint_tolerance_m)
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,6 +105,7 @@ class CertifiedTrajectory:
         repaired: True if the regression's answer failed and a repair succeeded.
         regression_certificate: The per-query certificate of the regression's own answer (None as above).
         repair_seconds: Wall time spent repairing [s] (0 if none).
+        execution: Endpoint errors, timing and limit bounds (:class:`pipeline.online.execution.Execution`).
     """
 
     generated: GeneratedTrajectory
@@ -96,11 +114,27 @@ class CertifiedTrajectory:
     repaired: bool
     regression_certificate: Certificate | None
     repair_seconds: float
+    execution: Execution | None = None
 
     @property
     def trajectory(self) -> JointTrajectory:
-        """The certified joint trajectory."""
+        """The certified joint path (the paper's sinusoids over the path time [0, T])."""
         return self.generated.trajectory
+
+    @property
+    def executed(self) -> TimedTrajectory:
+        """The path with its certified timing: ``q``, ``dq``, ``ddq`` at executed times in [0, T']."""
+        return self.execution.executed
+
+    @property
+    def duration_s(self) -> float:
+        """T', the executed duration [s] (T for the paper timing)."""
+        return self.execution.executed.duration_s
+
+    @property
+    def endpoint_errors_m(self) -> tuple[float, float]:
+        """Certified bounds on |tip(0) - P1| and |tip(T) - P5| [m]."""
+        return self.execution.endpoint_errors_m
 
     @property
     def certified_clearance_m(self) -> float:
@@ -116,6 +150,27 @@ class CertifiedTrajectory:
 
 
 _DEFAULT_CONFIG = RepairConfig()
+#: Endpoint tolerance [m] of a family that pins the endpoints (exact up to rounding).
+PINNED_ENDPOINT_TOLERANCE_M = 1e-9
+#: Endpoint tolerance [m] of coefficients fitted without an endpoint constraint: such a fit holds
+#: none, and the paper's Eq. 9 misses P1 or P5 by up to 8.4 mm over its range; 1 cm accepts its
+#: answers (each carries its own endpoint errors) and still refuses a grossly wrong file.
+PLAIN_FIT_ENDPOINT_TOLERANCE_M = 0.01
+
+
+def endpoint_tolerance_of(coefficients: Coefficients) -> float:
+    """The endpoint tolerance [m] an answer of ``coefficients`` is held to by default: 1 nm for a
+    family that pins the endpoints; the tolerance the regression was fitted to hold (recorded in
+    the file, 2 mm for the build's default); 1 cm for a plain fit, which holds none
+    (:data:`PLAIN_FIT_ENDPOINT_TOLERANCE_M`)."""
+    if coefficients.family.pins_endpoints:
+        return PINNED_ENDPOINT_TOLERANCE_M
+    recorded = coefficients.extra.get("fit", {}).get("endpoint_constraint", {}).get("tolerance_m")
+    if isinstance(recorded, int | float) and not isinstance(recorded, bool) and recorded > 0:
+        return float(recorded)
+    return PLAIN_FIT_ENDPOINT_TOLERANCE_M
+
+
 #: Relative forward-difference step of the repair's Jacobian (about sqrt of the float epsilon).
 _FD_STEP = 1.5e-8
 
@@ -199,6 +254,8 @@ def generate_certified(
     out_of_range: str = "warn",
     config: RepairConfig | None = None,
     region_map: RegionMap | _Attached | None = ATTACHED,
+    timing: PaperTiming | ShortestRestToRest = PAPER_TIMING,
+    limits: ArmLimits | None = None,
 ) -> CertifiedTrajectory:
     """Generate, certify and if needed repair the trajectory for the obstacle L x W [m].
 
@@ -213,6 +270,10 @@ def generate_certified(
             as :func:`pipeline.online.generator.generate`): inside a cell certified to keep at
             least the margin the answer is returned at once, its bound taken from the map; elsewhere
             the per-query certify-or-repair runs.
+        timing: ``PAPER_TIMING`` (default: the paper's constant path speed from t = 0, the
+            generator's own timing) or ``REST_TO_REST`` (the shortest timing within the limits that
+            starts and ends at rest, :mod:`pipeline.motion.timing`).
+        limits: The limits to certify (default: the arm's URDF limits, no acceleration limit).
 
     Raises:
         InvalidParameterError: ``config`` is not a RepairConfig, ``arm`` not a PlanarArm.
@@ -220,6 +281,8 @@ def generate_certified(
         ArmMismatchError: the arm's link lengths or radii differ from the coefficients'.
         NoCertifiedTrajectoryError: neither the regression's answer nor its repair has a
             certified clearance of at least the margin.
+        ExecutionRefusedError: the certified trajectory misses an endpoint by more than the
+            tolerance, or breaks a limit of the arm with this timing (the reasons name each).
         InvalidParameterError, UnreachableObstacleError, OutOfFittedRangeError: as
             :func:`pipeline.online.generator.generate`.
     """
@@ -231,6 +294,34 @@ def generate_certified(
         arm = arm_for(coefficients)
     else:
         check_arm_matches(coefficients, arm)
+    if not isinstance(timing, PaperTiming | ShortestRestToRest):
+        raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
+    if limits is None:
+        limits = ArmLimits.from_arm(arm)
+    elif not isinstance(limits, ArmLimits):
+        raise InvalidParameterError("limits", type(limits).__name__, "an ArmLimits or None")
+    answer = _certify_clearance(generated, coefficients, arm, config)
+    tolerance = (
+        endpoint_tolerance_of(coefficients) if config.endpoint_tolerance_m is None else config.endpoint_tolerance_m
+    )
+    from_map = answer.generated.endpoint_error_bound_m if not answer.repaired else None
+    execution = certify_answer_execution(
+        answer.generated,
+        answer.trajectory,
+        arm,
+        limits,
+        tolerance,
+        timing,
+        tight=config.certificate_tolerance_m is not None,
+        map_endpoint_bound_m=from_map,
+    )
+    return replace(answer, execution=execution)
+
+
+def _certify_clearance(
+    generated: GeneratedTrajectory, coefficients: Coefficients, arm: PlanarArm, config: RepairConfig
+) -> CertifiedTrajectory:
+    """Steps 2-3 of the module docstring: the clearance certified >= the margin, repairing if needed."""
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     if (
         generated.certificate_source is not None

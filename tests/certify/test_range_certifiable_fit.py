@@ -16,7 +16,7 @@ from pipeline.certify.certifiable_regression import (
     clearance_jacobian,
     clearance_points,
     refit,
-    refit_file_for_clearance,
+    refit_for_clearance,
 )
 from pipeline.certify.end_pose_room import ROOM_ANGLES, ROOM_RINGS, end_pose_room_m
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
@@ -82,6 +82,14 @@ def test_refit_lifts_the_clearance_at_its_points(eq9: Coefficients) -> None:
     assert np.min(after) >= 0.0105 + config.cushion_m - 1e-6
 
 
+def refit_file(path, doe, config):
+    """:func:`refit_for_clearance` on the file ``path``, its text written back (as the build writes it)."""
+    start = load_coefficients(path, region_map=None)
+    saved, text, region_map, report = refit_for_clearance(start, doe, config, str(path))
+    path.write_text(text, encoding="utf-8")
+    return saved, region_map, report
+
+
 def test_refit_file_rewrites_the_coefficients_and_links_their_map(tmp_path) -> None:
     """One round on Table 2's endpoint-constrained fit, coarse cells: the file is rewritten with
     the rounds (no times in it, so it stays reproducible), the map belongs to the file as written
@@ -94,7 +102,7 @@ def test_refit_file_rewrites_the_coefficients_and_links_their_map(tmp_path) -> N
         min_cell=1 / 32, boundary_cell=1 / 16, strip_split=0
     )  # strips: tests/certify/test_strip_split.py
     config = CertifiableFitConfig(certificate=certificate, max_rounds=1)
-    saved, region_map, report = refit_file_for_clearance(path, doe, config)
+    saved, region_map, report = refit_file(path, doe, config)
     assert region_map.belongs_to(load_coefficients(path)) and saved.parameters == load_coefficients(path).parameters
     again = certify_range(saved, certificate)
     assert np.array_equal(again.status, region_map.status)
@@ -122,7 +130,7 @@ def test_the_last_round_certifies_with_the_final_cells(tmp_path, margin_m, toler
     coarse = RangeCertificateConfig(min_cell=1 / 32, strip_split=0, **cells)  # the build's rounds: no strips
     final = RangeCertificateConfig(min_cell=1 / 128, **cells)
     config = CertifiableFitConfig(certificate=coarse, final_certificate=final, max_rounds=1)
-    saved, region_map, report = refit_file_for_clearance(path, doe, config)
+    saved, region_map, report = refit_file(path, doe, config)
     again = certify_range(saved, final)
     assert np.array_equal(again.depth, region_map.depth) and np.array_equal(again.status, region_map.status)
     if margin_m is None:  # at the 1 cm margin the map resolves finer than the rounds' cells could

@@ -18,7 +18,8 @@ from pipeline.exceptions import RegionMapMismatchError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance
 from pipeline.model.arm import PlanarArm
 from pipeline.online.batch import generate_batch
-from pipeline.online.generator import RANGE_SOURCE, generate, load_region_map_beside
+from pipeline.online.generator import RANGE_SOURCE, generate
+from pipeline.online.loading import region_map_beside
 from pipeline.online.repair import generate_certified
 
 
@@ -96,7 +97,7 @@ def test_generate_certified_skips_the_query_certificate_only_in_margin_cells(
 
 
 def test_the_shipped_paper_coefficients_have_no_map_beside_them(paper) -> None:
-    assert load_region_map_beside(paper) is None
+    assert region_map_beside(paper) is None and paper.region_map is None
 
 
 def test_batched_answers_carry_the_same_bounds(paper, paper_map: RegionMap) -> None:

@@ -1,0 +1,98 @@
+"""The shortest rest-to-rest timing of a joint path within the arm's limits, from closed-form bounds.
+
+With the paper timing's rigorous maxima ``V_i = max |theta_i'|`` and ``Acc_i = max |theta_i''|``
+over the path (:func:`pipeline.motion.execution_certificate.certify_execution` of the paper
+timing, where dq = theta' and ddq = theta''), a :class:`pipeline.motion.timing.RestToRestTiming`
+with speed scale c and ramp r has, at every instant (sigma' <= c, |sigma''| <= 1.5 c / r):
+
+* ``|dq_i| <= c V_i``;
+* ``|ddq_i| <= c^2 Acc_i + 1.5 c V_i / r``;
+* ``|tau_i| <= sum_j Mmax_ij (c^2 Acc_j + 1.5 c V_j / r) + Hmax c^2 Q_i`` with Mmax, Hmax the
+  suprema over q2 of |M_ij| and |h| (:class:`pipeline.model.dynamics.PlanarDynamics`, exact),
+  Q_1 = 2 V_1 V_2 + V_2^2 and Q_2 = V_1^2.
+
+Each bound is below its limit (shrunk by :data:`LIMIT_SHARE`, so that the certificate's own,
+tighter bound within its tolerance stays below the limit) for every c up to the speed cap
+``min(1, v_i / V_i)`` and every r above ``r_min(c)``, the largest of
+``1.5 c K / (limit - c^2 G)`` over the acceleration and torque constraints (K, G their
+coefficients above); a c where some ``limit <= c^2 G`` is infeasible. ``T'(c) = T / c + r_min(c)``
+is then evaluated on :data:`SPEED_SCALES` values of c, geometrically spaced below the cap (one
+NumPy expression), and the smallest T' taken: the shortest duration these bounds allow, to the
+grid's 2 % in c. The result is certified afterwards like any timing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.exceptions import InvalidParameterError
+from pipeline.model.dynamics import PlanarDynamics
+from pipeline.model.limits import ArmLimits
+from pipeline.motion.execution_certificate import ExecutionCertificate
+from pipeline.motion.timing import RestToRestTiming
+
+__all__ = ["REST_TO_REST", "ShortestRestToRest", "shortest_rest_to_rest"]
+
+#: Share of each limit the closed-form bounds may use.
+LIMIT_SHARE = 0.999
+#: Speed scales tried, from the cap down to 1/1000 of it.
+SPEED_SCALES = 360
+#: Shortest ramp [s] (when no acceleration or torque limit binds).
+MIN_RAMP_S = 1e-3
+
+
+@dataclass(frozen=True)
+class ShortestRestToRest:
+    """Ask for the shortest :class:`pipeline.motion.timing.RestToRestTiming` within the arm's limits."""
+
+    name: str = "rest-to-rest"
+
+
+#: The shortest rest-to-rest timing within the limits (``generate_certified(..., timing=REST_TO_REST)``).
+REST_TO_REST = ShortestRestToRest()
+
+
+def shortest_rest_to_rest(
+    path_duration_s: float, paper: ExecutionCertificate, dynamics: PlanarDynamics, limits: ArmLimits
+) -> RestToRestTiming:
+    """The shortest rest-to-rest timing the closed-form bounds (module docstring) keep within ``limits``.
+
+    Args:
+        path_duration_s: T [s].
+        paper: The certificate of the paper timing of the same path (its bounds are V and Acc).
+        dynamics: The arm's inverse dynamics.
+        limits: The limits to keep.
+
+    Raises:
+        InvalidParameterError: ``paper`` is not a paper-timing certificate, or no timing keeps the
+            limits (a limit that binds at rest).
+    """
+    if paper.timing_name != "paper":
+        raise InvalidParameterError("paper", paper.timing_name, "the certificate of the paper timing")
+    V = np.asarray(paper.speed_bound_rad_s, dtype=float)
+    acc = np.asarray(paper.acceleration_bound_rad_s2, dtype=float)
+    share = LIMIT_SHARE
+    velocity = share * np.asarray(limits.velocity_rad_s)
+    cap = float(min(1.0, *(velocity[V > 0] / V[V > 0]))) if np.any(V > 0) else 1.0
+    c = cap * np.geomspace(1.0, 1e-3, SPEED_SCALES)
+    mass = dynamics.mass_matrix_sup()
+    h = dynamics.coriolis_sup()
+    # Constraints limit >= c^2 G + 1.5 c K / r: two for acceleration, two for torque.
+    G = np.concatenate([acc, mass @ acc + h * np.array([2 * V[0] * V[1] + V[1] ** 2, V[0] ** 2])])
+    K = np.concatenate([V, mass @ V])
+    bound = share * np.concatenate([np.asarray(limits.acceleration_rad_s2), np.asarray(limits.effort_n_m)])
+    room = bound[None, :] - (c * c)[:, None] * G[None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        needed = np.where(np.isinf(bound)[None, :], 0.0, 1.5 * c[:, None] * K[None, :] / room)
+    feasible = np.all((room > 0.0) | np.isinf(bound)[None, :], axis=1)
+    ramp = np.maximum(np.where(feasible, needed.max(1), np.inf), MIN_RAMP_S)
+    fits = ramp <= path_duration_s / c
+    total = np.where(feasible & fits, path_duration_s / c + ramp, np.inf)
+    best = int(np.argmin(total))
+    if not np.isfinite(total[best]):
+        raise InvalidParameterError(
+            "limits", limits, "limits a rest-to-rest timing can keep (an acceleration or effort limit binds at rest)"
+        )
+    return RestToRestTiming(float(path_duration_s), float(c[best]), float(ramp[best]))

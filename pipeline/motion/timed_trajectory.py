@@ -1,0 +1,102 @@
+"""A joint trajectory under a timing: ``q(tau) = theta(sigma(tau))`` (:mod:`pipeline.motion.timing`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.exceptions import InvalidParameterError
+from pipeline.motion.timing import PaperTiming, Timing
+from pipeline.motion.trajectory import (
+    OUTSIDE_POLICIES,
+    JointTrajectory,
+    joint_accelerations,
+    joint_angles,
+    joint_velocities,
+)
+
+__all__ = ["TimedTrajectory"]
+
+
+@dataclass(frozen=True)
+class TimedTrajectory:
+    """The paper's joint path ``trajectory`` executed with ``timing``.
+
+    Attributes:
+        trajectory: The sinusoids of Eq. 1 over the path time [0, T].
+        timing: Maps the executed time [0, T'] onto [0, T]; its T must be the trajectory's.
+    """
+
+    trajectory: JointTrajectory
+    timing: Timing
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.timing, Timing):
+            raise InvalidParameterError(
+                "timing", type(self.timing).__name__, "a Timing (PaperTiming, RestToRestTiming)"
+            )
+        timing = self.timing
+        if isinstance(timing, PaperTiming) and timing.path_duration_s is None:
+            object.__setattr__(self, "timing", timing.for_path(self.trajectory.duration_s))
+        elif abs(self.timing.path_duration_s - self.trajectory.duration_s) > 1e-12 * self.trajectory.duration_s:
+            raise InvalidParameterError(
+                "timing", self.timing.path_duration_s, f"a timing of the path's T = {self.trajectory.duration_s!r} s"
+            )
+
+    @property
+    def duration_s(self) -> float:
+        """T' [s]."""
+        return self.timing.duration_s
+
+    @property
+    def parameters(self) -> tuple[float, ...]:
+        """The eight sinusoid parameters of the path."""
+        return self.trajectory.parameters
+
+    def as_dict(self) -> dict[str, float]:
+        """The parameters by name."""
+        return self.trajectory.as_dict()
+
+    def times(self, t_s, outside: str = "error") -> np.ndarray:
+        """Executed times [s] checked to lie in [0, T'] (or clamped into it), as :meth:`JointTrajectory.times`."""
+        try:
+            t = np.asarray(t_s, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidParameterError("t_s", t_s, "times [s] as numbers") from None
+        if outside not in OUTSIDE_POLICIES:
+            raise InvalidParameterError("outside", outside, f"one of {OUTSIDE_POLICIES}")
+        if np.isnan(t).any():
+            raise InvalidParameterError("t_s", float("nan"), "times [s], not NaN")
+        if outside == "clamp":
+            return np.clip(t, 0.0, self.duration_s)
+        if t.size and not (t.min() >= 0.0 and t.max() <= self.duration_s):
+            bad = t[~((t >= 0.0) & (t <= self.duration_s))].ravel()
+            raise InvalidParameterError(
+                "t_s", float(bad[0]), f"times in [0, T' = {self.duration_s!r} s] (outside='clamp' clamps them into it)"
+            )
+        return t
+
+    def _states(self, t_s, outside: str):
+        t = self.times(t_s, outside)
+        flat = np.atleast_1d(t)
+        return t, flat, np.clip(self.timing.sigma(flat), 0.0, self.trajectory.duration_s)
+
+    def q(self, t_s, *, outside: str = "error") -> np.ndarray:
+        """Joint angles [rad] at executed times [s]: (2,) for a scalar, (m, 2) for m times."""
+        t, _, s = self._states(t_s, outside)
+        out = joint_angles(self.parameters, s)
+        return out[0] if t.ndim == 0 else out
+
+    def dq(self, t_s, *, outside: str = "error") -> np.ndarray:
+        """Joint speeds [rad/s]: theta'(sigma) sigma'."""
+        t, flat, s = self._states(t_s, outside)
+        out = joint_velocities(self.parameters, s) * self.timing.dsigma(flat)[:, None]
+        return out[0] if t.ndim == 0 else out
+
+    def ddq(self, t_s, *, outside: str = "error") -> np.ndarray:
+        """Joint accelerations [rad/s^2]: theta''(sigma) sigma'^2 + theta'(sigma) sigma''."""
+        t, flat, s = self._states(t_s, outside)
+        d1, d2 = self.timing.dsigma(flat)[:, None], self.timing.ddsigma(flat)[:, None]
+        out = joint_accelerations(self.parameters, s) * d1 * d1 + joint_velocities(self.parameters, s) * d2
+        return out[0] if t.ndim == 0 else out

@@ -1,0 +1,163 @@
+"""The second half of certify-or-repair: the answer must also execute, not only clear the obstacle.
+
+For a trajectory already certified collision-free (:mod:`pipeline.online.repair`), this
+certifies, per query:
+
+* its endpoint errors |tip(0) - P1| and |tip(T) - P5| within the tolerance: exact values of the
+  closed-form forward kinematics (Eq. 2) plus :data:`ENDPOINT_SLACK_M` for rounding (the map's
+  proven bound is used instead where its cell covers the regression's unrepaired answer);
+* for the chosen timing, the joint angles within their limits and |dq|, |ddq|, |tau| within the
+  arm's speed, acceleration and effort limits over all of [0, T']
+  (:func:`pipeline.motion.execution_certificate.certify_execution`, decide mode unless a tight
+  certificate is asked for). The rest-to-rest timing is the shortest the closed-form bounds allow
+  (:func:`pipeline.motion.rest_to_rest.shortest_rest_to_rest`), certified afterwards; should its
+  certificate not confirm it, the speed scale is lowered by 10 % (up to :data:`RETIMING_TRIES` times).
+
+Clearance and endpoints are statements about the configurations visited, which every timing of
+the same path shares (:mod:`pipeline.motion.timing`): they are certified once, for every timing.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from pipeline.exceptions import ExecutionRefusedError
+from pipeline.model.arm import PlanarArm
+from pipeline.model.dynamics import PlanarDynamics, identify_dynamics
+from pipeline.model.limits import ArmLimits
+from pipeline.motion.execution_certificate import ExecutionCertificate, certify_execution
+from pipeline.motion.rest_to_rest import ShortestRestToRest, shortest_rest_to_rest
+from pipeline.motion.timed_trajectory import TimedTrajectory
+from pipeline.motion.timing import PAPER_TIMING, PaperTiming, RestToRestTiming
+from pipeline.motion.trajectory import JointTrajectory
+from pipeline.online.generator import GeneratedTrajectory
+
+__all__ = ["ENDPOINT_SLACK_M", "Execution", "certify_answer_execution", "dynamics_of"]
+
+#: Rounding slack of a per-query endpoint error [m] (a few dozen operations on values below 1 m).
+ENDPOINT_SLACK_M = 1e-12
+#: Retries of the rest-to-rest timing with a 10 % lower speed scale.
+RETIMING_TRIES = 5
+
+_DYNAMICS: weakref.WeakKeyDictionary[PlanarArm, PlanarDynamics] = weakref.WeakKeyDictionary()
+
+
+def dynamics_of(arm: PlanarArm) -> PlanarDynamics:
+    """The arm's closed-form dynamics (:func:`pipeline.model.dynamics.identify_dynamics`), identified once per arm."""
+    dynamics = _DYNAMICS.get(arm)
+    if dynamics is None:
+        dynamics = _DYNAMICS[arm] = identify_dynamics(arm)
+    return dynamics
+
+
+@dataclass(frozen=True, eq=False)
+class Execution:
+    """What makes an answer executable.
+
+    Attributes:
+        executed: The trajectory with its timing (``q``, ``dq``, ``ddq`` at executed times).
+        certificate: Its bounds over all of [0, T'] (angles, |dq|, |ddq|, |tau|).
+        limits: The limits they were checked against.
+        endpoint_errors_m: Bounds on |tip(0) - P1| and |tip(T) - P5| [m].
+        endpoint_tolerance_m: The tolerance they were checked against [m].
+    """
+
+    executed: TimedTrajectory
+    certificate: ExecutionCertificate
+    limits: ArmLimits
+    endpoint_errors_m: tuple[float, float]
+    endpoint_tolerance_m: float
+
+
+def _endpoint_errors(
+    trajectory: JointTrajectory, generated: GeneratedTrajectory, arm: PlanarArm
+) -> tuple[float, float]:
+    points = generated.path.points_m
+    tips = arm.end_effector_planar(trajectory.q(np.array([0.0, trajectory.duration_s])))
+    errors = np.linalg.norm(tips - np.array([points[0], points[-1]]), axis=1) + ENDPOINT_SLACK_M
+    return float(errors[0]), float(errors[1])
+
+
+def certify_answer_execution(
+    generated: GeneratedTrajectory,
+    trajectory: JointTrajectory,
+    arm: PlanarArm,
+    limits: ArmLimits,
+    endpoint_tolerance_m: float,
+    timing: PaperTiming | ShortestRestToRest = PAPER_TIMING,
+    tight: bool = False,
+    map_endpoint_bound_m: float | None = None,
+) -> Execution:
+    """Certify that ``trajectory`` (the answer for ``generated``'s obstacle, certified collision-free)
+    ends within the tolerance and, with ``timing``, keeps ``limits`` (module docstring).
+
+    Raises:
+        ExecutionRefusedError: a check fails; its reasons name the joint, the bound, the limit and
+            the excess (for the paper timing, also the rest-to-rest duration that would keep them).
+    """
+    size = (generated.length_m, generated.width_m)
+    if map_endpoint_bound_m is not None and map_endpoint_bound_m <= endpoint_tolerance_m:
+        errors = (map_endpoint_bound_m, map_endpoint_bound_m)
+    else:
+        errors = _endpoint_errors(trajectory, generated, arm)
+    missed = [
+        f"endpoint error at {name} {1e3 * error:.3f} mm > tolerance {1e3 * endpoint_tolerance_m:.3f} mm"
+        for name, error in zip(("P1", "P5"), errors, strict=True)
+        if error > endpoint_tolerance_m
+    ]
+    if missed:
+        raise ExecutionRefusedError(*size, "any", tuple(missed))
+    dynamics = dynamics_of(arm)
+    decide = None if tight else limits
+    paper_timed = TimedTrajectory(trajectory, PAPER_TIMING)
+    paper = certify_execution(paper_timed, dynamics, decide)
+    violations = paper.violations(limits)
+    if isinstance(timing, PaperTiming):
+        if violations:
+            reasons = [str(v) for v in violations]
+            if not any(v.quantity == "angle" for v in violations):
+                reasons.append(_rest_to_rest_hint(trajectory, paper, dynamics, limits))
+            raise ExecutionRefusedError(*size, "paper", tuple(reasons))
+        return Execution(paper_timed, paper, limits, errors, endpoint_tolerance_m)
+    if not isinstance(timing, ShortestRestToRest):
+        raise TypeError(f"timing {timing!r}")
+    angles = [str(v) for v in violations if v.quantity == "angle"]
+    if angles:  # the same configurations under every timing
+        raise ExecutionRefusedError(*size, timing.name, tuple(angles))
+    if decide is not None:  # the retiming needs the paper timing's tight maxima
+        paper = certify_execution(paper_timed, dynamics)
+    try:
+        retimed = shortest_rest_to_rest(trajectory.duration_s, paper, dynamics, limits)
+    except Exception as exc:  # InvalidParameterError: a limit binds at rest
+        raise ExecutionRefusedError(*size, timing.name, (str(exc),)) from None
+    for _ in range(RETIMING_TRIES):
+        executed = TimedTrajectory(trajectory, retimed)
+        certificate = certify_execution(executed, dynamics, decide)
+        found = certificate.violations(limits)
+        if not found:
+            return Execution(executed, certificate, limits, errors, endpoint_tolerance_m)
+        retimed = _slower(retimed)
+    raise ExecutionRefusedError(*size, timing.name, tuple(str(v) for v in found))
+
+
+def _slower(timing: RestToRestTiming) -> RestToRestTiming:
+    scale = 0.9 * timing.speed_scale
+    return replace(timing, speed_scale=scale, ramp_s=min(timing.ramp_s / 0.9, timing.path_duration_s / scale))
+
+
+def _rest_to_rest_hint(
+    trajectory: JointTrajectory, paper: ExecutionCertificate, dynamics: PlanarDynamics, limits: ArmLimits
+) -> str:
+    try:
+        tight = (
+            paper
+            if paper.decided_against is None
+            else certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics)
+        )
+        retimed = shortest_rest_to_rest(trajectory.duration_s, tight, dynamics, limits)
+    except Exception:  # no rest-to-rest timing keeps them either
+        return "no rest-to-rest timing keeps the limits either"
+    return f"the rest-to-rest timing keeps them in T' = {retimed.duration_s:.3f} s (T = {trajectory.duration_s:.3f} s)"
