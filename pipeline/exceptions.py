@@ -309,16 +309,18 @@ class ExecutionRefusedError(PipelineError):
 
     Attributes:
         length_m, width_m: The obstacle, L and W [m].
-        timing_name: The timing that was certified ("paper" or "rest-to-rest").
+        timing_name: The timing that was certified ("paper" or "rest-to-rest"; None for an
+            endpoint error, which no timing changes).
         reasons: One line per failed check, naming the joint, the bound, the limit and the excess.
     """
 
-    def __init__(self, length_m: float, width_m: float, timing_name: str, reasons: tuple[str, ...]) -> None:
+    def __init__(self, length_m: float, width_m: float, timing_name: str | None, reasons: tuple[str, ...]) -> None:
         self.length_m = length_m
         self.width_m = width_m
         self.timing_name = timing_name
         self.reasons = tuple(reasons)
+        timing = "" if timing_name is None else f" with the {timing_name} timing"
         super().__init__(
-            f"no executable trajectory for L = {length_m:.4f} m, W = {width_m:.4f} m with the {timing_name} timing: "
+            f"no executable trajectory for L = {length_m:.4f} m, W = {width_m:.4f} m{timing}: "
             + "; ".join(self.reasons)
         )

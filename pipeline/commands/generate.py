@@ -3,8 +3,15 @@
 Prints which coefficients it uses, the eight sinusoid parameters and T for the obstacle L x W,
 and, where the region map beside the coefficients covers (L, W), its certified clearance and
 endpoint-error bounds over the whole of [0, T]. With ``--certify``, the answer must keep the
-margin: a cell of the map certified to keep it answers at once; elsewhere the trajectory is
-certified per query with Coal (and repaired if needed, unless ``--no-repair``). With ``--out FILE`` it writes the
+margin (a cell of the map certified to keep it answers at once; elsewhere the trajectory is
+certified per query with Coal and repaired if needed, unless ``--no-repair``), end within the
+endpoint tolerance, and, with the chosen ``--timing``, keep the arm's joint, speed,
+acceleration (``--acceleration-limit``) and torque limits over all of [0, T'].
+
+``--timing rest-to-rest`` (the default of this command) executes the same path starting and
+ending at rest, in the shortest duration T' within the arm's limits: what a controller should be
+given, since the paper's timing (``--timing paper``, the default of :func:`pipeline.generate`)
+starts and ends at the path's full speed, a velocity step for an arm at rest. With ``--out FILE`` it writes the
 trajectory sampled at ``--rate`` (t = 0, 1/rate, 2/rate, ... and T itself as the last sample), in
 the format the suffix names:
 
@@ -46,10 +53,15 @@ from pipeline.cli import (
     load_coefficients_for_cli,
     run_cli,
 )
-from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError
+from pipeline.exceptions import ExecutionRefusedError, InvalidParameterError, NoCertifiedTrajectoryError
 from pipeline.io.jsonio import dumps, write_bytes_atomic
 from pipeline.model.arm import PlanarArm
-from pipeline.motion.trajectory import PARAMETER_NAMES, PARAMETER_UNITS, JointTrajectory
+from pipeline.model.limits import ArmLimits
+from pipeline.motion.rest_to_rest import REST_TO_REST
+from pipeline.motion.timed_trajectory import TimedTrajectory
+from pipeline.motion.timing import PAPER_TIMING
+from pipeline.motion.trajectory import PARAMETER_NAMES, PARAMETER_UNITS
+from pipeline.online.execution import retime
 from pipeline.online.generator import OUT_OF_RANGE_POLICIES, generate
 from pipeline.online.repair import RepairConfig, generate_certified
 
@@ -63,7 +75,19 @@ MAX_SAMPLES = 1_000_000
 #: Tolerance of the certificate the CLI prints [m]: the bound is within this of the sampled minimum.
 CLI_CERTIFICATE_TOLERANCE_M = 1e-5
 #: Columns of the CSV file (units in the names).
-CSV_COLUMNS = ("t_s", "q1_rad", "q2_rad", "dq1_rad_s", "dq2_rad_s", "ddq1_rad_s2", "ddq2_rad_s2")
+CSV_COLUMNS = (
+    "t_s",
+    "q1_rad",
+    "q2_rad",
+    "dq1_rad_s",
+    "dq2_rad_s",
+    "ddq1_rad_s2",
+    "ddq2_rad_s2",
+    "tau1_n_m",
+    "tau2_n_m",
+)
+#: The timings of ``--timing``.
+TIMINGS = {"rest-to-rest": REST_TO_REST, "paper": PAPER_TIMING}
 
 
 def sample_times(duration_s: float, rate_hz: float) -> np.ndarray:
@@ -74,10 +98,20 @@ def sample_times(duration_s: float, rate_hz: float) -> np.ndarray:
     return np.append(times, duration_s)
 
 
-def ros_duration(t_s: float) -> dict[str, int]:
-    """A ROS 2 ``builtin_interfaces/Duration``: {"sec", "nanosec"} with 0 <= nanosec < 1e9."""
+def ros_duration(t_s: float, ros1: bool = False) -> dict[str, int]:
+    """A ROS 2 ``builtin_interfaces/Duration``: {"sec", "nanosec"} with 0 <= nanosec < 1e9
+    (ROS 1's ``duration``: {"secs", "nsecs"})."""
     total = round(t_s * 1e9)
-    return {"sec": int(total // 1_000_000_000), "nanosec": int(total % 1_000_000_000)}
+    seconds, nanoseconds = int(total // 1_000_000_000), int(total % 1_000_000_000)
+    return {"secs": seconds, "nsecs": nanoseconds} if ros1 else {"sec": seconds, "nanosec": nanoseconds}
+
+
+def rnea_torques(arm: PlanarArm, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+    """Joint torques [N m] by Pinocchio's RNEA at each sample (rows of q, dq, ddq)."""
+    import pinocchio as pin
+
+    data = arm.model.createData()
+    return np.array([pin.rnea(arm.model, data, *state).copy() for state in zip(q, dq, ddq, strict=True)])
 
 
 def joint_names(arm: PlanarArm | None) -> list[str]:
@@ -87,31 +121,40 @@ def joint_names(arm: PlanarArm | None) -> list[str]:
     return [str(arm.model.names[1]), str(arm.model.names[2])]
 
 
-def trajectory_document(trajectory: JointTrajectory, times: np.ndarray, names: Sequence[str]) -> dict:
-    """The trajectory as a ROS ``trajectory_msgs/JointTrajectory`` message (plain JSON)."""
-    q, dq, ddq = trajectory.q(times), trajectory.dq(times), trajectory.ddq(times)
+def trajectory_document(samples: dict, names: Sequence[str], ros1: bool = False) -> dict:
+    """The samples as a ROS ``trajectory_msgs/JointTrajectory`` message (plain JSON; ROS 2 field
+    names, or ROS 1's with ``ros1``), torques in ``effort``."""
+    stamp = {"secs": 0, "nsecs": 0} if ros1 else {"sec": 0, "nanosec": 0}
+    header = {"seq": 0, "stamp": stamp, "frame_id": ""} if ros1 else {"stamp": stamp, "frame_id": ""}
     return {
-        "header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
+        "header": header,
         "joint_names": list(names),
         "points": [
             {
-                "positions": q[i].tolist(),
-                "velocities": dq[i].tolist(),
-                "accelerations": ddq[i].tolist(),
-                "effort": [],
-                "time_from_start": ros_duration(float(t)),
+                "positions": samples["q"][i].tolist(),
+                "velocities": samples["dq"][i].tolist(),
+                "accelerations": samples["ddq"][i].tolist(),
+                "effort": samples["tau"][i].tolist(),
+                "time_from_start": ros_duration(float(t), ros1),
             }
-            for i, t in enumerate(times)
+            for i, t in enumerate(samples["t"])
         ],
     }
 
 
-def encode(path: Path, trajectory: JointTrajectory, times: np.ndarray, names: Sequence[str]) -> bytes:
+def sample(executed, arm: PlanarArm, rate_hz: float) -> dict:
+    """The executed trajectory at ``rate_hz`` (T' the last sample): t, q, dq, ddq and RNEA torques."""
+    times = sample_times(executed.duration_s, rate_hz)
+    q, dq, ddq = executed.q(times), executed.dq(times), executed.ddq(times)
+    return {"t": times, "q": q, "dq": dq, "ddq": ddq, "tau": rnea_torques(arm, q, dq, ddq)}
+
+
+def encode(path: Path, executed, samples: dict, names: Sequence[str], ros1: bool = False) -> bytes:
     """The file's bytes in the format of ``path``'s suffix."""
     suffix = path.suffix.lower()
     if suffix == ".json":
-        return dumps(trajectory_document(trajectory, times, names)).encode("utf-8")
-    q, dq, ddq = trajectory.q(times), trajectory.dq(times), trajectory.ddq(times)
+        return dumps(trajectory_document(samples, names, ros1)).encode("utf-8")
+    times, q, dq, ddq, tau = (samples[k] for k in ("t", "q", "dq", "ddq", "tau"))
     if suffix == ".npz":
         buffer = io.BytesIO()
         np.savez(
@@ -120,16 +163,19 @@ def encode(path: Path, trajectory: JointTrajectory, times: np.ndarray, names: Se
             q_rad=q,
             dq_rad_s=dq,
             ddq_rad_s2=ddq,
-            parameters=np.array(trajectory.parameters),
+            tau_n_m=tau,
+            parameters=np.array(executed.parameters),
             parameter_names=np.array(PARAMETER_NAMES),
-            duration_s=np.array(trajectory.duration_s),
+            duration_s=np.array(executed.duration_s),
+            path_duration_s=np.array(executed.trajectory.duration_s),
+            timing=np.array(executed.timing.name),
             joint_names=np.array(list(names)),
         )
         return buffer.getvalue()
     text = io.StringIO()
     writer = csv.writer(text, lineterminator="\n")
     writer.writerow(CSV_COLUMNS)
-    for row in np.column_stack([times, q, dq, ddq]):
+    for row in np.column_stack([times, q, dq, ddq, tau]):
         writer.writerow([repr(float(v)) for v in row])
     return text.getvalue().encode("utf-8")
 
@@ -168,6 +214,23 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="M",
         help="with --certify: clearance to certify [m] (default: the coefficients' scene margin)",
     )
+    p.add_argument(
+        "--timing",
+        choices=tuple(TIMINGS),
+        default="rest-to-rest",
+        help="timing of the printed and written trajectory: rest-to-rest (starts and ends at rest, the shortest "
+        "duration T' within the arm's limits: what a controller should get) or paper (the path's full speed from "
+        "t = 0, the generator's own timing)",
+    )
+    p.add_argument(
+        "--acceleration-limit",
+        nargs=2,
+        type=float,
+        default=None,
+        metavar=("A1", "A2"),
+        help="joint acceleration limits [rad/s^2] (URDF carries none; default: none)",
+    )
+    p.add_argument("--ros1", action="store_true", help="ROS 1 field names in the .json (secs/nsecs, header seq)")
     p.add_argument(
         "--out-of-range",
         choices=OUT_OF_RANGE_POLICIES,
@@ -217,13 +280,44 @@ def _range_line(generated) -> str:
     )
 
 
+def _execution_lines(certified) -> list[str]:
+    """What the execution certificate proves, in words."""
+    execution = certified.execution
+    certificate, limits = execution.certificate, execution.limits
+    (lo1, hi1), (lo2, hi2) = certificate.angle_range_rad
+
+    def pair(values, limit, unit: str) -> str:
+        return ", ".join(f"{v:.4f} (limit {lim:g}) {unit}" for v, lim in zip(values, limit, strict=True))
+
+    return [
+        f"executes: endpoint errors <= {1e3 * execution.endpoint_errors_m[0]:.3f} mm at P1, "
+        f"{1e3 * execution.endpoint_errors_m[1]:.3f} mm at P5 "
+        f"(tolerance {1e3 * execution.endpoint_tolerance_m:.3f} mm)",
+        f"  {certificate.timing_name} timing, T' = {certificate.duration_s:.6f} s; over all of [0, T']: "
+        f"q1 in [{lo1:.4f}, {hi1:.4f}] rad, q2 in [{lo2:.4f}, {hi2:.4f}] rad",
+        f"  |dq| <= {pair(certificate.speed_bound_rad_s, limits.velocity_rad_s, 'rad/s')}",
+        f"  |ddq| <= {pair(certificate.acceleration_bound_rad_s2, limits.acceleration_rad_s2, 'rad/s^2')}",
+        f"  |tau| <= {pair(certificate.torque_bound_n_m, limits.effort_n_m, 'N m')} (RNEA, no gravity: vertical axes)",
+    ]
+
+
 def work(args: argparse.Namespace) -> int:
     """Generate (and certify), print, write; see the module docstring for the exit status."""
     out = _check_inputs(args)
+    if args.acceleration_limit is not None:
+        limits_of_acceleration = tuple(args.acceleration_limit)
+        if not all(math.isfinite(a) and a > 0.0 for a in limits_of_acceleration) and not all(
+            a == math.inf for a in limits_of_acceleration
+        ):
+            raise InvalidParameterError(
+                "--acceleration-limit", args.acceleration_limit, "two positive limits [rad/s^2]"
+            )
     coefficients = load_coefficients_for_cli(args.coefficients)
     print(describe_coefficients(coefficients))
-    needs_arm = args.certify or args.urdf is not None or (out is not None and out.suffix.lower() == ".json")
+    timing = TIMINGS[args.timing]
+    needs_arm = args.certify or args.urdf is not None or out is not None or timing is REST_TO_REST
     arm = arm_for_cli(coefficients, args.urdf) if needs_arm else None
+    limits = None if arm is None else ArmLimits.from_arm(arm, args.acceleration_limit)
     started = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -237,11 +331,18 @@ def work(args: argparse.Namespace) -> int:
             margin_m=args.margin, repair=not args.no_repair, certificate_tolerance_m=CLI_CERTIFICATE_TOLERANCE_M
         )
         try:
-            certified = generate_certified(coefficients, args.L, args.W, arm, out_of_range="ignore", config=config)
-        except NoCertifiedTrajectoryError as exc:
+            certified = generate_certified(
+                coefficients, args.L, args.W, arm, out_of_range="ignore", config=config, timing=timing, limits=limits
+            )
+        except (NoCertifiedTrajectoryError, ExecutionRefusedError) as exc:
             print(f"{PROG}: certification refused: {exc}", file=sys.stderr)
             return EXIT_FAILED
         trajectory = certified.trajectory
+        executed = certified.executed
+    elif arm is not None:
+        executed = retime(trajectory, arm, limits, timing)
+    else:
+        executed = TimedTrajectory(trajectory, PAPER_TIMING)
     elapsed = time.perf_counter() - started
 
     print(
@@ -250,7 +351,8 @@ def work(args: argparse.Namespace) -> int:
     )
     for name, value in trajectory.as_dict().items():
         print(f"  {name:<7s}= {value: .9f} {PARAMETER_UNITS[name]}")
-    print(f"T = {trajectory.duration_s:.9f} s")
+    print(f"T = {trajectory.duration_s:.9f} s (the path at the paper's speed)")
+    print(f"timing: {executed.timing.name}, T' = {executed.duration_s:.9f} s")
     print(_range_line(generated))
     if certified is not None and certified.certificate is None:
         print(
@@ -272,21 +374,22 @@ def work(args: argparse.Namespace) -> int:
             f"margin {certified.margin_m * 1e3:.3f} mm; {certificate.evaluations} Coal configurations): {source}"
         )
     if certified is not None:
+        print("\n".join(_execution_lines(certified)))
         print(f"repair_seconds = {certified.repair_seconds:.6f}")
     print(f"time: {elapsed * 1e3:.3f} ms")
     if out is not None:
-        if trajectory.duration_s * args.rate + 1.0 > MAX_SAMPLES:
+        if executed.duration_s * args.rate + 1.0 > MAX_SAMPLES:
             raise InvalidParameterError(
                 "--rate",
                 args.rate,
-                f"a rate giving at most {MAX_SAMPLES:,} samples over T = {trajectory.duration_s:.3f} s",
+                f"a rate giving at most {MAX_SAMPLES:,} samples over T' = {executed.duration_s:.3f} s",
             )
-        times = sample_times(trajectory.duration_s, args.rate)
+        samples = sample(executed, arm, args.rate)
         try:
-            write_bytes_atomic(out, encode(out, trajectory, times, joint_names(arm)))
+            write_bytes_atomic(out, encode(out, executed, samples, joint_names(arm), args.ros1))
         except OSError as exc:
             raise InvalidParameterError("--out", str(out), f"a writable file ({exc.strerror})") from None
-        print(f"wrote {out} ({times.size} samples at {args.rate:g} Hz, the last at T)")
+        print(f"wrote {out} ({samples['t'].size} samples at {args.rate:g} Hz, the last at T')")
     return EXIT_OK
 
 

@@ -35,7 +35,7 @@ from pipeline.motion.timing import PAPER_TIMING, PaperTiming, RestToRestTiming
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.online.generator import GeneratedTrajectory
 
-__all__ = ["ENDPOINT_SLACK_M", "Execution", "certify_answer_execution", "dynamics_of"]
+__all__ = ["ENDPOINT_SLACK_M", "Execution", "certify_answer_execution", "dynamics_of", "retime"]
 
 #: Rounding slack of a per-query endpoint error [m] (a few dozen operations on values below 1 m).
 ENDPOINT_SLACK_M = 1e-12
@@ -109,7 +109,7 @@ def certify_answer_execution(
         if error > endpoint_tolerance_m
     ]
     if missed:
-        raise ExecutionRefusedError(*size, "any", tuple(missed))
+        raise ExecutionRefusedError(*size, None, tuple(missed))
     dynamics = dynamics_of(arm)
     decide = None if tight else limits
     paper_timed = TimedTrajectory(trajectory, PAPER_TIMING)
@@ -161,3 +161,20 @@ def _rest_to_rest_hint(
     except Exception:  # no rest-to-rest timing keeps them either
         return "no rest-to-rest timing keeps the limits either"
     return f"the rest-to-rest timing keeps them in T' = {retimed.duration_s:.3f} s (T = {trajectory.duration_s:.3f} s)"
+
+
+def retime(trajectory: JointTrajectory, arm: PlanarArm, limits: ArmLimits, timing) -> TimedTrajectory:
+    """``trajectory`` with ``timing`` (PAPER_TIMING, or REST_TO_REST: the shortest rest-to-rest
+    timing the closed-form bounds keep within ``limits``), without certifying it.
+
+    Raises:
+        ExecutionRefusedError: no rest-to-rest timing keeps the limits (one binds at rest).
+    """
+    if isinstance(timing, PaperTiming):
+        return TimedTrajectory(trajectory, PAPER_TIMING)
+    dynamics = dynamics_of(arm)
+    paper = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics)
+    try:
+        return TimedTrajectory(trajectory, shortest_rest_to_rest(trajectory.duration_s, paper, dynamics, limits))
+    except Exception as exc:  # InvalidParameterError: a limit binds at rest
+        raise ExecutionRefusedError(float("nan"), float("nan"), "rest-to-rest", (str(exc),)) from None

@@ -37,6 +37,15 @@ def urdf_revolute_joints(path: Path) -> list[str]:
     ]
 
 
+def rnea(q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+    """Torques [N m] by Pinocchio's RNEA on the shipped URDF, sample by sample."""
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(DEFAULT_URDF))
+    data = model.createData()
+    return np.array([pin.rnea(model, data, *state).copy() for state in zip(q, dq, ddq, strict=True)])
+
+
 def expected_times(duration: float, rate: float) -> np.ndarray:
     times = [k / rate for k in range(int(duration * rate) + 2) if k / rate < duration]
     return np.array([*times, duration])
@@ -46,7 +55,19 @@ def expected_times(duration: float, rate: float) -> np.ndarray:
 def test_csv_reproduces_generate_at_the_rate(tmp_path: Path, capsys, rate: float) -> None:
     out = tmp_path / "trajectory.csv"
     status, stdout, _ = run(
-        capsys, "--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--rate", str(rate), "--out", str(out)
+        capsys,
+        "--L",
+        "0.27",
+        "--W",
+        "0.09",
+        "--coefficients",
+        "paper",
+        "--rate",
+        str(rate),
+        "--out",
+        str(out),
+        "--timing",
+        "paper",
     )
     assert status == 0
     assert "coefficients: paper (paper, sha256" in stdout and "T = " in stdout and "gamma2" in stdout
@@ -63,12 +84,25 @@ def test_csv_reproduces_generate_at_the_rate(tmp_path: Path, capsys, rate: float
     assert_allclose(data[:, 1:3], answer.q(t), rtol=0, atol=0)
     assert_allclose(data[:, 3:5], answer.dq(t), rtol=0, atol=0)
     assert_allclose(data[:, 5:7], answer.ddq(t), rtol=0, atol=0)
+    assert_allclose(data[:, 7:9], rnea(answer.q(t), answer.dq(t), answer.ddq(t)), rtol=0, atol=1e-15)
 
 
 def test_npz_reproduces_generate(tmp_path: Path, capsys) -> None:
     out = tmp_path / "trajectory.npz"
     status, _, _ = run(
-        capsys, "--L", "0.22", "--W", "0.11", "--coefficients", "paper", "--rate", "50", "--out", str(out)
+        capsys,
+        "--L",
+        "0.22",
+        "--W",
+        "0.11",
+        "--coefficients",
+        "paper",
+        "--rate",
+        "50",
+        "--out",
+        str(out),
+        "--timing",
+        "paper",
     )
     assert status == 0
     data = np.load(out)
@@ -84,7 +118,19 @@ def test_npz_reproduces_generate(tmp_path: Path, capsys) -> None:
 def test_ros_json_has_the_urdf_joint_names_and_reproduces_generate(tmp_path: Path, capsys) -> None:
     out = tmp_path / "trajectory.json"
     status, _, _ = run(
-        capsys, "--L", "0.25", "--W", "0.1", "--coefficients", "paper", "--rate", "20", "--out", str(out)
+        capsys,
+        "--L",
+        "0.25",
+        "--W",
+        "0.1",
+        "--coefficients",
+        "paper",
+        "--rate",
+        "20",
+        "--out",
+        str(out),
+        "--timing",
+        "paper",
     )
     assert status == 0
     message = json.loads(out.read_text())
@@ -98,14 +144,15 @@ def test_ros_json_has_the_urdf_joint_names_and_reproduces_generate(tmp_path: Pat
     assert_allclose([p["positions"] for p in points], answer.q(exact_t), rtol=0, atol=0)
     assert_allclose([p["velocities"] for p in points], answer.dq(exact_t), rtol=0, atol=0)
     assert_allclose([p["accelerations"] for p in points], answer.ddq(exact_t), rtol=0, atol=0)
+    assert_allclose([p["effort"] for p in points], rnea(answer.q(exact_t), answer.dq(exact_t), answer.ddq(exact_t)))
 
 
 def test_certify_prints_the_certificate_and_the_repair_time(tmp_path: Path, capsys) -> None:
     out = tmp_path / "t.csv"
     status, stdout, _ = run(
-        capsys, "--L", "0.30", "--W", "0.12", "--coefficients", "paper", "--certify", "--out", str(out)
+        capsys, "--L", "0.20", "--W", "0.115", "--coefficients", "paper", "--certify", "--out", str(out)
     )
-    assert status == 0  # Eq. 9 at (0.30, 0.12) is 2.6 mm from the obstacle: repaired
+    assert status == 0  # Eq. 9 at (0.20, 0.115) is below the margin: repaired
     assert "certificate: clearance >= " in stdout and "repaired in" in stdout and "repair_seconds = " in stdout
     bound = float(stdout.split("clearance >= ")[1].split(" mm")[0])
     assert bound >= 10.0
@@ -229,3 +276,87 @@ def test_certify_in_a_margin_cell_answers_from_the_map(built: Path, capsys) -> N
     assert status == 0
     assert "the region map's cell keeps the margin 10.000 mm" in stdout
     assert f"clearance >= {cell.clearance_bound_m * 1e3:.3f} mm" in stdout
+
+
+def _urdf_with(tmp_path: Path, name: str, old: str, new: str) -> Path:
+    text = DEFAULT_URDF.read_text(encoding="utf-8")
+    assert old in text
+    path = tmp_path / name
+    path.write_text(text.replace(old, new), encoding="utf-8")
+    return path
+
+
+def test_rest_to_rest_is_the_default_starts_and_ends_at_rest_on_the_same_path(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "t.npz"
+    status, stdout, _ = run(capsys, "--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--out", str(out))
+    assert status == 0 and "timing: rest-to-rest" in stdout
+    data = np.load(out)
+    assert str(data["timing"]) == "rest-to-rest" and float(data["duration_s"]) > float(data["path_duration_s"])
+    for key in ("dq_rad_s", "ddq_rad_s2"):
+        assert np.max(np.abs(data[key][[0, -1]])) <= 1e-12, key
+    # The same configurations as the paper's timing: every sample lies on the path theta(s).
+    answer = generate(load_coefficients("paper"), 0.27, 0.09)
+    s = np.linspace(0.0, answer.duration_s, 200001)
+    path = answer.q(s)
+    nearest = np.min(np.linalg.norm(path[None, :, :] - data["q_rad"][:, None, :], axis=2), axis=1)
+    assert nearest.max() < 1e-4  # 2e5 path samples: within the sampling's own spacing
+    assert_allclose(data["q_rad"][[0, -1]], answer.q(np.array([0.0, answer.duration_s])), rtol=0, atol=1e-12)
+    assert_allclose(data["tau_n_m"], rnea(data["q_rad"], data["dq_rad_s"], data["ddq_rad_s2"]), rtol=0, atol=1e-15)
+
+
+def test_a_slow_arm_refuses_the_paper_timing_and_certifies_rest_to_rest(tmp_path: Path, capsys) -> None:
+    slow = _urdf_with(tmp_path, "slow.urdf", 'velocity="3.0"', 'velocity="0.3"')
+    argv = ["--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--certify", "--urdf", str(slow)]
+    status, _, err = run(capsys, *argv, "--timing", "paper")
+    assert status == 1 and err.count("\n") == 1
+    assert "joint 2 speed up to 1.2350 rad/s > limit 0.3000 rad/s (by 0.9350 rad/s)" in err
+    assert "the rest-to-rest timing keeps them in T' = " in err
+    out = tmp_path / "t.csv"
+    status, stdout, _ = run(capsys, *argv, "--out", str(out))
+    assert status == 0
+    duration = float(stdout.split("T' = ")[1].split(" s")[0])
+    assert duration > generate(load_coefficients("paper"), 0.27, 0.09).duration_s
+    data = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert np.abs(data[:, 3:5]).max() <= 0.3
+
+
+def test_a_path_beyond_the_joint_limits_is_refused_with_the_joint_and_the_angle(tmp_path: Path, capsys) -> None:
+    narrow = _urdf_with(tmp_path, "narrow.urdf", 'lower="-3.14159" upper="3.14159"', 'lower="-0.5" upper="0.5"')
+    for timing in ("paper", "rest-to-rest"):
+        status, _, err = run(
+            capsys,
+            "--L",
+            "0.27",
+            "--W",
+            "0.09",
+            "--coefficients",
+            "paper",
+            "--certify",
+            "--urdf",
+            str(narrow),
+            "--timing",
+            timing,
+        )
+        assert status == 1, timing
+        assert "joint 1 angle reaches 1.6140 rad, beyond its upper limit 0.5000 rad" in err
+
+
+def test_hand_edited_coefficients_missing_p5_are_refused(built: Path, tmp_path: Path, capsys) -> None:
+    document = json.loads(built.read_text())
+    document["parameters"]["A1"][0] += 0.05
+    edited = tmp_path / "coefficients.json"
+    edited.write_text(json.dumps(document), encoding="utf-8")
+    status, _, err = run(capsys, "--L", "0.27", "--W", "0.09", "--coefficients", str(edited), "--certify")
+    assert status == 1 and "endpoint error at P" in err and "> tolerance 10.000 mm" in err
+
+
+def test_ros1_field_names(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "t.json"
+    status, _, _ = run(capsys, "--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--ros1", "--out", str(out))
+    assert status == 0
+    message = json.loads(out.read_text())
+    assert set(message["header"]) == {"seq", "stamp", "frame_id"} and set(message["header"]["stamp"]) == {
+        "secs",
+        "nsecs",
+    }
+    assert all(set(p["time_from_start"]) == {"secs", "nsecs"} and len(p["effort"]) == 2 for p in message["points"])
