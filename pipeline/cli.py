@@ -128,11 +128,9 @@ def count_argument(text: str) -> int:
 def jobs_count(text: str) -> int:
     """argparse type of ``--jobs``: a count >= 0, where 0 means every CPU of this machine."""
     try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--jobs {text!r} is not an integer (0 = every CPU)") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"--jobs {value} must be >= 0 (0 = every CPU)")
+        value = count_argument(text)
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"--jobs {exc} (0 = every CPU)") from None
     return value if value > 0 else (os.cpu_count() or 1)
 
 

@@ -16,18 +16,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from pipeline.exceptions import OutputExistsError
+from pipeline.io.jsonio import new_file_mode
 
 __all__ = ["write_file_set"]
-
-
-def _new_file_mode(path: Path) -> int:
-    """Mode for a file replacing ``path``: the existing file's, else 0o666 minus the umask."""
-    try:
-        return path.stat().st_mode & 0o777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        return 0o666 & ~mask
 
 
 def _make_folder(folder: Path) -> list[Path]:
@@ -56,7 +47,7 @@ def _stage(path: Path, data: bytes) -> Path:
             handle.write(data)
             handle.flush()
             os.fsync(handle.fileno())
-        os.chmod(tmp, _new_file_mode(path))
+        os.chmod(tmp, new_file_mode(path))
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

@@ -59,7 +59,7 @@ def dumps(data: Any) -> str:
     return json.dumps(json_safe(data), indent=2, allow_nan=False) + "\n"
 
 
-def _new_file_mode(path: Path) -> int:
+def new_file_mode(path: Path) -> int:
     """Mode for a file replacing ``path``: the existing file's, else 0o666 minus the umask."""
     try:
         return path.stat().st_mode & 0o777
@@ -88,7 +88,7 @@ def write_bytes_atomic(path: str | Path, data: bytes, overwrite: bool = True) ->
     if path.parent.exists() and not path.parent.is_dir():
         raise OutputExistsError(f"{path.parent} is not a directory")
     existed = path.exists()
-    mode = _new_file_mode(path)
+    mode = new_file_mode(path)
     if existed and not overwrite:
         raise OutputExistsError(f"{path} exists; pass --force to overwrite it")
     path.parent.mkdir(parents=True, exist_ok=True)
