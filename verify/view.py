@@ -32,6 +32,7 @@ from pathlib import Path
 from pipeline import load_coefficients
 from pipeline.cli import (
     DEFAULT_COEFFICIENTS,
+    EXIT_FAILED,
     EXIT_OK,
     Parser,
     describe_coefficients,
@@ -99,6 +100,27 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PNG",
         help="write a PNG screenshot of the exported page (headless Chromium) instead of serving it",
     )
+    output.add_argument(
+        "--joint-plot",
+        type=Path,
+        metavar="PNG",
+        help="write a PNG of q, dq, ddq and tau (RNEA) against time, with the arm's limits and the certified "
+        "bounds, instead of the scene (certifies the answer: exit 1 if refused)",
+    )
+    parser.add_argument(
+        "--timing",
+        choices=("rest-to-rest", "paper"),
+        default="rest-to-rest",
+        help="--joint-plot: the timing to plot",
+    )
+    parser.add_argument(
+        "--acceleration-limit",
+        nargs=2,
+        type=float,
+        default=None,
+        metavar=("A1", "A2"),
+        help="--joint-plot: joint acceleration limits [rad/s^2] (default: those recorded with the coefficients)",
+    )
     parser.add_argument(
         "--size", type=_size, default=(1200, 800), metavar="WxH", help="screenshot size [px] (default: 1200x800)"
     )
@@ -150,6 +172,11 @@ def _check_args(args: argparse.Namespace) -> None:
         raise InvalidParameterError("--samples", args.samples, "an integer >= 16")
     check_output_file(args.html, "--html")
     check_output_file(args.screenshot, "--screenshot")
+    check_output_file(args.joint_plot, "--joint-plot")
+    if args.joint_plot is not None and args.paper_test1:
+        raise InvalidParameterError("--joint-plot", str(args.joint_plot), "a generated trajectory (not --paper-test1)")
+    if args.acceleration_limit is not None and not all(a > 0.0 for a in args.acceleration_limit):
+        raise InvalidParameterError("--acceleration-limit", args.acceleration_limit, "two positive limits [rad/s^2]")
 
 
 @contextmanager
@@ -198,7 +225,46 @@ def _case(args: argparse.Namespace):  # -> TrajectoryCase (the viewer's, importe
     return case_from_generated(generated, arm)
 
 
+def _joint_plot(args: argparse.Namespace) -> int:
+    """Certify the answer with the chosen timing and plot its joint states."""
+    from pipeline.exceptions import ExecutionRefusedError, NoCertifiedTrajectoryError
+    from pipeline.model.limits import ArmLimits
+    from pipeline.motion.rest_to_rest import REST_TO_REST
+    from pipeline.motion.timing import PAPER_TIMING
+    from pipeline.online.repair import RepairConfig, generate_certified
+    from verify.acceptance.joint_plot import plot_joint_states
+
+    coefficients = load_coefficients_for_verify(PROG, args.coefficients)
+    arm = arm_for_verify(coefficients, args.urdf)
+    if args.acceleration_limit is None:
+        limits = ArmLimits.recorded(arm, coefficients.provenance)
+    else:
+        limits = ArmLimits.from_arm(arm, tuple(args.acceleration_limit))
+    timing = REST_TO_REST if args.timing == "rest-to-rest" else PAPER_TIMING
+    try:
+        answer = generate_certified(
+            coefficients,
+            args.L,
+            args.W,
+            arm,
+            timing=timing,
+            limits=limits,
+            config=RepairConfig(certificate_tolerance_m=1e-5),
+        )
+    except (NoCertifiedTrajectoryError, ExecutionRefusedError) as exc:
+        print(f"{PROG}: certification refused: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    title = f"L = {args.L} m, W = {args.W} m: q, dq, ddq, τ (dotted: certified bounds, dashed: limits)"
+    plot_joint_states(answer.executed, arm, answer.execution, args.joint_plot, title=title)
+    print(
+        f"wrote {args.joint_plot} ({answer.execution.certificate.timing_name} timing, T' = {answer.duration_s:.3f} s)"
+    )
+    return EXIT_OK
+
+
 def _run(args: argparse.Namespace) -> int:
+    if args.joint_plot is not None:
+        return _joint_plot(args)
     # Meshcat is imported here, by the viewer modules, only when a view is requested.
     from verify.viewer.browser import BrowserConfig
     from verify.viewer.drawing import ViewStyle

@@ -50,6 +50,7 @@ OPTIONS: dict[str, str] = {
     "endpoint_tolerance_m": "--endpoint-tolerance",
     "doe_endpoint_error_max_m": "--max-doe-endpoint-error",
     "allow_unconverged": "--allow-unconverged",
+    "acceleration_limits_rad_s2": "--acceleration-limit",
     "range_map": "--no-range-map",
     "clearance_rounds": "--clearance-rounds",
 }
@@ -104,6 +105,8 @@ class BuildConfig:
         doe_endpoint_error_max_m: Largest endpoint error of a DOE optimum for the build to
             count as converged [m] (:mod:`pipeline.offline.convergence`).
         allow_unconverged: Write the files (marked) even if the build did not converge.
+        acceleration_limits_rad_s2: The arm's joint acceleration limits [rad/s^2] (URDF carries
+            none), recorded in the coefficients; later certificates hold answers to them. None: none.
         range_map: Certify the coefficients over their fitted range and write region_map.json.
         clearance_rounds: Rounds of the certifiable regression before the map (paper family
             with the endpoint constraint; 0: none).
@@ -129,6 +132,7 @@ class BuildConfig:
     endpoint_tolerance_m: float | None = EndpointConstraint.tolerance_m
     doe_endpoint_error_max_m: float = _CRITERIA.endpoint_error_max_m
     allow_unconverged: bool = False
+    acceleration_limits_rad_s2: tuple[float, float] | None = None
     range_map: bool = True
     clearance_rounds: int = DEFAULT_CLEARANCE_ROUNDS
 
@@ -160,6 +164,18 @@ class BuildConfig:
             raise InvalidParameterError(OPTIONS["family"], self.family, "a TrajectoryFamily or its name")
         if not isinstance(self.scene, Scene):
             raise InvalidParameterError(OPTIONS["scene"], self.scene, "a pipeline.model.scene.Scene")
+        if self.acceleration_limits_rad_s2 is not None:
+            try:
+                limits = tuple(float(v) for v in self.acceleration_limits_rad_s2)
+            except (TypeError, ValueError):
+                limits = ()
+            if len(limits) != 2 or not all(v > 0.0 for v in limits):
+                raise InvalidParameterError(
+                    OPTIONS["acceleration_limits_rad_s2"],
+                    self.acceleration_limits_rad_s2,
+                    "two positive limits [rad/s^2]",
+                )
+            object.__setattr__(self, "acceleration_limits_rad_s2", limits)
         for name in ("polish", "allow_unconverged", "range_map"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidParameterError(OPTIONS[name], getattr(self, name), "True or False")

@@ -21,6 +21,7 @@ from pipeline.io.jsonio import dumps
 from pipeline.io.progress import ProgressCallback
 from pipeline.io.provenance import package_versions, sha256_file
 from pipeline.model.arm import ARM_FILE_NAME, DEFAULT_URDF, PlanarArm
+from pipeline.model.limits import ACCELERATION_LIMITS_KEY
 from pipeline.model.scene import Scene
 from pipeline.motion.trajectory import PARAMETER_NAMES
 from pipeline.offline.coefficients import (
@@ -112,8 +113,9 @@ def arm_file_name(arm: PlanarArm) -> str:
 
 
 def _provenance(config: BuildConfig, arm: PlanarArm, solver: SolverConfig) -> dict:
-    """The provenance block of doe.json and coefficients.json (no timestamps: deterministic)."""
-    return {
+    """The provenance block of doe.json and coefficients.json (no timestamps: deterministic); the
+    arm's acceleration limits, when given, are recorded there too."""
+    provenance = {
         "seed": int(config.seed),
         "levels": config.levels,
         "family": solver.family.name,
@@ -124,6 +126,9 @@ def _provenance(config: BuildConfig, arm: PlanarArm, solver: SolverConfig) -> di
         "polish": solver.polish,
         "versions": package_versions(),
     }
+    if config.acceleration_limits_rad_s2 is not None:
+        provenance[ACCELERATION_LIMITS_KEY] = list(config.acceleration_limits_rad_s2)
+    return provenance
 
 
 def _timing_document(results: list[ExperimentResult], jobs: int) -> dict:

@@ -181,6 +181,15 @@ def parser() -> Parser:
         "(certify, constrain the worst point of every cell below the margin that is not proven infeasible, "
         f"refit); 0: none [count] (default: {DEFAULT_CLEARANCE_ROUNDS})",
     )
+    p.add_argument(
+        "--acceleration-limit",
+        nargs=2,
+        type=float,
+        default=None,
+        metavar=("A1", "A2"),
+        help="the arm's joint acceleration limits [rad/s^2] (URDF carries none), recorded in the coefficients: "
+        "python -m pipeline.generate and generate_certified hold answers to them (default: none)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bars or tables")
     add_progress_argument(p)
     return p
@@ -214,6 +223,7 @@ def config_from_args(args: argparse.Namespace) -> BuildConfig:
         endpoint_tolerance_m=None if args.plain else args.endpoint_tolerance,
         doe_endpoint_error_max_m=args.max_doe_endpoint_error,
         allow_unconverged=args.allow_unconverged,
+        acceleration_limits_rad_s2=args.acceleration_limit,
         range_map=not args.no_range_map,
         clearance_rounds=args.clearance_rounds,
     )

@@ -228,7 +228,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=None,
         metavar=("A1", "A2"),
-        help="joint acceleration limits [rad/s^2] (URDF carries none; default: none)",
+        help="joint acceleration limits [rad/s^2] (URDF carries none; default: those recorded with the "
+        "coefficients by python -m pipeline.build --acceleration-limit, else none)",
     )
     p.add_argument("--ros1", action="store_true", help="ROS 1 field names in the .json (secs/nsecs, header seq)")
     p.add_argument(
@@ -317,7 +318,12 @@ def work(args: argparse.Namespace) -> int:
     timing = TIMINGS[args.timing]
     needs_arm = args.certify or args.urdf is not None or out is not None or timing is REST_TO_REST
     arm = arm_for_cli(coefficients, args.urdf) if needs_arm else None
-    limits = None if arm is None else ArmLimits.from_arm(arm, args.acceleration_limit)
+    if arm is None:
+        limits = None
+    elif args.acceleration_limit is None:
+        limits = ArmLimits.recorded(arm, coefficients.provenance)
+    else:
+        limits = ArmLimits.from_arm(arm, args.acceleration_limit)
     started = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

@@ -11,9 +11,11 @@ from dataclasses import dataclass
 
 from pipeline.exceptions import InvalidParameterError
 
-__all__ = ["ArmLimits"]
+__all__ = ["ACCELERATION_LIMITS_KEY", "ArmLimits"]
 
 _INF = math.inf
+#: Key of the acceleration limits [rad/s^2] in a coefficients file's provenance (absent: none given).
+ACCELERATION_LIMITS_KEY = "acceleration_limits_rad_s2"
 
 
 def _pair(name: str, value: object) -> tuple[float, float]:
@@ -54,6 +56,13 @@ class ArmLimits:
             if math.isnan(lo) or math.isnan(hi) or not lo < hi:
                 raise InvalidParameterError("position_rad", self.position_rad, "lo < hi for each joint [rad]")
         object.__setattr__(self, "position_rad", ((lo1, hi1), (lo2, hi2)))
+
+    @classmethod
+    def recorded(cls, arm, provenance: dict) -> ArmLimits:
+        """The URDF's limits of ``arm`` and the acceleration limits a build recorded in
+        ``provenance`` (a coefficients file's; none if it records none)."""
+        recorded = provenance.get(ACCELERATION_LIMITS_KEY)
+        return cls.from_arm(arm, None if recorded is None else tuple(recorded))
 
     @classmethod
     def from_arm(cls, arm, acceleration_rad_s2: tuple[float, float] | None = None) -> ArmLimits:

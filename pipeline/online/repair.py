@@ -273,7 +273,8 @@ def generate_certified(
         timing: ``PAPER_TIMING`` (default: the paper's constant path speed from t = 0, the
             generator's own timing) or ``REST_TO_REST`` (the shortest timing within the limits that
             starts and ends at rest, :mod:`pipeline.motion.timing`).
-        limits: The limits to certify (default: the arm's URDF limits, no acceleration limit).
+        limits: The limits to certify (default: the arm's URDF limits and the acceleration
+            limits recorded with the coefficients, if the build was given any).
 
     Raises:
         InvalidParameterError: ``config`` is not a RepairConfig, ``arm`` not a PlanarArm.
@@ -297,7 +298,7 @@ def generate_certified(
     if not isinstance(timing, PaperTiming | ShortestRestToRest):
         raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
     if limits is None:
-        limits = ArmLimits.from_arm(arm)
+        limits = ArmLimits.recorded(arm, coefficients.provenance)
     elif not isinstance(limits, ArmLimits):
         raise InvalidParameterError("limits", type(limits).__name__, "an ArmLimits or None")
     answer = _certify_clearance(generated, coefficients, arm, config)

@@ -7,8 +7,10 @@ import hashlib
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+import pipeline
 from pipeline import BuildConfig, load_coefficients, run_build
 from pipeline.build import doe_fit, range_stage
 from pipeline.certify import certifiable_regression
@@ -127,3 +129,16 @@ def test_another_arm_travels_with_the_coefficients(replayed: list, tmp_path: Pat
     with pytest.raises(DataFileError, match=r"arm\.urdf"):
         arm_for(load_coefficients(moved / "coefficients.json"))
     assert arm_for(coefficients, DEFAULT_URDF).urdf_path == DEFAULT_URDF  # given explicitly: checked, accepted
+
+
+def test_acceleration_limits_given_to_the_build_travel_with_the_coefficients(replayed: list, tmp_path: Path) -> None:
+    from pipeline import REST_TO_REST, generate_certified
+
+    run_build(BuildConfig(out_folder=tmp_path, jobs=1, clearance_rounds=0, acceleration_limits_rad_s2=(0.5, 0.5)))
+    coefficients = load_coefficients(tmp_path / "coefficients.json")
+    assert coefficients.provenance["acceleration_limits_rad_s2"] == [0.5, 0.5]
+    answer = generate_certified(coefficients, 0.25, 0.10, timing=REST_TO_REST)
+    assert answer.execution.limits.acceleration_rad_s2 == (0.5, 0.5)
+    assert np.all(answer.execution.certificate.acceleration_bound_rad_s2 <= 0.5)
+    with pytest.raises(pipeline.ExecutionRefusedError, match="acceleration"):  # the paper timing breaks them
+        generate_certified(coefficients, 0.25, 0.10)

@@ -70,3 +70,35 @@ def test_help_has_units_and_no_empty_defaults(capsys) -> None:
     text = " ".join(out.split())
     assert status == 0 and "default: results/coefficients.json" in text and "[m]" in text
     assert "(default: None)" not in text and "(default: False)" not in text
+
+
+def test_joint_plot_writes_a_png_of_the_certified_answer(tmp_path, capsys) -> None:
+    from verify import view
+
+    out = tmp_path / "joints.png"
+    status = view.main(
+        [
+            "--L",
+            "0.27",
+            "--W",
+            "0.09",
+            "--coefficients",
+            "paper",
+            "--joint-plot",
+            str(out),
+            "--acceleration-limit",
+            "2",
+            "2",
+        ]
+    )
+    assert status == 0, capsys.readouterr().err
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "rest-to-rest timing, T' = " in capsys.readouterr().out
+    slow = tmp_path / "slow.urdf"
+    from pipeline.model.arm import DEFAULT_URDF
+
+    slow.write_text(DEFAULT_URDF.read_text().replace('velocity="3.0"', 'velocity="0.3"'))
+    refused = tmp_path / "refused.png"
+    argv = ["--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--urdf", str(slow), "--timing", "paper"]
+    assert view.main([*argv, "--joint-plot", str(refused)]) == 1  # the paper timing breaks 0.3 rad/s
+    assert "certification refused" in capsys.readouterr().err and not refused.exists()
