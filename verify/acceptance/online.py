@@ -22,7 +22,12 @@ import numpy as np
 from tqdm import tqdm
 
 from pipeline import load_coefficients
-from pipeline.exceptions import InvalidParameterError, NoCertifiedTrajectoryError, UnreachableObstacleError
+from pipeline.exceptions import (
+    ExecutionRefusedError,
+    InvalidParameterError,
+    NoCertifiedTrajectoryError,
+    UnreachableObstacleError,
+)
 from pipeline.io.parallel import process_map
 from pipeline.io.progress import progress_enabled
 from pipeline.model.arm import PlanarArm, load_planar_arm
@@ -95,6 +100,9 @@ def query(
         return OnlineCase(
             length_m, width_m, "refused", None, exc.certified_clearance_m, exc.reason, time.perf_counter() - start
         )
+    except ExecutionRefusedError as exc:  # certified collision-free, but it misses an endpoint or breaks a limit
+        reason = "; ".join(r.split(" (by ")[0] for r in exc.reasons)
+        return OnlineCase(length_m, width_m, "refused", None, None, reason, time.perf_counter() - start)
     except UnreachableObstacleError as exc:
         return OnlineCase(length_m, width_m, "refused", None, None, str(exc), time.perf_counter() - start)
     return OnlineCase(

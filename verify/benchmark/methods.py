@@ -17,7 +17,7 @@ import numpy as np
 
 from pipeline.build import BuildConfig, run_build
 from pipeline.certify.region_map import RegionMap
-from pipeline.exceptions import DataFileError, NoCertifiedTrajectoryError, PipelineError
+from pipeline.exceptions import DataFileError, ExecutionRefusedError, NoCertifiedTrajectoryError, PipelineError
 from pipeline.geometry.polyline_certificate import certify_path
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.io.jsonio import read_json
@@ -148,7 +148,8 @@ def bench_certified(
     coefficients: Any, cases: np.ndarray, arm: PlanarArm, repeats: int
 ) -> tuple[list[float], list[float | None], int]:
     """(b): time ``generate_certified`` per query, with the per-query certificate every time (no
-    region map, even one attached to the coefficients: that is (a*)).
+    region map, even one attached to the coefficients: that is (a*)): the clearance, and the
+    endpoints and the arm's limits with the paper timing (decide mode).
 
     Returns:
         (times [s], certified clearance of each answer or None where it refused, repairs made).
@@ -163,7 +164,7 @@ def bench_certified(
             started = time.perf_counter()
             try:
                 answer = generate_certified(coefficients, float(length), float(width), arm, region_map=None)
-            except NoCertifiedTrajectoryError:
+            except (NoCertifiedTrajectoryError, ExecutionRefusedError):
                 answer = None
             times.append(time.perf_counter() - started)
             clearances.append(None if answer is None else answer.certified_clearance_m)
