@@ -284,7 +284,8 @@ def _certified_method(ctx: _Context) -> MethodResult:
         certified=certified_b,
         keeps_margin=keeps_b,
         note=f"generate_certified(...) (Coal certificate to the {ctx.margin_m} m margin, repair if needed, "
-        "endpoints and the arm's limits with the paper timing, else refuse); passes: {ctx.settings.slow_repeats}; repairs: {repairs}, refusals: "
+        "endpoints and the arm's limits with the paper timing, else refuse); "
+        f"passes: {ctx.settings.slow_repeats}; repairs: {repairs}, refusals: "
         f"{refusals} of {len(clearances_b)} queries",
         extra={"repairs": repairs, "refusals": refusals},
     )
