@@ -222,7 +222,7 @@ def test_a_converged_build_carries_no_mark(tiny: dict, tmp_path: Path, monkeypat
         for r, row in zip(tiny["result"].experiments, table2, strict=True)
     ]
     monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: good)
-    result = run_build(BuildConfig(out_folder=tmp_path, **TINY))
+    result = run_build(BuildConfig(out_folder=tmp_path, range_map=False, **TINY))  # the mark, not the map
     assert result.converged
     document = json.loads((tmp_path / "coefficients.json").read_text())
     assert "converged" not in document and "unconverged_reasons" not in document
