@@ -27,8 +27,8 @@ intervals, so intervals are bisected where the question is open, and only there:
   intervals' ends and midpoints, the exact values of q, dq, ddq and tau) by more than the
   tolerance; the bounds end within the tolerance of the true maxima;
 * **decide** (limits given): where a bound exceeds its limit while no sample does (a sample
-  beyond it proves the violation) and the tolerance allows; with the paper's arm and its URDF
-  limits the first 32 intervals decide everything.
+  beyond it proves the violation) and the tolerance allows, starting from the whole of [0, T']
+  as one interval; with the paper's arm and its URDF limits that one interval decides everything.
 
 The bound is the largest enclosure over the final partition (rigorous), the sampled maximum a
 value the quantity takes (so the true maximum lies between them).
@@ -277,7 +277,7 @@ def certify_execution(
     """
     limit = None if limits is None else _limit_vector(limits)
     end = timed.duration_s
-    edges = np.linspace(0.0, end, _INITIAL_INTERVALS + 1)
+    edges = np.linspace(0.0, end, (_INITIAL_INTERVALS if limit is None else 1) + 1)
     lo, hi = edges[:-1], edges[1:]
     sampled = _values(timed, dynamics, edges).max(0)
     bound = np.full(len(_QUANTITIES), -np.inf)
