@@ -10,6 +10,7 @@ how many were repaired, and how many were refused.
 from __future__ import annotations
 
 import functools
+import re
 import sys
 import time
 from collections import Counter
@@ -85,6 +86,12 @@ class OnlineCase:
         }
 
 
+def _kind(reason: str) -> str:
+    """An execution refusal's reason without its figures, so that equal causes count together:
+    "endpoint error at P5 4.2 mm > tolerance 2.0 mm" -> "endpoint error at P5 > tolerance"."""
+    return re.sub(r"\s*\(by [^)]*\)|\s-?\d+(\.\d+)?\s*(mm|rad/s\^2|rad/s|rad|N m)", "", reason).strip()
+
+
 def query(
     coefficients: Coefficients, arm: PlanarArm, length_m: float, width_m: float, config: RepairConfig
 ) -> OnlineCase:
@@ -101,7 +108,7 @@ def query(
             length_m, width_m, "refused", None, exc.certified_clearance_m, exc.reason, time.perf_counter() - start
         )
     except ExecutionRefusedError as exc:  # certified collision-free, but it misses an endpoint or breaks a limit
-        reason = "; ".join(r.split(" (by ")[0] for r in exc.reasons)
+        reason = "; ".join(_kind(r) for r in exc.reasons)
         return OnlineCase(length_m, width_m, "refused", None, None, reason, time.perf_counter() - start)
     except UnreachableObstacleError as exc:
         return OnlineCase(length_m, width_m, "refused", None, None, str(exc), time.perf_counter() - start)
