@@ -263,3 +263,27 @@ def test_measure_case_uses_the_online_generator(arm: PlanarArm) -> None:
     unreachable = measure_case(paper, 0.9, 0.5, arm, FAST)
     assert unreachable.error is not None and not unreachable.passed and unreachable.clearance_m is None
     assert "reach" in unreachable.error
+
+
+def test_torques_are_bounded_and_checked_against_the_effort_limits(arm: PlanarArm, scene: Scene, tmp_path) -> None:
+    """The sweep's torque bound holds against Pinocchio's RNEA at 20,001 instants (independent of the
+    closed form it uses), and an arm whose effort limit is below it fails the case, naming the torque."""
+    import pinocchio as pin
+
+    from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
+    from verify.acceptance.metrics import joint_check
+
+    trajectory, path, obstacle = table2_case(1, scene)
+    check = joint_check(trajectory, arm)
+    t = np.linspace(0.0, trajectory.duration_s, 20001)
+    data = arm.model.createData()
+    states = zip(trajectory.q(t), trajectory.dq(t), trajectory.ddq(t), strict=True)
+    rnea = np.abs(np.array([pin.rnea(arm.model, data, *state) for state in states])).max(0)
+    assert np.all(np.array(check.torque_bound_n_m) >= rnea - 1e-12)
+    assert np.allclose(check.peak_torque_sampled_n_m, rnea, rtol=1e-3)
+    assert check.within_effort_limits and check.effort_limits_n_m == (10.0, 10.0)
+    weak = tmp_path / "weak.urdf"
+    weak.write_text(DEFAULT_URDF.read_text().replace('effort="10"', 'effort="0.01"'))
+    result = measure_trajectory(trajectory, path, obstacle, load_planar_arm(weak), FAST)
+    assert not result.measurement.joints.within_effort_limits
+    assert any("torque bound" in f and "exceeds the URDF limits (0.01, 0.01)" in f for f in result.verdict.failures)

@@ -326,7 +326,10 @@ def tracking_errors(trajectory: JointTrajectory, path: QuarticPath, arm: PlanarA
 def joint_check(
     trajectory: JointTrajectory, arm: PlanarArm, acceleration_limits_rad_s2: Pair | None = None
 ) -> JointCheck:
-    """Closed-form joint peaks and ranges against the URDF's limits (and the given acceleration limits)."""
+    """Closed-form joint peaks and ranges against the URDF's limits (and the given acceleration
+    limits), and the torques: a certified bound over all of [0, T] (paper timing, decided against
+    the URDF's effort limits) checked against the closed-form dynamics at :data:`TORQUE_SAMPLES`
+    instants (a bound below a sampled torque is a failure of the certificate, reported)."""
     peak_velocity = _pair(trajectory.peak_velocity_rad_s())
     peak_acceleration = _pair(trajectory.peak_acceleration_rad_s2())
     ranges = joint_ranges(trajectory)
@@ -348,7 +351,33 @@ def joint_check(
             if acceleration_limits_rad_s2 is None
             else all(p <= a for p, a in zip(peak_acceleration, acceleration_limits_rad_s2, strict=True))
         ),
+        **_torque_check(trajectory, arm),
     )
+
+
+#: Instants of the sweep's dense torque check.
+TORQUE_SAMPLES = 2001
+
+
+def _torque_check(trajectory: JointTrajectory, arm: PlanarArm) -> dict:
+    from pipeline.model.limits import ArmLimits
+    from pipeline.motion.execution_certificate import certify_execution
+    from pipeline.motion.timed_trajectory import TimedTrajectory
+    from pipeline.motion.timing import PAPER_TIMING
+    from pipeline.online.execution import dynamics_of
+
+    dynamics, limits = dynamics_of(arm), ArmLimits.from_arm(arm)
+    effort = _pair(limits.effort_n_m)
+    certificate = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics, ArmLimits(effort_n_m=effort))
+    t = np.linspace(0.0, trajectory.duration_s, TORQUE_SAMPLES)
+    sampled = np.abs(dynamics.torque(trajectory.q(t), trajectory.dq(t), trajectory.ddq(t))).max(0)
+    bound = _pair(certificate.torque_bound_n_m)
+    return {
+        "torque_bound_n_m": bound,
+        "peak_torque_sampled_n_m": _pair(sampled),
+        "effort_limits_n_m": effort,
+        "within_effort_limits": all(b <= e for b, e in zip(bound, effort, strict=True)),
+    }
 
 
 def acceptance_failures(measurement: Measurement, thresholds: AcceptanceThresholds) -> list[str]:
@@ -383,6 +412,14 @@ def acceptance_failures(measurement: Measurement, thresholds: AcceptanceThreshol
             )
         if not j.within_position_limits:
             failures.append(f"joint range {j.range_rad} rad leaves the URDF limits {j.position_limits_rad}")
+        if not j.within_effort_limits:
+            failures.append(
+                f"joint torque bound {j.torque_bound_n_m} N m exceeds the URDF limits {j.effort_limits_n_m}"
+            )
+        if any(b < p for b, p in zip(j.torque_bound_n_m, j.peak_torque_sampled_n_m, strict=True)):
+            failures.append(
+                f"certified torque bound {j.torque_bound_n_m} N m below a sampled torque {j.peak_torque_sampled_n_m}"
+            )
         if j.within_acceleration_limits is False:
             failures.append(
                 f"joint acceleration peak {j.peak_acceleration_rad_s2} rad/s^2 exceeds {j.acceleration_limits_rad_s2}"

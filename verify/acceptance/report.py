@@ -92,10 +92,11 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
         rows.append(
             (
                 "joints",
-                "speed peak ({:.3f}, {:.3f}) rad/s, acceleration peak ({:.3f}, {:.3f}) rad/s^2; "
-                "{} / {} within the URDF limits".format(
+                "speed peak ({:.3f}, {:.3f}) rad/s, acceleration peak ({:.3f}, {:.3f}) rad/s^2, "
+                "certified torque bound ({:.4f}, {:.4f}) N m (paper timing); {} / {} within the URDF limits".format(
                     *s.peak_velocity_max_rad_s,
                     *s.peak_acceleration_max_rad_s2,
+                    *(s.torque_bound_max_n_m or (float("nan"), float("nan"))),
                     s.n_within_joint_limits,
                     measured,
                 ),

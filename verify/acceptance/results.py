@@ -128,6 +128,12 @@ class JointCheck:
         acceleration_limits_rad_s2: The thresholds' acceleration limits [rad/s^2] (None: not checked).
         within_velocity_limits, within_position_limits: Whether the peaks / ranges respect them.
         within_acceleration_limits: Likewise; None if there are no acceleration limits.
+        torque_bound_n_m: Certified upper bound of |tau_i| over all of [0, T] (paper timing;
+            Pinocchio's dynamics in closed form, decided against the effort limits) [N m].
+        peak_torque_sampled_n_m: Largest |tau_i| at the dense check's samples [N m]; the bound
+            must not lie below it.
+        effort_limits_n_m: The URDF's effort limits [N m].
+        within_effort_limits: Whether the torque bound respects them.
     """
 
     peak_velocity_rad_s: Pair
@@ -139,12 +145,19 @@ class JointCheck:
     within_velocity_limits: bool
     within_position_limits: bool
     within_acceleration_limits: bool | None
+    torque_bound_n_m: Pair = (math.nan, math.nan)
+    peak_torque_sampled_n_m: Pair = (math.nan, math.nan)
+    effort_limits_n_m: Pair = (math.inf, math.inf)
+    within_effort_limits: bool = True
 
     @property
     def within_limits(self) -> bool:
-        """Speeds, angles and (if limited) accelerations all within their limits."""
+        """Speeds, angles, torques and (if limited) accelerations all within their limits."""
         return (
-            self.within_velocity_limits and self.within_position_limits and self.within_acceleration_limits is not False
+            self.within_velocity_limits
+            and self.within_position_limits
+            and self.within_acceleration_limits is not False
+            and self.within_effort_limits
         )
 
 
@@ -294,11 +307,19 @@ class CaseResult:
             "peak_acceleration_rad_s2",
             "velocity_limits_rad_s",
             "acceleration_limits_rad_s2",
+            "torque_bound_n_m",
+            "peak_torque_sampled_n_m",
+            "effort_limits_n_m",
         ):
             out[name] = None if joints is None else getattr(joints, name)
         out["joint_range_rad"] = None if joints is None else joints.range_rad
         out["position_limits_rad"] = None if joints is None else joints.position_limits_rad
-        for name in ("within_velocity_limits", "within_acceleration_limits", "within_position_limits"):
+        for name in (
+            "within_velocity_limits",
+            "within_acceleration_limits",
+            "within_position_limits",
+            "within_effort_limits",
+        ):
             out[name] = None if joints is None else getattr(joints, name)
         out["endpoint_error_m"] = self.endpoint_error_m
         return {key: _jsonable(value) for key, value in out.items()}

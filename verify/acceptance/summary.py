@@ -51,6 +51,7 @@ class SweepSummary:
         n_within_joint_limits: Measured cases whose joint speeds, angles (and accelerations) are within limits.
         certified_clearance, sampled_clearance, endpoint_error, tracking_max, tracking_rms: Statistics [m].
         peak_velocity_max_rad_s, peak_acceleration_max_rad_s2: Largest joint peaks over the cases, per joint.
+        torque_bound_max_n_m: Largest certified torque bound over the cases, per joint [N m].
         time_samples_range: (fewest, most) time samples of a case.
         certificate_evaluations_total: Clearance evaluations of every certificate together.
         n_certificate_not_converged: Certificates that stopped before their tolerance.
@@ -74,6 +75,7 @@ class SweepSummary:
     tracking_rms: Stats
     peak_velocity_max_rad_s: Pair | None
     peak_acceleration_max_rad_s2: Pair | None
+    torque_bound_max_n_m: Pair | None
     time_samples_range: tuple[int, int] | None
     certificate_evaluations_total: int
     n_certificate_not_converged: int
@@ -135,6 +137,7 @@ class SweepSummary:
             "tracking_rms_max_m": self.tracking_rms.max,
             "peak_velocity_max_rad_s": _list(self.peak_velocity_max_rad_s),
             "peak_acceleration_max_rad_s2": _list(self.peak_acceleration_max_rad_s2),
+            "torque_bound_max_n_m": _list(self.torque_bound_max_n_m),
             "n_within_joint_limits": self.n_within_joint_limits,
             "time_samples_min": None if samples is None else samples[0],
             "time_samples_max": None if samples is None else samples[1],
@@ -200,6 +203,7 @@ def summarize(
         tracking_rms=Stats.of([m.tracking.rms_m for m in measured]),
         peak_velocity_max_rad_s=_peak([m.joints.peak_velocity_rad_s for m in measured]),
         peak_acceleration_max_rad_s2=_peak([m.joints.peak_acceleration_rad_s2 for m in measured]),
+        torque_bound_max_n_m=_peak([m.joints.torque_bound_n_m for m in measured]),
         time_samples_range=(min(samples), max(samples)) if samples else None,
         certificate_evaluations_total=sum(c.evaluations for c in certificates),
         n_certificate_not_converged=sum(not c.converged for c in certificates),
