@@ -28,7 +28,11 @@ intervals, so intervals are bisected where the question is open, and only there:
   tolerance; the bounds end within the tolerance of the true maxima;
 * **decide** (limits given): where a bound exceeds its limit while no sample does (a sample
   beyond it proves the violation) and the tolerance allows, starting from the whole of [0, T']
-  as one interval; with the paper's arm and its URDF limits that one interval decides everything.
+  as one interval. For the paper timing a coarser question is asked first, in closed form: the
+  exact maxima of |theta_i'| and |theta_i''| and the exact angle ranges of the sinusoids over
+  [0, T] (:meth:`pipeline.motion.trajectory.JointTrajectory.peak_velocity_rad_s` and the like), and
+  the torque bound ``sum_j Mmax_ij max|ddq_j| + Hmax Q_i`` with the suprema over q2 of |M_ij| and
+  |h| (Q_1 = 2 V_1 V_2 + V_2^2, Q_2 = V_1^2); if these keep every limit, nothing else runs.
 
 The bound is the largest enclosure over the final partition (rigorous), the sampled maximum a
 value the quantity takes (so the true maximum lies between them).
@@ -51,6 +55,7 @@ import numpy as np
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.timed_trajectory import TimedTrajectory
+from pipeline.motion.timing import PaperTiming
 
 __all__ = [
     "FLOAT_SLACK_ABSOLUTE",
@@ -218,7 +223,7 @@ class ExecutionCertificate:
             |dq_i| [rad/s], |ddq_i| [rad/s^2], |tau_i| [N m].
         sampled: The largest values sampled (values the quantities take), per quantity as the bounds:
             {"speed_rad_s": (2,), "acceleration_rad_s2": (2,), "torque_n_m": (2,), "angle_range_rad": ...}.
-        intervals: Time intervals of the final partition.
+        intervals: Time intervals of the final partition (0: decided in closed form, paper timing).
         decided_against: The limits the bounds were decided against (None: tight bounds).
     """
 
@@ -253,6 +258,30 @@ class ExecutionCertificate:
         return found
 
 
+def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLimits) -> ExecutionCertificate | None:
+    """The paper timing's bounds in closed form (module docstring), if they keep every limit; else None."""
+    trajectory = timed.trajectory
+    speed, accel = trajectory.peak_velocity_rad_s(), trajectory.peak_acceleration_rad_s2()
+    (lo1, hi1), (lo2, hi2) = trajectory.angle_ranges_rad()
+    quadratic = np.array([2.0 * speed[0] * speed[1] + speed[1] ** 2, speed[0] ** 2])
+    torque = dynamics.mass_matrix_sup() @ accel + dynamics.coriolis_sup() * quadratic
+    bounds = np.array([hi1, hi2, -lo1, -lo2, *speed, *accel, *torque])
+    bounds = bounds + FLOAT_SLACK_RELATIVE * np.abs(bounds) + FLOAT_SLACK_ABSOLUTE
+    if np.any(bounds > _limit_vector(limits)):
+        return None
+    return ExecutionCertificate(
+        timing_name=timed.timing.name,
+        duration_s=timed.duration_s,
+        angle_range_rad=((-float(bounds[2]), float(bounds[0])), (-float(bounds[3]), float(bounds[1]))),
+        speed_bound_rad_s=bounds[4:6].copy(),
+        acceleration_bound_rad_s2=bounds[6:8].copy(),
+        torque_bound_n_m=bounds[8:10].copy(),
+        sampled={},
+        intervals=0,
+        decided_against=limits,
+    )
+
+
 def _limit_vector(limits: ArmLimits) -> np.ndarray:
     """The limits in the order of :data:`_QUANTITIES`."""
     (lo1, hi1), (lo2, hi2) = limits.position_rad
@@ -276,6 +305,10 @@ def certify_execution(
             fraction of it (of 1e-3 for maxima below that).
     """
     limit = None if limits is None else _limit_vector(limits)
+    if limit is not None and isinstance(timed.timing, PaperTiming):
+        coarse = _closed_form(timed, dynamics, limits)
+        if coarse is not None:
+            return coarse
     end = timed.duration_s
     edges = np.linspace(0.0, end, (_INITIAL_INTERVALS if limit is None else 1) + 1)
     lo, hi = edges[:-1], edges[1:]
