@@ -31,6 +31,7 @@ __all__ = [
     "EXIT_USAGE",
     "HelpFormatter",
     "Parser",
+    "add_acceleration_limit_argument",
     "add_progress_argument",
     "arm_for_cli",
     "check_output_file",
@@ -145,6 +146,29 @@ def load_coefficients_for_cli(source: str | Path) -> Coefficients:
         hint = f" (run python -m pipeline.build first, or pass --coefficients {PAPER_SOURCE})"
         raise DataFileError(source, "coefficients file not found" + (hint if source == DEFAULT_COEFFICIENTS else ""))
     return load_coefficients(source)
+
+
+def acceleration_limits(text: str) -> float:
+    """argparse type of ``--acceleration-limit``: a positive acceleration limit [rad/s^2]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--acceleration-limit {text!r} is not a number [rad/s^2]") from None
+    if not value > 0.0:  # NaN too
+        raise argparse.ArgumentTypeError(f"--acceleration-limit {value} must be > 0 [rad/s^2]")
+    return value
+
+
+def add_acceleration_limit_argument(parser: argparse.ArgumentParser, use: str) -> None:
+    """``--acceleration-limit A1 A2`` [rad/s^2] (URDF carries none); ``use`` says what the command does with it."""
+    parser.add_argument(
+        "--acceleration-limit",
+        nargs=2,
+        type=acceleration_limits,
+        default=None,
+        metavar=("A1", "A2"),
+        help=f"the arm's joint acceleration limits [rad/s^2] (URDF carries none): {use}",
+    )
 
 
 def add_progress_argument(parser: argparse.ArgumentParser) -> None:

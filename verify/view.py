@@ -35,6 +35,7 @@ from pipeline.cli import (
     EXIT_FAILED,
     EXIT_OK,
     Parser,
+    add_acceleration_limit_argument,
     describe_coefficients,
     run_cli,
 )
@@ -113,14 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="rest-to-rest",
         help="--joint-plot: the timing to plot",
     )
-    parser.add_argument(
-        "--acceleration-limit",
-        nargs=2,
-        type=float,
-        default=None,
-        metavar=("A1", "A2"),
-        help="--joint-plot: joint acceleration limits [rad/s^2] (default: those recorded with the coefficients)",
-    )
+    add_acceleration_limit_argument(parser, "--joint-plot's limits (default: those recorded with the coefficients)")
     parser.add_argument(
         "--size", type=_size, default=(1200, 800), metavar="WxH", help="screenshot size [px] (default: 1200x800)"
     )
@@ -175,8 +169,6 @@ def _check_args(args: argparse.Namespace) -> None:
     check_output_file(args.joint_plot, "--joint-plot")
     if args.joint_plot is not None and args.paper_test1:
         raise InvalidParameterError("--joint-plot", str(args.joint_plot), "a generated trajectory (not --paper-test1)")
-    if args.acceleration_limit is not None and not all(a > 0.0 for a in args.acceleration_limit):
-        raise InvalidParameterError("--acceleration-limit", args.acceleration_limit, "two positive limits [rad/s^2]")
 
 
 @contextmanager

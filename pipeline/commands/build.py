@@ -25,7 +25,16 @@ from pipeline.build.config import SCENE_OPTIONS, scene_from_options
 from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS, clearance_refit_lines
 from pipeline.certify.map_for_coefficients import summary_lines
 from pipeline.certify.region_map import DEFAULT_MAP_NAME
-from pipeline.cli import EXIT_FAILED, EXIT_OK, Parser, add_progress_argument, count_argument, jobs_count, run_cli
+from pipeline.cli import (
+    EXIT_FAILED,
+    EXIT_OK,
+    Parser,
+    add_acceleration_limit_argument,
+    add_progress_argument,
+    count_argument,
+    jobs_count,
+    run_cli,
+)
 from pipeline.commands.regress import OVERWRITE_RULE, add_regression_arguments
 from pipeline.exceptions import BuildNotConvergedError
 from pipeline.io.progress import ProgressBars
@@ -181,14 +190,10 @@ def parser() -> Parser:
         "(certify, constrain the worst point of every cell below the margin that is not proven infeasible, "
         f"refit); 0: none [count] (default: {DEFAULT_CLEARANCE_ROUNDS})",
     )
-    p.add_argument(
-        "--acceleration-limit",
-        nargs=2,
-        type=float,
-        default=None,
-        metavar=("A1", "A2"),
-        help="the arm's joint acceleration limits [rad/s^2] (URDF carries none), recorded in the coefficients: "
-        "python -m pipeline.generate and generate_certified hold answers to them (default: none)",
+    add_acceleration_limit_argument(
+        p,
+        "recorded in the coefficients; python -m pipeline.generate and generate_certified hold answers to them "
+        "(default: none)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bars or tables")
     add_progress_argument(p)

@@ -47,6 +47,7 @@ from pipeline.cli import (
     EXIT_FAILED,
     EXIT_OK,
     Parser,
+    add_acceleration_limit_argument,
     arm_for_cli,
     check_output_file,
     describe_coefficients,
@@ -222,14 +223,8 @@ def build_parser() -> argparse.ArgumentParser:
         "duration T' within the arm's limits: what a controller should get) or paper (the path's full speed from "
         "t = 0, the generator's own timing)",
     )
-    p.add_argument(
-        "--acceleration-limit",
-        nargs=2,
-        type=float,
-        default=None,
-        metavar=("A1", "A2"),
-        help="joint acceleration limits [rad/s^2] (URDF carries none; default: those recorded with the "
-        "coefficients by python -m pipeline.build --acceleration-limit, else none)",
+    add_acceleration_limit_argument(
+        p, "default: those recorded with the coefficients by python -m pipeline.build --acceleration-limit, else none"
     )
     p.add_argument("--ros1", action="store_true", help="ROS 1 field names in the .json (secs/nsecs, header seq)")
     p.add_argument(

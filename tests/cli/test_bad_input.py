@@ -187,6 +187,8 @@ def test_public_api_raises_the_projects_error(index: int, place: dict) -> None:
             "separator",
         ),
         ("pipeline.generate", ["--L", "0.27", "--W", "0.09", "--coefficients", "TMP/broken.json"], "broken.json"),
+        ("pipeline.generate", ["--L", "0.27", "--W", "0.09", "--acceleration-limit", "0", "2"], "must be > 0"),
+        ("pipeline.build", ["--acceleration-limit", "nan", "1"], "--acceleration-limit"),
         ("pipeline.build", ["--seed", "-1"], "--seed"),
         ("pipeline.build", ["--out", "/proc/twolink-out"], "--out"),
         ("pipeline.build", ["--scene", "TMP/misspelt.toml"], "top_y"),
