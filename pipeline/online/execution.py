@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pipeline.exceptions import ExecutionRefusedError
+from pipeline.exceptions import ExecutionRefusedError, InvalidParameterError
 from pipeline.model.arm import PlanarArm
 from pipeline.model.dynamics import PlanarDynamics, identify_dynamics
 from pipeline.model.limits import ArmLimits
@@ -123,7 +123,7 @@ def certify_answer_execution(
             raise ExecutionRefusedError(*size, "paper", tuple(reasons))
         return Execution(paper_timed, paper, limits, errors, endpoint_tolerance_m)
     if not isinstance(timing, ShortestRestToRest):
-        raise TypeError(f"timing {timing!r}")
+        raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
     angles = [str(v) for v in violations if v.quantity == "angle"]
     if angles:  # the same configurations under every timing
         raise ExecutionRefusedError(*size, timing.name, tuple(angles))
@@ -131,7 +131,7 @@ def certify_answer_execution(
         paper = certify_execution(paper_timed, dynamics)
     try:
         retimed = shortest_rest_to_rest(trajectory.duration_s, paper, dynamics, limits)
-    except Exception as exc:  # InvalidParameterError: a limit binds at rest
+    except InvalidParameterError as exc:  # a limit binds at rest
         raise ExecutionRefusedError(*size, timing.name, (str(exc),)) from None
     for _ in range(RETIMING_TRIES):
         executed = TimedTrajectory(trajectory, retimed)
@@ -158,7 +158,7 @@ def _rest_to_rest_hint(
             else certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics)
         )
         retimed = shortest_rest_to_rest(trajectory.duration_s, tight, dynamics, limits)
-    except Exception:  # no rest-to-rest timing keeps them either
+    except InvalidParameterError:  # no rest-to-rest timing keeps them either
         return "no rest-to-rest timing keeps the limits either"
     return f"the rest-to-rest timing keeps them in T' = {retimed.duration_s:.3f} s (T = {trajectory.duration_s:.3f} s)"
 
@@ -176,5 +176,5 @@ def retime(trajectory: JointTrajectory, arm: PlanarArm, limits: ArmLimits, timin
     paper = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics)
     try:
         return TimedTrajectory(trajectory, shortest_rest_to_rest(trajectory.duration_s, paper, dynamics, limits))
-    except Exception as exc:  # InvalidParameterError: a limit binds at rest
+    except InvalidParameterError as exc:  # a limit binds at rest
         raise ExecutionRefusedError(float("nan"), float("nan"), "rest-to-rest", (str(exc),)) from None
