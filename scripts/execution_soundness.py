@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
         L, W = float(rng.uniform(l_lo, l_hi)), float(rng.uniform(w_lo, w_hi))
         trajectory = generate(coefficients, L, W, region_map=None).trajectory
         paper = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics)
-        retimed = shortest_rest_to_rest(trajectory.duration_s, paper, dynamics, limits)
+        retimed = shortest_rest_to_rest(trajectory, dynamics, limits)
         for timed in (TimedTrajectory(trajectory, PAPER_TIMING), TimedTrajectory(trajectory, retimed)):
             certificate = paper if timed.timing is PAPER_TIMING or timed.timing.name == "paper" else None
             certificate = certify_execution(timed, dynamics) if certificate is None else certificate

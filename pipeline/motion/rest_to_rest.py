@@ -1,9 +1,10 @@
 """The shortest rest-to-rest timing of a joint path within the arm's limits, from closed-form bounds.
 
-With the paper timing's rigorous maxima ``V_i = max |theta_i'|`` and ``Acc_i = max |theta_i''|``
-over the path (:func:`pipeline.motion.execution_certificate.certify_execution` of the paper
-timing, where dq = theta' and ddq = theta''), a :class:`pipeline.motion.timing.RestToRestTiming`
-with speed scale c and ramp r has, at every instant (sigma' <= c, |sigma''| <= 1.5 c / r):
+With the paper timing's maxima ``V_i = max |theta_i'|`` and ``Acc_i = max |theta_i''|`` over
+the path, exact in closed form for a sinusoid over [0, T]
+(:meth:`pipeline.motion.trajectory.JointTrajectory.peak_velocity_rad_s`, widened for rounding as
+the execution certificate's bounds), a :class:`pipeline.motion.timing.RestToRestTiming` with
+speed scale c and ramp r has, at every instant (sigma' <= c, |sigma''| <= 1.5 c / r):
 
 * ``|dq_i| <= c V_i``;
 * ``|ddq_i| <= c^2 Acc_i + 1.5 c V_i / r``;
@@ -30,8 +31,9 @@ import numpy as np
 from pipeline.exceptions import InvalidParameterError
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
-from pipeline.motion.execution_certificate import ExecutionCertificate
+from pipeline.motion.execution_certificate import FLOAT_SLACK_ABSOLUTE, FLOAT_SLACK_RELATIVE
 from pipeline.motion.timing import RestToRestTiming
+from pipeline.motion.trajectory import JointTrajectory
 
 __all__ = ["REST_TO_REST", "ShortestRestToRest", "shortest_rest_to_rest"]
 
@@ -54,25 +56,25 @@ class ShortestRestToRest:
 REST_TO_REST = ShortestRestToRest()
 
 
-def shortest_rest_to_rest(
-    path_duration_s: float, paper: ExecutionCertificate, dynamics: PlanarDynamics, limits: ArmLimits
-) -> RestToRestTiming:
-    """The shortest rest-to-rest timing the closed-form bounds (module docstring) keep within ``limits``.
+def _widened(values: np.ndarray) -> np.ndarray:
+    return values + FLOAT_SLACK_RELATIVE * np.abs(values) + FLOAT_SLACK_ABSOLUTE
+
+
+def shortest_rest_to_rest(trajectory: JointTrajectory, dynamics: PlanarDynamics, limits: ArmLimits) -> RestToRestTiming:
+    """The shortest rest-to-rest timing of ``trajectory``'s path that the closed-form bounds
+    (module docstring) keep within ``limits``; a few hundred microseconds.
 
     Args:
-        path_duration_s: T [s].
-        paper: The certificate of the paper timing of the same path (its bounds are V and Acc).
+        trajectory: The path (the paper's sinusoids over [0, T]).
         dynamics: The arm's inverse dynamics.
         limits: The limits to keep.
 
     Raises:
-        InvalidParameterError: ``paper`` is not a paper-timing certificate, or no timing keeps the
-            limits (a limit that binds at rest).
+        InvalidParameterError: no timing keeps the limits (a limit that binds at rest).
     """
-    if paper.timing_name != "paper":
-        raise InvalidParameterError("paper", paper.timing_name, "the certificate of the paper timing")
-    V = np.asarray(paper.speed_bound_rad_s, dtype=float)
-    acc = np.asarray(paper.acceleration_bound_rad_s2, dtype=float)
+    path_duration_s = trajectory.duration_s
+    V = _widened(np.asarray(trajectory.peak_velocity_rad_s(), dtype=float))
+    acc = _widened(np.asarray(trajectory.peak_acceleration_rad_s2(), dtype=float))
     share = LIMIT_SHARE
     velocity = share * np.asarray(limits.velocity_rad_s)
     cap = float(min(1.0, *(velocity[V > 0] / V[V > 0]))) if np.any(V > 0) else 1.0

@@ -119,7 +119,7 @@ def certify_answer_execution(
         if violations:
             reasons = [str(v) for v in violations]
             if not any(v.quantity == "angle" for v in violations):
-                reasons.append(_rest_to_rest_hint(trajectory, paper, dynamics, limits))
+                reasons.append(_rest_to_rest_hint(trajectory, dynamics, limits))
             raise ExecutionRefusedError(*size, "paper", tuple(reasons))
         return Execution(paper_timed, paper, limits, errors, endpoint_tolerance_m)
     if not isinstance(timing, ShortestRestToRest):
@@ -127,10 +127,8 @@ def certify_answer_execution(
     angles = [str(v) for v in violations if v.quantity == "angle"]
     if angles:  # the same configurations under every timing
         raise ExecutionRefusedError(*size, timing.name, tuple(angles))
-    if decide is not None:  # the retiming needs the paper timing's tight maxima
-        paper = certify_execution(paper_timed, dynamics)
     try:
-        retimed = shortest_rest_to_rest(trajectory.duration_s, paper, dynamics, limits)
+        retimed = shortest_rest_to_rest(trajectory, dynamics, limits)
     except InvalidParameterError as exc:  # a limit binds at rest
         raise ExecutionRefusedError(*size, timing.name, (str(exc),)) from None
     for _ in range(RETIMING_TRIES):
@@ -148,16 +146,9 @@ def _slower(timing: RestToRestTiming) -> RestToRestTiming:
     return replace(timing, speed_scale=scale, ramp_s=min(timing.ramp_s / 0.9, timing.path_duration_s / scale))
 
 
-def _rest_to_rest_hint(
-    trajectory: JointTrajectory, paper: ExecutionCertificate, dynamics: PlanarDynamics, limits: ArmLimits
-) -> str:
+def _rest_to_rest_hint(trajectory: JointTrajectory, dynamics: PlanarDynamics, limits: ArmLimits) -> str:
     try:
-        tight = (
-            paper
-            if paper.decided_against is None
-            else certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics)
-        )
-        retimed = shortest_rest_to_rest(trajectory.duration_s, tight, dynamics, limits)
+        retimed = shortest_rest_to_rest(trajectory, dynamics, limits)
     except InvalidParameterError:  # no rest-to-rest timing keeps them either
         return "no rest-to-rest timing keeps the limits either"
     return f"the rest-to-rest timing keeps them in T' = {retimed.duration_s:.3f} s (T = {trajectory.duration_s:.3f} s)"
@@ -172,9 +163,7 @@ def retime(trajectory: JointTrajectory, arm: PlanarArm, limits: ArmLimits, timin
     """
     if isinstance(timing, PaperTiming):
         return TimedTrajectory(trajectory, PAPER_TIMING)
-    dynamics = dynamics_of(arm)
-    paper = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics)
     try:
-        return TimedTrajectory(trajectory, shortest_rest_to_rest(trajectory.duration_s, paper, dynamics, limits))
+        return TimedTrajectory(trajectory, shortest_rest_to_rest(trajectory, dynamics_of(arm), limits))
     except InvalidParameterError as exc:  # a limit binds at rest
         raise ExecutionRefusedError(float("nan"), float("nan"), "rest-to-rest", (str(exc),)) from None

@@ -110,11 +110,10 @@ def test_decide_mode_agrees_with_the_dense_check(arm, setting, case, speed, acce
 def test_the_shortest_rest_to_rest_timing_keeps_the_limits_and_shortens_as_they_loosen(arm, setting) -> None:
     coefficients, dynamics = setting
     trajectory = generate(coefficients, 0.27, 0.09).trajectory
-    paper = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics)
     durations = []
     for speed in (0.2, 0.4, 0.8, 3.0):
         limits = ArmLimits(velocity_rad_s=(speed, speed), acceleration_rad_s2=(1.0, 1.0), effort_n_m=(0.05, 0.05))
-        timing = shortest_rest_to_rest(trajectory.duration_s, paper, dynamics, limits)
+        timing = shortest_rest_to_rest(trajectory, dynamics, limits)
         timed = TimedTrajectory(trajectory, timing)
         assert not certify_execution(timed, dynamics, limits).violations(limits)
         sampled = dense(arm, timed)
