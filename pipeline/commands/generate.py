@@ -57,6 +57,7 @@ from pipeline.cli import (
 from pipeline.exceptions import ExecutionRefusedError, InvalidParameterError, NoCertifiedTrajectoryError
 from pipeline.io.jsonio import dumps, write_bytes_atomic
 from pipeline.model.arm import PlanarArm
+from pipeline.model.dynamics import rnea_torques
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.rest_to_rest import REST_TO_REST
 from pipeline.motion.timed_trajectory import TimedTrajectory
@@ -107,14 +108,6 @@ def ros_duration(t_s: float, ros1: bool = False) -> dict[str, int]:
     return {"secs": seconds, "nsecs": nanoseconds} if ros1 else {"sec": seconds, "nanosec": nanoseconds}
 
 
-def rnea_torques(arm: PlanarArm, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
-    """Joint torques [N m] by Pinocchio's RNEA at each sample (rows of q, dq, ddq)."""
-    import pinocchio as pin
-
-    data = arm.model.createData()
-    return np.array([pin.rnea(arm.model, data, *state).copy() for state in zip(q, dq, ddq, strict=True)])
-
-
 def joint_names(arm: PlanarArm | None) -> list[str]:
     """The URDF's names of the two joints (``joint1``, ``joint2`` without an arm)."""
     if arm is None:
@@ -146,7 +139,7 @@ def trajectory_document(samples: dict, names: Sequence[str], ros1: bool = False)
 def sample(executed, arm: PlanarArm, rate_hz: float) -> dict:
     """The executed trajectory at ``rate_hz`` (T' the last sample): t, q, dq, ddq and RNEA torques."""
     times = sample_times(executed.duration_s, rate_hz)
-    q, dq, ddq = executed.q(times), executed.dq(times), executed.ddq(times)
+    q, dq, ddq = executed.states(times)
     return {"t": times, "q": q, "dq": dq, "ddq": ddq, "tau": rnea_torques(arm, q, dq, ddq)}
 
 

@@ -34,7 +34,7 @@ import numpy as np
 from pipeline.exceptions import RobotModelError
 from pipeline.model.arm import PlanarArm
 
-__all__ = ["PlanarDynamics", "identify_dynamics"]
+__all__ = ["PlanarDynamics", "identify_dynamics", "rnea_torques"]
 
 #: Largest relative mismatch accepted between the closed form's structure and Pinocchio's CRBA.
 _STRUCTURE_TOLERANCE = 1e-9
@@ -128,3 +128,12 @@ def identify_dynamics(arm: PlanarArm) -> PlanarDynamics:
         return ((float(matrix[0, 0]), float(matrix[0, 1])), (float(matrix[1, 0]), float(matrix[1, 1])))
 
     return PlanarDynamics(tuple2(m0), tuple2(mc), tuple2(ms))
+
+
+def rnea_torques(arm: PlanarArm, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+    """Joint torques [N m] by Pinocchio's RNEA, one state at a time (rows of q [rad], dq [rad/s],
+    ddq [rad/s^2]): the reference the closed form is tested against, and what exports carry."""
+    import pinocchio as pin
+
+    data = arm.model.createData()
+    return np.array([pin.rnea(arm.model, data, *state).copy() for state in zip(q, dq, ddq, strict=True)])

@@ -175,7 +175,7 @@ def _upper_bounds(timed: TimedTrajectory, dynamics: PlanarDynamics, lo: np.ndarr
 
 def _values(timed: TimedTrajectory, dynamics: PlanarDynamics, t: np.ndarray) -> np.ndarray:
     """The :data:`_QUANTITIES` at times ``t`` (exact evaluation): (m, 10)."""
-    q, dq, ddq = timed.q(t, outside="clamp"), timed.dq(t, outside="clamp"), timed.ddq(t, outside="clamp")
+    q, dq, ddq = timed.states(t, outside="clamp")
     tau = dynamics.torque(q, dq, ddq)
     return np.column_stack([q[:, 0], q[:, 1], -q[:, 0], -q[:, 1], *np.abs(dq).T, *np.abs(ddq).T, *np.abs(tau).T])
 

@@ -9,8 +9,8 @@ import numpy as np
 from pipeline.exceptions import InvalidParameterError
 from pipeline.motion.timing import PaperTiming, Timing
 from pipeline.motion.trajectory import (
-    OUTSIDE_POLICIES,
     JointTrajectory,
+    checked_times,
     joint_accelerations,
     joint_angles,
     joint_velocities,
@@ -59,23 +59,8 @@ class TimedTrajectory:
         return self.trajectory.as_dict()
 
     def times(self, t_s, outside: str = "error") -> np.ndarray:
-        """Executed times [s] checked to lie in [0, T'] (or clamped into it), as :meth:`JointTrajectory.times`."""
-        try:
-            t = np.asarray(t_s, dtype=float)
-        except (TypeError, ValueError):
-            raise InvalidParameterError("t_s", t_s, "times [s] as numbers") from None
-        if outside not in OUTSIDE_POLICIES:
-            raise InvalidParameterError("outside", outside, f"one of {OUTSIDE_POLICIES}")
-        if np.isnan(t).any():
-            raise InvalidParameterError("t_s", float("nan"), "times [s], not NaN")
-        if outside == "clamp":
-            return np.clip(t, 0.0, self.duration_s)
-        if t.size and not (t.min() >= 0.0 and t.max() <= self.duration_s):
-            bad = t[~((t >= 0.0) & (t <= self.duration_s))].ravel()
-            raise InvalidParameterError(
-                "t_s", float(bad[0]), f"times in [0, T' = {self.duration_s!r} s] (outside='clamp' clamps them into it)"
-            )
-        return t
+        """Executed times [s] checked to lie in [0, T'] (or clamped into it): :func:`checked_times`."""
+        return checked_times(t_s, self.duration_s, outside, "T'")
 
     def _states(self, t_s, outside: str):
         t = self.times(t_s, outside)
@@ -100,3 +85,15 @@ class TimedTrajectory:
         d1, d2 = self.timing.dsigma(flat)[:, None], self.timing.ddsigma(flat)[:, None]
         out = joint_accelerations(self.parameters, s) * d1 * d1 + joint_velocities(self.parameters, s) * d2
         return out[0] if t.ndim == 0 else out
+
+    def states(self, t_s, *, outside: str = "error") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, dq, ddq) at m executed times, each (m, 2), with sigma and its derivatives evaluated
+        once (the same values as :meth:`q`, :meth:`dq`, :meth:`ddq`)."""
+        _, flat, s = self._states(np.atleast_1d(np.asarray(t_s, dtype=float)), outside)
+        d1, d2 = self.timing.dsigma(flat)[:, None], self.timing.ddsigma(flat)[:, None]
+        speed = joint_velocities(self.parameters, s)
+        return (
+            joint_angles(self.parameters, s),
+            speed * d1,
+            joint_accelerations(self.parameters, s) * d1 * d1 + speed * d2,
+        )

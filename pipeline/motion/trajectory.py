@@ -91,6 +91,34 @@ def _sin_extremes(lo: float, hi: float) -> tuple[float, float]:
     return (-1.0 if bottom else min(ends), 1.0 if top else max(ends))
 
 
+def checked_times(t_s: float | np.ndarray, duration_s: float, outside: str, name: str) -> np.ndarray:
+    """Times [s] as a float array, checked to lie in [0, duration] (``outside="error"``) or
+    clamped into it (``outside="clamp"``); ``name`` names the duration in messages ("T", "T'").
+
+    Raises:
+        InvalidParameterError: a time outside [0, duration] (with "error"), NaN or not a number
+            (with either policy), or an unknown policy.
+    """
+    try:
+        t = np.asarray(t_s, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidParameterError("t_s", t_s, "times [s] as numbers") from None
+    if outside == "error":
+        if t.size and not (t.min() >= 0.0 and t.max() <= duration_s):  # False for NaN too
+            bad = t[~((t >= 0.0) & (t <= duration_s))].ravel()
+            raise InvalidParameterError(
+                "t_s",
+                float(bad[0]),
+                f"times in [0, {name} = {duration_s!r} s] (outside='clamp' clamps them into it)",
+            )
+        return t
+    if outside == "clamp":
+        if np.isnan(t).any():
+            raise InvalidParameterError("t_s", float("nan"), "times [s], not NaN")
+        return np.clip(t, 0.0, duration_s)
+    raise InvalidParameterError("outside", outside, f"one of {OUTSIDE_POLICIES}")
+
+
 @dataclass(frozen=True)
 class JointTrajectory:
     """One joint-space trajectory of the paper's family over [0, T].
@@ -139,30 +167,8 @@ class JointTrajectory:
 
     def times(self, t_s: float | np.ndarray, outside: str = "error") -> np.ndarray:
         """Times [s] as a float array, checked to lie in [0, T] (``outside="error"``, the default)
-        or clamped into it (``outside="clamp"``).
-
-        Raises:
-            InvalidParameterError: a time outside [0, T] (with "error"), NaN or not a number
-                (with either policy), or an unknown policy.
-        """
-        try:
-            t = np.asarray(t_s, dtype=float)
-        except (TypeError, ValueError):
-            raise InvalidParameterError("t_s", t_s, "times [s] as numbers") from None
-        if outside == "error":
-            if t.size and not (t.min() >= 0.0 and t.max() <= self.duration_s):  # False for NaN too
-                bad = t[~((t >= 0.0) & (t <= self.duration_s))].ravel()
-                raise InvalidParameterError(
-                    "t_s",
-                    float(bad[0]),
-                    f"times in [0, T = {self.duration_s!r} s] (outside='clamp' clamps them into it)",
-                )
-            return t
-        if outside == "clamp":
-            if np.isnan(t).any():
-                raise InvalidParameterError("t_s", float("nan"), "times [s], not NaN")
-            return np.clip(t, 0.0, self.duration_s)
-        raise InvalidParameterError("outside", outside, f"one of {OUTSIDE_POLICIES}")
+        or clamped into it (``outside="clamp"``): :func:`checked_times`."""
+        return checked_times(t_s, self.duration_s, outside, "T")
 
     def q(self, t_s: float | np.ndarray, *, outside: str = "error") -> np.ndarray:
         """Joint angles [rad]: shape (2,) for a scalar t, (m, 2) for m times.

@@ -14,17 +14,11 @@ import numpy as np
 
 from pipeline.io.jsonio import write_bytes_atomic
 from pipeline.model.arm import PlanarArm
+from pipeline.model.dynamics import rnea_torques
 
 __all__ = ["plot_joint_states"]
 
 _COLOURS = ("tab:blue", "tab:green")
-
-
-def _rnea(arm: PlanarArm, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
-    import pinocchio as pin
-
-    data = arm.model.createData()
-    return np.array([pin.rnea(arm.model, data, *state).copy() for state in zip(q, dq, ddq, strict=True)])
 
 
 def plot_joint_states(executed, arm: PlanarArm, execution, path: Path, *, samples: int = 2001, title: str = "") -> Path:
@@ -32,8 +26,8 @@ def plot_joint_states(executed, arm: PlanarArm, execution, path: Path, *, sample
     ``samples`` instants, the limits of ``execution`` (dashed) and its certified bounds (dotted),
     and write the PNG atomically to ``path``."""
     t = np.linspace(0.0, executed.duration_s, samples)
-    q, dq, ddq = executed.q(t), executed.dq(t), executed.ddq(t)
-    tau = _rnea(arm, q, dq, ddq)
+    q, dq, ddq = executed.states(t)
+    tau = rnea_torques(arm, q, dq, ddq)
     certificate, limits = execution.certificate, execution.limits
     rows = (
         ("q [rad]", q, [b for b in certificate.angle_range_rad], [lim for lim in limits.position_rad]),
