@@ -334,7 +334,7 @@ def work(args: argparse.Namespace) -> int:
         trajectory = certified.trajectory
         executed = certified.executed
     elif arm is not None:
-        executed = retime(trajectory, arm, limits, timing)
+        executed = retime(generated, arm, limits, timing)
     else:
         executed = TimedTrajectory(trajectory, PAPER_TIMING)
     elapsed = time.perf_counter() - started

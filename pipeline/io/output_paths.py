@@ -66,8 +66,6 @@ def check_output_file(path: str | Path | None, option: str) -> Path | None:
     if path.is_dir():
         raise InvalidParameterError(option, str(path), "a file name, not a folder")
     folder = path.parent
-    if folder.exists() and not folder.is_dir():
-        raise InvalidParameterError(option, str(path), f"a path whose parent {folder} is a folder, not a file")
     if not folder.exists():
         raise InvalidParameterError(option, str(path), f"a file in an existing folder ({folder} does not exist)")
     _check_creatable_under(folder, option, str(path))

@@ -10,12 +10,12 @@ explicitly (``--urdf``) overrides it after :func:`check_arm_matches`.
 
 from __future__ import annotations
 
-import hashlib
 import math
 import weakref
 from pathlib import Path
 
 from pipeline.exceptions import ArmMismatchError, DataFileError, InvalidParameterError
+from pipeline.io.provenance import sha256_file
 from pipeline.model.arm import ARM_FILE_NAME, DEFAULT_URDF, PlanarArm, load_planar_arm
 from pipeline.offline.coefficients import Coefficients
 
@@ -55,10 +55,6 @@ def check_arm_matches(coefficients: Coefficients, arm: PlanarArm, tolerance_m: f
     )
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def recorded_urdf(coefficients: Coefficients) -> Path:
     """The URDF the coefficients were fitted with: the shipped arm's, or the copy beside the file.
 
@@ -71,11 +67,11 @@ def recorded_urdf(coefficients: Coefficients) -> Path:
     """
     provenance = coefficients.provenance
     digest = provenance.get("urdf_sha256")
-    if not digest or digest == _sha256(DEFAULT_URDF):
+    if not digest or digest == sha256_file(DEFAULT_URDF):
         return DEFAULT_URDF
     name = str(provenance.get("urdf") or ARM_FILE_NAME)
     beside = Path(coefficients.source).with_name(Path(name).name) if coefficients.source else None
-    if beside is not None and beside.is_file() and _sha256(beside) == digest:
+    if beside is not None and beside.is_file() and sha256_file(beside) == digest:
         return beside
     raise DataFileError(
         coefficients.source,

@@ -112,10 +112,10 @@ def certify_answer_execution(
         raise ExecutionRefusedError(*size, None, tuple(missed))
     dynamics = dynamics_of(arm)
     decide = None if tight else limits
-    paper_timed = TimedTrajectory(trajectory, PAPER_TIMING)
-    paper = certify_execution(paper_timed, dynamics, decide)
-    violations = paper.violations(limits)
     if isinstance(timing, PaperTiming):
+        paper_timed = TimedTrajectory(trajectory, PAPER_TIMING)
+        paper = certify_execution(paper_timed, dynamics, decide)
+        violations = paper.violations(limits)
         if violations:
             reasons = [str(v) for v in violations]
             if not any(v.quantity == "angle" for v in violations):
@@ -124,9 +124,6 @@ def certify_answer_execution(
         return Execution(paper_timed, paper, limits, errors, endpoint_tolerance_m)
     if not isinstance(timing, ShortestRestToRest):
         raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
-    angles = [str(v) for v in violations if v.quantity == "angle"]
-    if angles:  # the same configurations under every timing
-        raise ExecutionRefusedError(*size, timing.name, tuple(angles))
     try:
         retimed = shortest_rest_to_rest(trajectory, dynamics, limits)
     except InvalidParameterError as exc:  # a limit binds at rest
@@ -137,6 +134,8 @@ def certify_answer_execution(
         found = certificate.violations(limits)
         if not found:
             return Execution(executed, certificate, limits, errors, endpoint_tolerance_m)
+        if any(v.quantity == "angle" for v in found):  # the same configurations under every timing
+            raise ExecutionRefusedError(*size, timing.name, tuple(str(v) for v in found if v.quantity == "angle"))
         retimed = _slower(retimed)
     raise ExecutionRefusedError(*size, timing.name, tuple(str(v) for v in found))
 
@@ -154,16 +153,18 @@ def _rest_to_rest_hint(trajectory: JointTrajectory, dynamics: PlanarDynamics, li
     return f"the rest-to-rest timing keeps them in T' = {retimed.duration_s:.3f} s (T = {trajectory.duration_s:.3f} s)"
 
 
-def retime(trajectory: JointTrajectory, arm: PlanarArm, limits: ArmLimits, timing) -> TimedTrajectory:
-    """``trajectory`` with ``timing`` (PAPER_TIMING, or REST_TO_REST: the shortest rest-to-rest
-    timing the closed-form bounds keep within ``limits``), without certifying it.
+def retime(generated: GeneratedTrajectory, arm: PlanarArm, limits: ArmLimits, timing) -> TimedTrajectory:
+    """``generated``'s trajectory with ``timing`` (PAPER_TIMING, or REST_TO_REST: the shortest
+    rest-to-rest timing the closed-form bounds keep within ``limits``), without certifying it.
 
     Raises:
         ExecutionRefusedError: no rest-to-rest timing keeps the limits (one binds at rest).
     """
+    trajectory = generated.trajectory
     if isinstance(timing, PaperTiming):
         return TimedTrajectory(trajectory, PAPER_TIMING)
     try:
         return TimedTrajectory(trajectory, shortest_rest_to_rest(trajectory, dynamics_of(arm), limits))
     except InvalidParameterError as exc:  # a limit binds at rest
-        raise ExecutionRefusedError(float("nan"), float("nan"), "rest-to-rest", (str(exc),)) from None
+        size = (generated.length_m, generated.width_m)
+        raise ExecutionRefusedError(*size, "rest-to-rest", (str(exc),)) from None
