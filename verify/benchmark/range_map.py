@@ -5,9 +5,9 @@ one the build wrote beside them if it certifies them); ``--region-map FILE`` nam
 there is none (the paper's Eq. 9 has no file, or an older build's map certifies other
 coefficients), the coefficients are certified here with the build's settings
 (:func:`pipeline.certify.map_for_coefficients.default_config`, one process), and the report says
-so and how long it took; it is not part of any timed row. That takes minutes (measured in one
-process on a shared two-CPU machine: 1.0 min for the default build's coefficients, 4.6 min for
-the paper's Eq. 9, whose branch and bound alone takes 2.9 min).
+so and how long it took; it is not part of any timed row. That takes minutes in one process
+(about one for the default build's coefficients, several for the paper's Eq. 9, whose band below
+the margin is wide), and its stages are reported to ``progress``.
 """
 
 from __future__ import annotations
