@@ -284,6 +284,25 @@ class RegionMapMismatchError(PipelineError):
         )
 
 
+class RegionMapLimitsError(PipelineError):
+    """A region map's execution bounds were asked for an arm other than the one they were made for.
+
+    Attributes:
+        quantity: What differs (a limit's name, or the inertia).
+        map_value: The map's value.
+        given_value: The given arm's value.
+    """
+
+    def __init__(self, quantity: str, map_value: object, given_value: object) -> None:
+        self.quantity = quantity
+        self.map_value = map_value
+        self.given_value = given_value
+        super().__init__(
+            f"the region map's execution bounds were made for {quantity} {map_value}, not {given_value}; "
+            "build the map with this arm (python -m pipeline.build --urdf ... --acceleration-limit ...)"
+        )
+
+
 class RegionMapMismatchWarning(UserWarning):
     """The region map beside a coefficients file certifies other coefficients: it is not attached."""
 
@@ -301,6 +320,20 @@ class WorkerPoolError(PipelineError):
             f"the worker processes stopped ({reason}); a script that starts them (jobs other than 1) must call "
             'the work under `if __name__ == "__main__":`, since each worker re-imports the script'
         )
+
+
+class SchedulerUnreachableError(PipelineError):
+    """The Dask scheduler the work was to run on cannot be reached (checked before any work).
+
+    Attributes:
+        address: The scheduler's address as given.
+        reason: What the connection attempt said.
+    """
+
+    def __init__(self, address: str, reason: str) -> None:
+        self.address = address
+        self.reason = reason
+        super().__init__(f"cannot reach the Dask scheduler at {address}: {' '.join(str(reason).split())}")
 
 
 class ExecutionRefusedError(PipelineError):

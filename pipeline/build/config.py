@@ -14,6 +14,7 @@ import numpy as np
 
 from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS
 from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
+from pipeline.io.executor import DaskScheduler, Executor, LocalPool, check_scheduler_address
 from pipeline.model.arm import DEFAULT_URDF
 from pipeline.model.scene import Scene, read_scene_file
 from pipeline.motion.families import PAPER, TrajectoryFamily, family_from_name
@@ -37,6 +38,7 @@ OPTIONS: dict[str, str] = {
     "width_range_m": "--W-range",
     "family": "--family",
     "jobs": "--jobs",
+    "scheduler": "--scheduler",
     "urdf_path": "--urdf",
     "scene": "--scene",
     "swarm_size": "--swarm-size",
@@ -93,6 +95,9 @@ class BuildConfig:
         length_range_m, width_range_m: (min, max) of L and W [m].
         family: Trajectory family (object, or its name as on the command line).
         jobs: Worker processes (>= 1), or 0 for every CPU (the default); does not change the result.
+        scheduler: Address of a Dask scheduler (``host:port`` or ``tcp://host:port``) whose
+            workers run the DOE and the range map in place of the ``jobs`` local processes (see
+            :mod:`pipeline.io.executor`); None: the local processes. Does not change the result.
         urdf_path: URDF of the arm (None: the paper's arm shipped with the package).
         scene: The scene (obstacle placement, path, speed, margin); see :func:`scene_from_options`.
         swarm_size, iterations, restarts: PSO settings (:class:`pipeline.offline.pso.PsoConfig`).
@@ -119,6 +124,7 @@ class BuildConfig:
     width_range_m: tuple[float, float] = (0.08, 0.12)
     family: TrajectoryFamily | str = PAPER
     jobs: int = 0
+    scheduler: str | None = None
     urdf_path: Path = DEFAULT_URDF
     scene: Scene = field(default_factory=Scene)
     swarm_size: int = _PSO.swarm_size
@@ -149,6 +155,8 @@ class BuildConfig:
             raise InvalidParameterError(OPTIONS["seed"], self.seed, "an integer >= 0")
         if isinstance(self.jobs, bool) or not isinstance(self.jobs, int | np.integer) or self.jobs < 0:
             raise InvalidParameterError(OPTIONS["jobs"], self.jobs, "an integer >= 0 (0 = every CPU)")
+        if self.scheduler is not None:
+            check_scheduler_address(OPTIONS["scheduler"], self.scheduler)
         if (
             isinstance(self.clearance_rounds, bool)
             or not isinstance(self.clearance_rounds, int | np.integer)
@@ -189,6 +197,11 @@ class BuildConfig:
     def workers(self) -> int:
         """Worker processes: ``jobs``, or every CPU for 0."""
         return int(self.jobs) if self.jobs > 0 else (os.cpu_count() or 1)
+
+    @property
+    def executor(self) -> Executor:
+        """Where the DOE and the range map run: the Dask scheduler, or ``workers`` local processes."""
+        return LocalPool(self.workers) if self.scheduler is None else DaskScheduler(self.scheduler)
 
     @property
     def certifiable_refit(self) -> bool:

@@ -176,7 +176,7 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
             done.append(1)
             progress(DOE_STAGE, len(done), total)
 
-    results = run_doe(arm, design, config.scene, solver, int(config.seed), config.workers, progress=report)
+    results = run_doe(arm, design, config.scene, solver, int(config.seed), config.executor, progress=report)
     problems = experiment_problems(results, arm, config.scene, solver.fitness, config.criteria())
 
     provenance = _provenance(config, arm, solver)
@@ -205,4 +205,6 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
     if problems:
         coefficients = coefficients.marked_unconverged(problems)
     timing = _timing_document(results, config.workers)
+    if config.scheduler is not None:
+        timing["scheduler"] = config.scheduler
     return DoeFit(tuple(results), document, doe_text, doe, paper_rows, coefficients, tuple(problems), timing)

@@ -19,11 +19,14 @@ from pipeline.certify.certifiable_regression import (
     CertifiableFitConfig,
     refit_for_clearance,
 )
-from pipeline.certify.map_for_coefficients import default_config
+from pipeline.certify.map_for_coefficients import default_config, with_execution_bounds
 from pipeline.certify.range_certificate import certify_range
 from pipeline.certify.region_map import RegionMap, region_map_text
 from pipeline.io.jsonio import dumps
 from pipeline.io.progress import ProgressCallback
+from pipeline.model.arm import PlanarArm
+from pipeline.model.dynamics import identify_dynamics
+from pipeline.model.limits import ArmLimits
 from pipeline.offline.coefficients import Coefficients, coefficients_from_json
 from pipeline.offline.doe import DoeData
 from pipeline.offline.endpoint_regression import EndpointConstraint
@@ -43,7 +46,8 @@ class CertifiedCoefficients:
         text: The content of coefficients.json.
         region_map: Their range certificate; ``map_text`` the content of region_map.json.
         refit_report: The certifiable regression's rounds (None if it did not run).
-        timing: ``clearance_refit_s``, ``clearance_refit_rounds`` (if it ran) and ``range_certificate_s``.
+        timing: ``clearance_refit_s``, ``clearance_refit_rounds`` (if it ran), ``range_certificate_s``
+            and ``execution_bounds_s``.
     """
 
     coefficients: Coefficients
@@ -67,16 +71,19 @@ def certify_coefficients(
     doe: DoeData,
     coefficients: Coefficients,
     text: str,
+    arm: PlanarArm,
     progress: ProgressCallback | None = None,
 ) -> CertifiedCoefficients:
     """Run the certifiable regression's rounds if ``config.certifiable_refit``, then certify the
-    final coefficients over their fitted range.
+    final coefficients over their fitted range, with the execution bounds of ``arm`` (its URDF
+    limits and the build's acceleration limits) in every leaf.
 
     Args:
         config: The build's configuration.
         doe: The DOE the coefficients were regressed from.
         coefficients: The regression, as read back from ``text``.
         text: Its file content.
+        arm: The arm the coefficients were fitted for.
         progress: Gets the stages of the refit's rounds (prefixed "certifiable regression round k: ";
             the last round's certificate is the final map) or of the map.
     """
@@ -85,6 +92,7 @@ def certify_coefficients(
         coefficients,
         endpoint_tolerance_m=None if config.endpoint_tolerance_m is None or pinned else config.endpoint_tolerance_m,
         jobs=config.workers,
+        executor=config.executor,
     )
     timing: dict = {}
     report = None
@@ -108,4 +116,8 @@ def certify_coefficients(
     else:
         region_map = certify_range(coefficients, map_config, progress=progress)
     timing["range_certificate_s"] = region_map.seconds
+    started = time.perf_counter()
+    limits = ArmLimits.from_arm(arm, config.acceleration_limits_rad_s2)
+    region_map = with_execution_bounds(region_map, coefficients, identify_dynamics(arm), limits)
+    timing["execution_bounds_s"] = time.perf_counter() - started
     return CertifiedCoefficients(coefficients, text, region_map, region_map_text(region_map), report, timing)

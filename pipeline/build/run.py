@@ -17,7 +17,9 @@ region map, and :func:`pipeline.load_coefficients` warns whenever such a file is
 
 Worker processes (``jobs`` other than 1) start with ``spawn`` and re-import the main script: a
 script that calls :func:`run_build` must do so under ``if __name__ == "__main__":``; without it
-the pool breaks and the call raises :class:`pipeline.exceptions.WorkerPoolError` saying so.
+the pool breaks and the call raises :class:`pipeline.exceptions.WorkerPoolError` saying so. With
+a ``scheduler``, the workers of that Dask cluster do the work instead
+(:mod:`pipeline.io.executor`); the connection is checked before any work.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from pipeline.build.doe_fit import DoeFit, fit_doe
 from pipeline.build.range_stage import as_written, certify_coefficients
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap
 from pipeline.exceptions import BuildNotConvergedError
+from pipeline.io.executor import check_executor
 from pipeline.io.file_set import write_file_set
 from pipeline.io.jsonio import dumps
 from pipeline.io.output_paths import check_output_folder
@@ -105,10 +108,12 @@ def run_build(config: BuildConfig, progress: ProgressCallback | None = None) -> 
             cannot pass or whose end pose collides (all before any work; nothing written or created).
         BuildNotConvergedError: the results missed the thresholds and ``allow_unconverged``
             is False (nothing written; ``exc.result`` holds the unwritten result).
+        SchedulerUnreachableError: ``scheduler`` cannot be reached (before any work; nothing written).
         WorkerPoolError: the worker processes stopped (e.g. a script without a ``__main__`` guard).
     """
     started = time.perf_counter()
     check_output_folder(config.out_folder, OPTIONS["out_folder"])
+    check_executor(config.executor)
     arm = load_planar_arm(config.urdf_path)
     fit = fit_doe(config, arm, progress)
     timing = dict(fit.timing)
@@ -119,11 +124,14 @@ def run_build(config: BuildConfig, progress: ProgressCallback | None = None) -> 
     coefficients, text = as_written(fit.coefficients, str(config.out_folder / COEFFICIENTS_NAME))
     certified = None
     if config.range_map and not fit.problems:
-        certified = certify_coefficients(config, fit.doe, coefficients, text, progress)
+        certified = certify_coefficients(config, fit.doe, coefficients, text, arm, progress)
         coefficients, text = certified.coefficients, certified.text
         timing.update(certified.timing)
         timing["total_with_range_certificate_s"] = (
-            timing["total_s"] + certified.timing["range_certificate_s"] + certified.timing.get("clearance_refit_s", 0.0)
+            timing["total_s"]
+            + certified.timing["range_certificate_s"]
+            + certified.timing.get("clearance_refit_s", 0.0)
+            + certified.timing["execution_bounds_s"]
         )
     files: dict[str, str | bytes | None] = {
         DOE_NAME: fit.doe_text,

@@ -1,24 +1,28 @@
-"""The region map of one coefficients file: the defaults a family needs, the certification, the
-file written beside the coefficients (linked by their sha256), and the lines that report it.
+"""The region map of one coefficients file: the defaults a family needs, the execution bounds of
+its leaves for an arm, and the lines that report it.
 
 ``python -m pipeline.build`` and ``python -m pipeline.certify_range`` both go through here.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+from dataclasses import replace
 
+from pipeline.certify.execution_range import execution_bounds
 from pipeline.certify.range_certificate import (
     DEFAULT_BOUNDARY_CELL,
     DEFAULT_ENDPOINT_TOLERANCE_M,
     DEFAULT_MIN_CELL,
     RangeCertificateConfig,
-    certify_range,
 )
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, RegionMap, save_region_map
+from pipeline.certify.range_model import RangeModel
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, RegionMap
+from pipeline.io.executor import Executor
+from pipeline.model.dynamics import PlanarDynamics
+from pipeline.model.limits import ArmLimits
 from pipeline.offline.coefficients import Coefficients
 
-__all__ = ["DEFAULT_MAP_NAME", "certify_and_save", "default_config", "summary_lines"]
+__all__ = ["DEFAULT_MAP_NAME", "default_config", "summary_lines", "with_execution_bounds"]
 
 
 def default_config(
@@ -29,9 +33,11 @@ def default_config(
     min_cell: float | None = None,
     boundary_cell: float | None = None,
     jobs: int = 1,
+    executor: Executor | None = None,
 ) -> RangeCertificateConfig:
     """The certificate's settings for these coefficients; None takes the default (endpoint
-    tolerance 0 for a family that pins the endpoints)."""
+    tolerance 0 for a family that pins the endpoints). The tasks run on ``executor``, or on
+    ``jobs`` local processes (:mod:`pipeline.io.executor`)."""
     pinned = coefficients.family.pins_endpoints
     if endpoint_tolerance_m is None:
         endpoint_tolerance_m = 0.0 if pinned else DEFAULT_ENDPOINT_TOLERANCE_M
@@ -45,21 +51,28 @@ def default_config(
         min_cell=min_cell,
         boundary_cell=min(boundary_cell, 1.0),
         jobs=jobs,
+        executor=executor,
     )
 
 
-def certify_and_save(
-    coefficients: Coefficients, config: RangeCertificateConfig, output: Path | None
-) -> tuple[RegionMap, str | None]:
-    """Certify ``coefficients`` (as loaded from their file, so that the map links to its sha256)
-    and write the map atomically to ``output`` (if given); returns (map, the map file's sha256)."""
-    region_map = certify_range(coefficients, config)
-    digest = save_region_map(region_map, output) if output is not None else None
-    return region_map, digest
+def with_execution_bounds(
+    region_map: RegionMap, coefficients: Coefficients, dynamics: PlanarDynamics, limits: ArmLimits
+) -> RegionMap:
+    """``region_map`` with the execution bounds of its leaves for the arm of ``dynamics`` and
+    ``limits`` (:mod:`pipeline.certify.execution_bounds`); a few seconds for the default build's map."""
+    bounds = execution_bounds(
+        RangeModel.from_coefficients(coefficients),
+        region_map.leaf_centres_m(),
+        region_map.leaf_sizes_m() / 2.0,
+        dynamics,
+        limits,
+    )
+    return replace(region_map, execution=bounds)
 
 
 def summary_lines(region_map: RegionMap) -> list[str]:
-    """Two lines: area fraction per status, then bounds, cells and time."""
+    """Two lines: area fraction per status, then bounds, cells and time; a third with the
+    execution bounds' fractions if the map has them."""
     summary = region_map.summary()
     fractions = summary["area_fraction"]
     return [
@@ -72,4 +85,19 @@ def summary_lines(region_map: RegionMap) -> list[str]:
         f"{1e3 * summary['endpoint_bound_max_m']:.3f} mm, <= tolerance on "
         f"{100 * summary['endpoint_within_tolerance_fraction']:.2f} %; "
         f"{summary['cells']} cells in {region_map.seconds:.1f} s",
+    ] + _execution_lines(region_map)
+
+
+def _execution_lines(region_map: RegionMap) -> list[str]:
+    summary = region_map.execution_summary()
+    if summary is None:
+        return []
+    breaks = summary["paper_breaks_fraction"]
+    longest = summary["rest_to_rest_duration_max_s"]
+    return [
+        f"arm limits: the paper timing is proven within them on {100 * summary['paper_keeps_limits_fraction']:.2f} % "
+        "of the range (bound above the limit: "
+        + ", ".join(f"{name} {100 * breaks[name]:.2f} %" for name in breaks)
+        + f"); rest-to-rest within them on {100 * summary['rest_to_rest_fraction']:.2f} %"
+        + ("" if longest is None else f", T' <= {longest:.3f} s (T <= {summary['path_duration_max_s']:.3f} s)")
     ]

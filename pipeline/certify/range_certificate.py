@@ -25,11 +25,11 @@ whose docstrings carry the derivations; this module only combines them:
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -45,6 +45,7 @@ from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.certify.search import ClosedBoxes, SearchSettings, node_boxes, search
 from pipeline.certify.strip_split import strip_bounds
 from pipeline.exceptions import InvalidParameterError
+from pipeline.io.executor import DaskScheduler, Executor, LocalPool, as_executor, map_tasks
 from pipeline.io.progress import ProgressCallback
 from pipeline.offline.coefficients import Coefficients
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
@@ -94,7 +95,10 @@ class RangeCertificateConfig:
         min_cell: Smallest cell, fraction of the fitted range's side (rounded down to 1 / 2^k).
         boundary_cell: Cell size to which regions that miss the margin are resolved (fraction).
         max_depth_s: Deepest cut of s = t / T (intervals of 1 / 2^depth).
-        jobs: Worker processes for the branch and bound.
+        jobs: Worker processes for the branch and bound and the bounds (unless ``executor``).
+        executor: Where the tasks run (:mod:`pipeline.io.executor`, e.g. a
+            :class:`pipeline.io.executor.DaskScheduler`); None: ``LocalPool(jobs)``. Neither it nor
+            ``jobs`` changes the map.
         max_boxes: Budget of box evaluations per worker task.
         strip_split: Halvings along W of the smallest cells that miss the margin without being
             proven infeasible (0: none; ``pipeline.certify.strip_split``).
@@ -106,6 +110,7 @@ class RangeCertificateConfig:
     boundary_cell: float = DEFAULT_BOUNDARY_CELL
     max_depth_s: int = 16
     jobs: int = 1
+    executor: Executor | None = None
     max_boxes: int = 5_000_000
     strip_split: int = DEFAULT_STRIP_SPLIT
 
@@ -119,10 +124,17 @@ class RangeCertificateConfig:
                 raise InvalidParameterError(name, value, "a fraction of the range's side in [2^-20, 1]")
         check_positive_int("max_depth_s", self.max_depth_s, minimum=4)
         check_positive_int("jobs", self.jobs)
+        if self.executor is not None and not isinstance(self.executor, LocalPool | DaskScheduler):
+            raise InvalidParameterError("executor", self.executor, "a LocalPool, a DaskScheduler or None")
         check_positive_int("max_boxes", self.max_boxes)
         check_positive_int("strip_split", self.strip_split, minimum=0)
         if self.strip_split > 6:
             raise InvalidParameterError("strip_split", self.strip_split, "0..6 halvings along W")
+
+    @property
+    def run_on(self) -> Executor:
+        """Where the tasks run: ``executor``, or ``LocalPool(jobs)``."""
+        return LocalPool(self.jobs) if self.executor is None else self.executor
 
     @property
     def max_depth_lw(self) -> int:
@@ -157,34 +169,21 @@ def _no_progress(_stage: str, _done: int, _total: int) -> None:
 def _run_tasks(
     function: Callable[..., Any],
     arguments: Sequence[tuple],
-    jobs: int,
+    jobs: int | Executor,
     on_done: Callable[[int], None] = lambda _k: None,
 ) -> list[Any]:
-    """``[function(*a) for a in arguments]`` in that order, on ``jobs`` processes; ``on_done(k)``
-    as task ``k`` finishes (in the order they finish). The tasks are the caller's, fixed, so the
-    results do not depend on ``jobs``. An error (or Ctrl-C) cancels the tasks not yet started."""
-    n = len(arguments)
-    if jobs <= 1 or n <= 1:
-        results = []
-        for k, task in enumerate(arguments):
-            results.append(function(*task))
-            on_done(k)
-        return results
-    done: list[Any] = [None] * n
-    pool = ProcessPoolExecutor(max_workers=min(jobs, n))
-    try:
-        pending = {pool.submit(function, *task): k for k, task in enumerate(arguments)}
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                k = pending.pop(future)
-                done[k] = future.result()
-                on_done(k)
-    except BaseException:
-        pool.shutdown(wait=True, cancel_futures=True)
-        raise
-    pool.shutdown(wait=True)
-    return done
+    """``[function(*a) for a in arguments]`` in that order, one task per worker call, on ``jobs``
+    (a number of local processes or an executor: :func:`pipeline.io.executor.map_tasks`);
+    ``on_done(k)`` as task ``k`` finishes (in the order they finish). The tasks are the caller's,
+    fixed, so the results do not depend on where they run. An error (or Ctrl-C) cancels the tasks
+    not yet started."""
+    return map_tasks(
+        as_executor(jobs), functools.partial(_unpacked, function), arguments, lambda k, _: on_done(k), chunk_size=1
+    )
+
+
+def _unpacked(function: Callable[..., Any], arguments: tuple) -> Any:
+    return function(*arguments)
 
 
 def _counted(
@@ -207,10 +206,10 @@ def _counted(
 
 
 def run_search(
-    model: RangeModel, settings: SearchSettings, jobs: int, progress: ProgressCallback | None = None
+    model: RangeModel, settings: SearchSettings, jobs: int | Executor, progress: ProgressCallback | None = None
 ) -> ClosedBoxes:
     """The branch and bound from the initial grid, in :data:`_SEARCH_GROUPS` tasks spread over
-    ``jobs`` processes; ``progress`` gets "range map: search" over the tasks.
+    ``jobs`` (processes, or an executor); ``progress`` gets "range map: search" over the tasks.
 
     The roots go to the tasks by diagonal stripes ((i_L + i_W) mod groups), so that a strip along
     either axis, where the work concentrates (near the margin's contour), is shared out (by rows
@@ -280,7 +279,7 @@ def _split(arrays: list[np.ndarray], rows: np.ndarray) -> list[np.ndarray]:
 def _in_chunks(
     function: Callable[..., np.ndarray],
     rows: int | list[slice],
-    jobs: int,
+    jobs: int | Executor,
     model: RangeModel,
     arrays: tuple,
     *constants,
@@ -289,7 +288,7 @@ def _in_chunks(
     before: int = 0,
 ) -> list[np.ndarray]:
     """``function(model, *chunks of arrays, *constants)`` over fixed chunks of ``rows`` rows (or
-    the given slices), spread over ``jobs`` processes; the list of its results in order. The
+    the given slices), spread over ``jobs`` (processes, or an executor); the list of its results in order. The
     chunks do not depend on ``jobs`` (the polar branch and bound caps its boxes per call), so
     neither do the results. ``progress`` gets ``stage`` in rows, after ``before`` rows done."""
     size = arrays[0].shape[0]
@@ -308,11 +307,11 @@ def sub_cell_bounds(
     r: np.ndarray,
     tolerance_m: float,
     margin_m: float,
-    jobs: int = 1,
+    jobs: int | Executor = 1,
     progress: ProgressCallback | None = None,
 ) -> np.ndarray:
     """``endpoints.infeasibility_upper_bounds`` over chunks of :data:`_SUB_CELL_CHUNK` leaves,
-    spread over ``jobs`` processes (the bounds do not depend on ``jobs``); ``progress`` gets
+    spread over ``jobs`` (processes, or an executor; the bounds do not depend on it); ``progress`` gets
     "range map: sub-cells" in leaves."""
     if c.shape[0] == 0:
         return np.empty(0)
@@ -349,15 +348,15 @@ def refine_leaves(
     margin_m: float,
     tolerance_m: float,
     max_depth: int,
-    jobs: int = 1,
+    jobs: int | Executor = 1,
     progress: ProgressCallback | None = None,
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Endpoint bounds and infeasibility upper bounds per leaf, cutting leaves as the module
     docstring says. ``leaves`` = [depth, i_L, i_W, clearance bound, *further columns the children
     inherit]; returns the final leaves (the same columns),
     their endpoint bounds (n,) and their endpoint clearance upper bounds (n,) (inf where not needed).
-    The bounds run in ``jobs`` processes over fixed chunks of leaves (the result does not depend
-    on ``jobs``). ``progress`` gets "range map: refine" in leaves bounded, whose total grows by
+    The bounds run on ``jobs`` (processes, or an executor) over fixed chunks of leaves (the result
+    does not depend on it). ``progress`` gets "range map: refine" in leaves bounded, whose total grows by
     the children of each round's cuts, then "range map: sub-cells"."""
     bounded = 0  # leaves whose bounds are computed, over the rounds
     endpoint = np.full(leaves[0].size, np.nan)
@@ -443,7 +442,7 @@ def split_strips(
     parts = _in_chunks(
         strip_bounds,
         chunks,
-        config.jobs,
+        config.run_on,
         model,
         (c, r, floor, s_l),
         margin_m,
@@ -512,14 +511,14 @@ def certify_range(
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     model = RangeModel.from_coefficients(coefficients)
     settings = config.search_settings(margin)
-    boxes = run_search(model, settings, config.jobs, progress)
+    boxes = run_search(model, settings, config.run_on, progress)
     leaves, endpoint, upper = refine_leaves(
         model,
         list(leaves_from_boxes(boxes)),
         margin,
         config.endpoint_tolerance_m,
         config.max_depth_lw,
-        config.jobs,
+        config.run_on,
         progress,
     )
     (d, il, iw, bound), split, endpoint, upper = split_strips(
@@ -543,8 +542,8 @@ def certify_range(
         status=statuses(bound, upper, margin),
         split_w=split,
         seconds=seconds,
-        details={  # the map does not depend on the worker count: not recorded, nor times
-            "config": {k: v for k, v in asdict(config).items() if k != "jobs"},
+        details={  # the map does not depend on where it ran: neither recorded, nor times
+            "config": {k: v for k, v in asdict(config).items() if k not in ("jobs", "executor")},
             "boxes_evaluated": boxes.evaluations,
             "boxes_closed": int(boxes.bound_m.size),
         },

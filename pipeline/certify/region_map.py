@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.certify.execution_bounds import ExecutionBounds
 from pipeline.certify.interval import FLOAT_SLACK_M
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
 from pipeline.io.jsonio import json_safe, read_json, write_text_atomic
@@ -109,6 +110,10 @@ class RegionMap:
             that the file's bytes depend only on the coefficients and the settings).
         details: Settings and counters (plain JSON).
         split_w: Per leaf, further halvings along W (module docstring), int array (n,); None: all 0.
+        execution: Per leaf, the execution bounds for the arm the map was built with (joint
+            angle ranges, the paper timing's speed, acceleration and torque bounds, the
+            rest-to-rest timing within the arm's limits; :mod:`pipeline.certify.execution_bounds`),
+            or None.
     """
 
     family: str
@@ -128,6 +133,7 @@ class RegionMap:
     seconds: float = 0.0
     details: dict = field(default_factory=dict)
     split_w: np.ndarray | None = None
+    execution: ExecutionBounds | None = None
     _index: np.ndarray = field(init=False, repr=False)
     _sub_index: np.ndarray = field(init=False, repr=False)
 
@@ -168,6 +174,8 @@ class RegionMap:
         area = float(np.sum(2.0 ** (-(2 * depth + split).astype(float))))
         if not math.isclose(area, 1.0, rel_tol=1e-9):
             raise InvalidParameterError("cells", area, "leaves tiling the range")
+        if self.execution is not None and (not isinstance(self.execution, ExecutionBounds) or self.execution.size != n):
+            raise InvalidParameterError("execution", type(self.execution).__name__, f"ExecutionBounds of {n} leaves")
         for key, value in arrays.items():
             value.setflags(write=False)
             object.__setattr__(self, key, value)
@@ -248,6 +256,13 @@ class RegionMap:
             return None
         return self._leaf_bounds[self._leaf_at(length_m, width_m)]
 
+    def leaf_at(self, length_m: float, width_m: float) -> int | None:
+        """Leaf number of (L, W) [m], or None outside the fitted range (scalar lookup)."""
+        (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
+        if not (l_lo <= length_m <= l_hi and w_lo <= width_m <= w_hi):
+            return None
+        return self._leaf_at(length_m, width_m)
+
     def _leaf_at(self, length_m: float, width_m: float) -> int:
         """Leaf of (L, W) [m] inside the fitted range (scalar; the same cells as :meth:`leaf_indices`)."""
         (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
@@ -322,6 +337,28 @@ class RegionMap:
             "endpoint_tolerance_m": self.endpoint_tolerance_m,
             "cells": int(self.depth.size),
             "seconds": self.seconds,
+        } | ({} if self.execution is None else {"execution": self.execution_summary()})
+
+    def execution_summary(self) -> dict | None:
+        """Area fractions of the range where the paper timing's bounds break each limit of the map's
+        arm (a leaf counts if its bound exceeds the limit: not proven to keep it), where a
+        rest-to-rest timing keeps them all, and the longest rest-to-rest duration; None without
+        execution bounds."""
+        bounds = self.execution
+        if bounds is None:
+            return None
+        area = self.area
+        breaks = bounds.paper_breaks()
+        any_break = np.any(np.stack(list(breaks.values())), 0)
+        rest = np.isfinite(bounds.columns["speed_scale"]) & ~breaks["angle"]
+        return {
+            "paper_keeps_limits_fraction": float(np.sum(area[~any_break])),
+            "paper_breaks_fraction": {k: float(np.sum(area[v])) for k, v in breaks.items()},
+            "rest_to_rest_fraction": float(np.sum(area[rest])),
+            "rest_to_rest_duration_max_s": float(np.max(bounds.rest_to_rest_duration_max_s[rest]))
+            if rest.any()
+            else None,
+            "path_duration_max_s": float(np.max(bounds.columns["duration_hi_s"])),
         }
 
     def belongs_to(self, coefficients) -> bool:
@@ -357,7 +394,7 @@ class RegionMap:
                 "status": [STATUSES[k] for k in self.status],
                 "split_W": self.split_w.tolist(),
             },
-        }
+        } | ({} if self.execution is None else {"execution": self.execution.to_json()})
 
     @classmethod
     def from_json(cls, document: dict, source: object = "<memory>") -> RegionMap:
@@ -394,6 +431,9 @@ class RegionMap:
                 seconds=float(document.get("summary", {}).get("seconds", math.nan)),  # NaN unless the summary has it
                 details=dict(document.get("details", {})),
                 split_w=np.array(cells.get("split_W", [0] * len(status)), dtype=np.int64),
+                execution=None
+                if document.get("execution") is None
+                else ExecutionBounds.from_json(document["execution"], source),
             )
         except DataFileError:
             raise

@@ -141,6 +141,12 @@ def parser() -> Parser:
         help="worker processes [count], 0 = every CPU; the files do not depend on it (default: 0)",
     )
     p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=d.scheduler,
+        help="Dask scheduler address (tcp://host:port); default: a local process pool of --jobs workers",
+    )
+    p.add_argument(
         "--urdf",
         type=Path,
         default=DEFAULT_URDF,
@@ -215,6 +221,7 @@ def config_from_args(args: argparse.Namespace) -> BuildConfig:
         width_range_m=tuple(args.W_range),
         family=args.family,
         jobs=args.jobs,
+        scheduler=args.scheduler,
         urdf_path=args.urdf,
         scene=scene,
         swarm_size=args.swarm_size,

@@ -2,9 +2,10 @@
 
 Certifies, for every (L, W) of the fitted range and every t in [0, T(L, W)], a lower bound on the
 clearance of both links, an upper bound on the endpoint errors, and where the margin cannot be
-kept by the family at the endpoint tolerance; writes the region map (``pipeline.certify``) and
-prints the area fraction of each status and the time it took. While it works, a progress bar per
-stage on stderr (when it is a terminal; ``--no-progress`` turns them off).
+kept by the family at the endpoint tolerance, and the execution bounds of each leaf for the arm
+recorded with the coefficients (its URDF limits and the build's acceleration limits); writes the
+region map (``pipeline.certify``) and prints the area fraction of each status and the time it
+took. While it works, a progress bar per stage on stderr (when it is a terminal; ``--no-progress`` turns them off).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.certify.map_for_coefficients import default_config, summary_lines
+from pipeline.certify.map_for_coefficients import default_config, summary_lines, with_execution_bounds
 from pipeline.certify.range_certificate import (
     DEFAULT_BOUNDARY_CELL,
     DEFAULT_ENDPOINT_TOLERANCE_M,
@@ -35,8 +36,11 @@ from pipeline.cli import (
     jobs_count,
     run_cli,
 )
+from pipeline.io.executor import DaskScheduler, check_executor, check_scheduler_address
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.io.progress import ProgressBars
+from pipeline.model.dynamics import identify_dynamics
+from pipeline.model.limits import ArmLimits
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.online.loading import load_coefficients, map_path_beside
 
@@ -89,6 +93,12 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--jobs", type=jobs_count, default=1, help="worker processes [count], 0 = every CPU")
     p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="Dask scheduler address (tcp://host:port); default: a local process pool of --jobs workers",
+    )
+    p.add_argument(
         "--min-cell",
         type=_fraction,
         default=None,
@@ -134,6 +144,10 @@ def _work(args: argparse.Namespace) -> int:
     # Without the map beside them: it is the one this command replaces (an older build's, or a
     # broken file, must neither warn nor stop it).
     coefficients = load_coefficients(args.coefficients, region_map=None)
+    executor = None
+    if args.scheduler is not None:
+        executor = DaskScheduler(check_scheduler_address("--scheduler", args.scheduler))
+        check_executor(executor)  # before any work
     if output is None:
         output = map_path_beside(coefficients)  # None for the paper's Eq. 9
     config = default_config(
@@ -143,10 +157,15 @@ def _work(args: argparse.Namespace) -> int:
         min_cell=args.min_cell,
         boundary_cell=args.boundary_cell,
         jobs=args.jobs,
+        executor=executor,
     )
     print(describe_coefficients(coefficients))
+    arm = arm_for_cli(coefficients, None)
     with ProgressBars(enabled=not args.no_progress) as progress:
         region_map = certify_range(coefficients, config, progress)
+    region_map = with_execution_bounds(
+        region_map, coefficients, identify_dynamics(arm), ArmLimits.recorded(arm, coefficients.provenance)
+    )
     digest = save_region_map(region_map, output) if output is not None else None
     print("\n".join(summary_lines(region_map)))
     summary = region_map.summary()
@@ -154,7 +173,7 @@ def _work(args: argparse.Namespace) -> int:
         witnesses = witnesses_for_map(
             coefficients,
             region_map,
-            arm_for_cli(coefficients, None),
+            arm,
             args.witnesses,
             args.witness_restarts,
             np.random.default_rng(args.seed),

@@ -190,7 +190,7 @@ class CoalClearance:
         )
         box.setSweptSphereRadius(r)
         obstacle_tf = coal.Transform3s(
-            geometry.identity, np.array([0.0, obstacle.top_y_m - obstacle.width_m / 2.0, 0.0])
+            geometry.identity, np.array([obstacle.centre_x_m, obstacle.top_y_m - obstacle.width_m / 2.0, 0.0])
         )
         request, result = geometry.request, coal.DistanceResult()  # a result per instance: no sharing of state
         self._calls = [

@@ -28,11 +28,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pipeline.exceptions import RobotModelError
-from pipeline.model.arm import PlanarArm
+
+if TYPE_CHECKING:  # the closed form itself needs neither Pinocchio nor Coal
+    from pipeline.model.arm import PlanarArm
 
 __all__ = ["PlanarDynamics", "identify_dynamics", "rnea_torques"]
 

@@ -1,6 +1,7 @@
 """The rounded rectangular obstacle as a Coal shape.
 
-The footprint is exactly L x W: x in [-L/2, L/2], y in [d - W, d]. Coal's swept-sphere
+The footprint is exactly L x W: x in [x_c - L/2, x_c + L/2], y in [d - W, d], with x_c the
+obstacle's centre x (the paper's x_c = 0). Coal's swept-sphere
 radius r inflates a box in every direction, so the core box is (L - 2r, W - 2r, h - 2r)
 and the outer shape has rounded vertical edges (the corners of the footprint).
 """
@@ -31,6 +32,7 @@ class Obstacle:
         top_y_m: d, the y of the far edge [m].
         corner_radius_m: Radius of the rounded corners [m]; at most min(L, W) / 2.
         height_m: Extent along z, centred on z = 0 [m]; > 2 * corner radius.
+        centre_x_m: x_c, the x of the centre [m].
     """
 
     length_m: float
@@ -38,6 +40,7 @@ class Obstacle:
     top_y_m: float = 0.56
     corner_radius_m: float = 0.01
     height_m: float = 1.0
+    centre_x_m: float = 0.0
 
     def __post_init__(self) -> None:
         check_positive("L (length_m)", self.length_m)
@@ -45,6 +48,7 @@ class Obstacle:
         check_finite("top_y_m", self.top_y_m)
         check_non_negative("corner_radius_m", self.corner_radius_m)
         check_positive("height_m", self.height_m)
+        check_finite("centre_x_m", self.centre_x_m)
         limit = min(self.length_m, self.width_m, self.height_m) / 2.0
         if self.corner_radius_m > limit:
             raise InvalidParameterError(
@@ -54,12 +58,12 @@ class Obstacle:
     @classmethod
     def in_scene(cls, length_m: float, width_m: float, scene: Scene) -> Obstacle:
         """The obstacle of size L x W placed as the scene says."""
-        return cls(length_m, width_m, scene.top_y_m, scene.corner_radius_m, scene.obstacle_height_m)
+        return cls(length_m, width_m, scene.top_y_m, scene.corner_radius_m, scene.obstacle_height_m, scene.centre_x_m)
 
     @property
     def center_m(self) -> np.ndarray:
-        """Centre of the box [m]: (0, d - W/2, 0)."""
-        return np.array([0.0, self.top_y_m - self.width_m / 2.0, 0.0])
+        """Centre of the box [m]: (x_c, d - W/2, 0)."""
+        return np.array([self.centre_x_m, self.top_y_m - self.width_m / 2.0, 0.0])
 
     @property
     def core_half_extents_m(self) -> np.ndarray:
@@ -83,6 +87,7 @@ class Obstacle:
         return box
 
     def footprint_corners_m(self) -> np.ndarray:
-        """The four corners (x, y) of the outer L x W footprint [m], counter-clockwise."""
-        x, y0, y1 = self.length_m / 2, self.top_y_m - self.width_m, self.top_y_m
-        return np.array([[x, y0], [x, y1], [-x, y1], [-x, y0]])
+        """The four corners (x, y) of the outer L x W footprint [m], counter-clockwise; the x are
+        those of the obstacle at x_c = 0 plus x_c."""
+        x, y0, y1, c = self.length_m / 2, self.top_y_m - self.width_m, self.top_y_m, self.centre_x_m
+        return np.array([[x + c, y0], [x + c, y1], [-x + c, y1], [-x + c, y0]])

@@ -36,6 +36,9 @@ class Scene:
         approach_dx_m: P2.x - L/2 [m] (paper: 0.03).
         approach_dy_m: (d - W) - P2.y [m] (paper: 0.03).
         apex_dy_m: (d - W) - P3.y [m] (paper: 0.10).
+        centre_x_m: x of the obstacle's centre [m] (paper: 0); footprint x in
+            [x_c - L/2, x_c + L/2], and P1..P5 keep their offsets from it. Stored only when not 0
+            (:data:`OPTIONAL_SCENE_FIELDS`).
     """
 
     top_y_m: float = 0.56
@@ -48,6 +51,7 @@ class Scene:
     approach_dx_m: float = 0.03
     approach_dy_m: float = 0.03
     apex_dy_m: float = 0.10
+    centre_x_m: float = 0.0
 
     def __post_init__(self) -> None:
         check_finite("top_y_m", self.top_y_m)
@@ -61,6 +65,7 @@ class Scene:
         check_non_negative("approach_dx_m", self.approach_dx_m)
         check_non_negative("approach_dy_m", self.approach_dy_m)
         check_positive("apex_dy_m", self.apex_dy_m)
+        check_finite("centre_x_m", self.centre_x_m)
 
     @property
     def y1_m(self) -> float:
@@ -68,19 +73,22 @@ class Scene:
         return self.top_y_m if self.start_y_m is None else self.start_y_m
 
     def to_dict(self) -> dict[str, float | None]:
-        """Plain-JSON form, as stored in coefficients files."""
-        return asdict(self)
+        """Plain-JSON form, as stored in coefficients and DOE files: every field, except those of
+        :data:`OPTIONAL_SCENE_FIELDS` that are 0 (a scene that does not use them is written as it
+        was before they existed, to the byte)."""
+        return {k: v for k, v in asdict(self).items() if not (k in OPTIONAL_SCENE_FIELDS and v == 0.0)}
 
     @classmethod
     def from_dict(cls, data: dict) -> Scene:
-        """Inverse of :meth:`to_dict`; unknown keys are ignored (a coefficients file's scene
-        block also holds the arm's data). :func:`read_scene_file` is the strict reader."""
+        """Inverse of :meth:`to_dict` (a missing optional field is 0); unknown keys are ignored (a
+        coefficients file's scene block also holds the arm's data). :func:`read_scene_file` is the
+        strict reader."""
         names = {f for f in cls.__dataclass_fields__}
         return cls(**{k: v for k, v in data.items() if k in names})
 
     def is_close(self, other: Scene) -> bool:
         """True if both scenes agree to 1e-12 in every field."""
-        a, b = self.to_dict(), other.to_dict()
+        a, b = asdict(self), asdict(other)
         return all(
             (a[k] is None and b[k] is None)
             or (a[k] is not None and b[k] is not None and math.isclose(a[k], b[k], abs_tol=1e-12))
@@ -88,15 +96,19 @@ class Scene:
         )
 
 
-#: The scene's fields, the keys of a scene file and of a coefficients file's scene block.
-SCENE_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Scene))
+#: Scene fields written into a coefficients file's scene block only when they are not 0.
+OPTIONAL_SCENE_FIELDS: tuple[str, ...] = ("centre_x_m",)
+#: The scene's other fields: the keys every coefficients file's scene block holds.
+SCENE_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Scene) if f.name not in OPTIONAL_SCENE_FIELDS)
+#: The keys of a scene file: every field of the scene.
+SCENE_KEYS: tuple[str, ...] = SCENE_FIELDS + OPTIONAL_SCENE_FIELDS
 #: Keys of a coefficients file's scene block that come from the arm, not from the scene.
 ARM_KEYS: tuple[str, ...] = ("link_lengths_m", "link_radii_m", "elbow")
 
 
 def read_scene_file(path: str | Path) -> dict[str, float | None]:
     """Scene values from a TOML (``.toml``) or JSON (``.json``) file whose keys are
-    :data:`SCENE_FIELDS` (e.g. ``top_y_m = 0.54``), lengths in metres, speeds in m/s.
+    :data:`SCENE_KEYS` (e.g. ``top_y_m = 0.54``), lengths in metres, speeds in m/s.
 
     Only the keys present are returned; the caller fills in the rest (defaults, options).
     ``start_y_m`` may be null in JSON (y1 = d); in TOML leave it out.
@@ -127,10 +139,10 @@ def read_scene_file(path: str | Path) -> dict[str, float | None]:
     for key, value in document.items():
         if key in ARM_KEYS:
             raise DataFileError(path, f"key {key!r} comes from the arm's URDF, not from the scene file; remove it")
-        if key not in SCENE_FIELDS:
-            close = difflib.get_close_matches(key, SCENE_FIELDS, n=1)
+        if key not in SCENE_KEYS:
+            close = difflib.get_close_matches(key, SCENE_KEYS, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise DataFileError(path, f"unknown key {key!r}{hint}; the scene's keys are {', '.join(SCENE_FIELDS)}")
+            raise DataFileError(path, f"unknown key {key!r}{hint}; the scene's keys are {', '.join(SCENE_KEYS)}")
         if value is None and key == "start_y_m":
             values[key] = None
             continue

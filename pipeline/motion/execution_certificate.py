@@ -225,6 +225,9 @@ class ExecutionCertificate:
             {"speed_rad_s": (2,), "acceleration_rad_s2": (2,), "torque_n_m": (2,), "angle_range_rad": ...}.
         intervals: Time intervals of the final partition (0: decided in closed form, paper timing).
         decided_against: The limits the bounds were decided against (None: tight bounds).
+        source: "query" (this certificate, over this trajectory) or "range" (the bounds of the
+            region map's leaf holding the obstacle, proven for every obstacle of the leaf:
+            :mod:`pipeline.certify.execution_bounds`; no samples).
     """
 
     timing_name: str
@@ -236,6 +239,7 @@ class ExecutionCertificate:
     sampled: dict
     intervals: int
     decided_against: ArmLimits | None = None
+    source: str = "query"
 
     def violations(self, limits: ArmLimits) -> list[LimitViolation]:
         """Every limit a bound exceeds (empty: the trajectory is certified within ``limits``)."""

@@ -1,11 +1,12 @@
 """The paper's desired path: a quartic through five constraint points (Eq. 3), timed by
 arc length at constant speed (Eq. 7).
 
-P1 = (L/2 + 0.12, y1), P2 = (L/2 + 0.03, d - W - 0.03), P3 = (0, d - W - 0.10), P4 and P5
-mirrored about the y axis. The end effector runs from P1 (x > 0) to P5 (x < 0);
-t = S(x) / v with S the arc length from P1, and T = S_total / v.
+P1 = (x_c + L/2 + 0.12, y1), P2 = (x_c + L/2 + 0.03, d - W - 0.03), P3 = (x_c, d - W - 0.10),
+P4 and P5 mirrored about the obstacle's centre line x = x_c (the paper's x_c = 0). The end
+effector runs from P1 (largest x) to P5 (smallest x); t = S(x) / v with S the arc length from
+P1, and T = S_total / v.
 
-The five points are mirror images about the y axis, so the quartic is even:
+With x_c = 0 the five points are mirror images about the y axis, so the quartic is even:
 y = c4 x^4 + c2 x^2 + c0 with c0 = y(P3) and (c4, c2) from a 2 x 2 system in x^2, in closed
 form (:func:`symmetric_quartic`). Its length is 2 * integral_0^a sqrt(1 + y'(x)^2) dx
 (a = x of P1) by a fixed composite Gauss-Legendre rule with precomputed nodes
@@ -13,6 +14,12 @@ form (:func:`symmetric_quartic`). Its length is 2 * integral_0^a sqrt(1 + y'(x)^
 paper's scene it agrees with a 64-panel, 10-node rule over the whole span to 1e-14 relative).
 The online generator calls these two functions directly; :class:`QuarticPath` uses them too,
 so both give the same T to the last bit.
+
+Any other five points (x_c != 0) give a general quartic, solved from the 5 x 5 Vandermonde
+system; its length is the same fixed rule on each side of the apex P3, from P3 out to P1 and
+from P3 out to P5 (:func:`quartic_length_m`). For x_c != 0 the path is the x_c = 0 path moved
+by x_c, and the two halves are the mirrored halves of the even quartic: its length agrees
+with the closed form's to rounding (a few 1e-16 relative).
 """
 
 from __future__ import annotations
@@ -88,6 +95,22 @@ def symmetric_quartic_lengths_m(x_start_m: np.ndarray, c4: np.ndarray, c2: np.nd
     return 2.0 * a * (speed @ _LENGTH_W)
 
 
+def quartic_length_m(coefficients: np.ndarray, x_start_m: float, x_apex_m: float, x_end_m: float) -> float:
+    """Arc length [m] of y = polyval(coefficients, x) from x = ``x_end_m`` to x = ``x_start_m``,
+    split at ``x_apex_m``: sum over h = x_start - x_apex and h = x_end - x_apex of
+    |h| * sum_j w_j sqrt(1 + y'(x_apex + h u_j)^2), the rule of :func:`symmetric_quartic_length_m`.
+    """
+    d3, d2, d1, d0 = np.polyder(np.asarray(coefficients, dtype=float)).tolist()
+    total = 0.0
+    for h in (x_start_m - x_apex_m, x_end_m - x_apex_m):
+        x = x_apex_m + h * _LENGTH_U
+        slope = ((d3 * x + d2) * x + d1) * x + d0
+        speed = 1.0 + slope * slope
+        np.sqrt(speed, out=speed)
+        total += abs(h) * float(speed.dot(_LENGTH_W))
+    return total
+
+
 def _symmetric_coefficients(points: np.ndarray) -> np.ndarray | None:
     """(c4, c3, c2, c1, c0) in closed form if P1..P5 are mirror images about x = 0, else None."""
     (x1, y1), (x2, y2), (x3, y3), (x4, y4), (x5, y5) = points.tolist()
@@ -127,16 +150,18 @@ class QuarticPath:
 
     @cached_property
     def _symmetric(self) -> bool:
-        return bool(self.coefficients[1] == 0.0 and self.coefficients[3] == 0.0)
+        """True if the quartic is even and runs from x = a to x = -a: the closed-form length applies."""
+        c, x = self.coefficients, self.points_m[:, 0]
+        return bool(c[1] == 0.0 and c[3] == 0.0 and x[-1] == -x[0])
 
     @cached_property
     def _panels(self) -> tuple[np.ndarray, np.ndarray]:
-        """The 64 panel edges in x (from P1 down to P5) and the arc length at each [m], built on first use."""
+        """The 64 panel edges in x (from P1 down to P5) and the arc length at each [m], built on
+        first use; the last is :attr:`length_m` (the panels' sum agrees with it to rounding)."""
         edges = np.linspace(self.points_m[0, 0], self.points_m[-1, 0], _PANELS + 1)
         panel_lengths = self._integrate(edges[1:], edges[:-1])
         cumulative = np.concatenate([[0.0], np.cumsum(panel_lengths)])
-        if self._symmetric:
-            cumulative[-1] = self.length_m
+        cumulative[-1] = self.length_m
         return edges, cumulative
 
     @property
@@ -152,10 +177,11 @@ class QuarticPath:
     @cached_property
     def length_m(self) -> float:
         """Total arc length from P1 to P5 [m]: for the symmetric quartic the generator's closed-form
-        rule (the same T to the last bit), else the sum of the 64 panels."""
+        rule (the same T to the last bit), else the same rule on each side of P3
+        (:func:`quartic_length_m`)."""
         if self._symmetric:
             return symmetric_quartic_length_m(self.start_x_m, self.coefficients[0], self.coefficients[2])
-        return float(self._panels[1][-1])
+        return quartic_length_m(self.coefficients, self.start_x_m, float(self.points_m[2, 0]), self.end_x_m)
 
     @property
     def duration_s(self) -> float:
@@ -250,13 +276,13 @@ class QuarticPath:
 
 
 def constraint_points(obstacle: Obstacle, scene: Scene) -> np.ndarray:
-    """P1..P5 of the paper for this obstacle, shape (5, 2) [m]."""
+    """P1..P5 of the paper for this obstacle, shape (5, 2) [m]: the x of the obstacle at x_c = 0
+    plus its centre x_c (``obstacle.centre_x_m``), so they move with it exactly."""
     half = obstacle.length_m / 2.0
     bottom = obstacle.top_y_m - obstacle.width_m
-    p1 = (half + scene.start_dx_m, scene.y1_m)
-    p2 = (half + scene.approach_dx_m, bottom - scene.approach_dy_m)
-    p3 = (0.0, bottom - scene.apex_dy_m)
-    return np.array([p1, p2, p3, (-p2[0], p2[1]), (-p1[0], p1[1])])
+    x1, x2, c = half + scene.start_dx_m, half + scene.approach_dx_m, obstacle.centre_x_m
+    y1, y2 = scene.y1_m, bottom - scene.approach_dy_m
+    return np.array([(x1 + c, y1), (x2 + c, y2), (c, bottom - scene.apex_dy_m), (-x2 + c, y2), (-x1 + c, y1)])
 
 
 def desired_path(obstacle: Obstacle, scene: Scene, reach_m: tuple[float, float] | None = None) -> QuarticPath:

@@ -35,7 +35,7 @@ from pipeline.motion.execution_certificate import FLOAT_SLACK_ABSOLUTE, FLOAT_SL
 from pipeline.motion.timing import RestToRestTiming
 from pipeline.motion.trajectory import JointTrajectory
 
-__all__ = ["REST_TO_REST", "ShortestRestToRest", "shortest_rest_to_rest"]
+__all__ = ["REST_TO_REST", "ShortestRestToRest", "rest_to_rest_bounds", "rest_to_rest_scales", "shortest_rest_to_rest"]
 
 #: Share of each limit the closed-form bounds may use.
 LIMIT_SHARE = 0.999
@@ -60,6 +60,80 @@ def _widened(values: np.ndarray) -> np.ndarray:
     return values + FLOAT_SLACK_RELATIVE * np.abs(values) + FLOAT_SLACK_ABSOLUTE
 
 
+def rest_to_rest_scales(
+    path_duration_s: np.ndarray,
+    peak_velocity_rad_s: np.ndarray,
+    peak_acceleration_rad_s2: np.ndarray,
+    dynamics: PlanarDynamics,
+    limits: ArmLimits,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The speed scale c and ramp r [s] of the shortest rest-to-rest timing that the closed-form
+    bounds (module docstring) keep within ``limits``, for n paths at once.
+
+    The bounds hold for every path whose duration is at least ``path_duration_s`` (the ramps fit:
+    r <= T / c) and whose peaks are at most the given ones, so a cell of the region map can
+    give its own (c, r) to every obstacle it holds.
+
+    Args:
+        path_duration_s: T [s] (a lower bound for a set of paths), (n,).
+        peak_velocity_rad_s, peak_acceleration_rad_s2: Upper bounds of |theta_i'| and
+            |theta_i''| over the path(s), widened for rounding, (n, 2).
+        dynamics: The arm's inverse dynamics.
+        limits: The limits to keep.
+
+    Returns:
+        (c, r), each (n,); NaN where no timing keeps the limits (a limit that binds at rest).
+    """
+    T = np.asarray(path_duration_s, dtype=float).reshape(-1)
+    V = np.asarray(peak_velocity_rad_s, dtype=float).reshape(-1, 2)
+    acc = np.asarray(peak_acceleration_rad_s2, dtype=float).reshape(-1, 2)
+    share = LIMIT_SHARE
+    velocity = share * np.asarray(limits.velocity_rad_s)
+    with np.errstate(divide="ignore"):
+        cap = np.minimum(1.0, np.min(np.where(V > 0.0, velocity / V, np.inf), axis=1))
+    c = cap[:, None] * np.geomspace(1.0, 1e-3, SPEED_SCALES)[None, :]  # (n, S)
+    mass = dynamics.mass_matrix_sup()
+    h = dynamics.coriolis_sup()
+    # Constraints limit >= c^2 G + 1.5 c K / r: two for acceleration, two for torque.
+    quadratic = np.stack([2 * V[:, 0] * V[:, 1] + V[:, 1] ** 2, V[:, 0] ** 2], -1)
+    G = np.concatenate([acc, acc @ mass.T + h * quadratic], 1)  # (n, 4)
+    K = np.concatenate([V, V @ mass.T], 1)
+    bound = share * np.concatenate([np.asarray(limits.acceleration_rad_s2), np.asarray(limits.effort_n_m)])
+    unlimited = np.isinf(bound)
+    room = bound[None, None, :] - (c * c)[:, :, None] * G[:, None, :]  # (n, S, 4)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        needed = np.where(unlimited, 0.0, 1.5 * c[:, :, None] * K[:, None, :] / room)
+    feasible = np.all((room > 0.0) | unlimited, axis=2)
+    ramp = np.maximum(np.where(feasible, needed.max(2), np.inf), MIN_RAMP_S)
+    fits = ramp <= T[:, None] / c
+    total = np.where(feasible & fits, T[:, None] / c + ramp, np.inf)
+    best = np.argmin(total, axis=1)
+    rows = np.arange(T.size)
+    found = np.isfinite(total[rows, best])
+    return np.where(found, c[rows, best], np.nan), np.where(found, ramp[rows, best], np.nan)
+
+
+def rest_to_rest_bounds(
+    speed_scale: np.ndarray,
+    ramp_s: np.ndarray,
+    peak_velocity_rad_s: np.ndarray,
+    peak_acceleration_rad_s2: np.ndarray,
+    dynamics: PlanarDynamics,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closed-form bounds (module docstring) of |dq|, |ddq| [rad/s, rad/s^2] and |tau| [N m]
+    of a rest-to-rest timing (c, r) of paths with the given peaks; each (n, 2). ``ramp_s`` = inf
+    with c = 1 gives the paper timing's bounds."""
+    c = np.asarray(speed_scale, dtype=float).reshape(-1, 1)
+    r = np.asarray(ramp_s, dtype=float).reshape(-1, 1)
+    V = np.asarray(peak_velocity_rad_s, dtype=float).reshape(-1, 2)
+    acc = np.asarray(peak_acceleration_rad_s2, dtype=float).reshape(-1, 2)
+    speed = c * V
+    acceleration = c * c * acc + 1.5 * c * V / r
+    quadratic = np.stack([2 * V[:, 0] * V[:, 1] + V[:, 1] ** 2, V[:, 0] ** 2], -1)
+    torque = acceleration @ dynamics.mass_matrix_sup().T + dynamics.coriolis_sup() * c * c * quadratic
+    return _widened(speed), _widened(acceleration), _widened(torque)
+
+
 def shortest_rest_to_rest(trajectory: JointTrajectory, dynamics: PlanarDynamics, limits: ArmLimits) -> RestToRestTiming:
     """The shortest rest-to-rest timing of ``trajectory``'s path that the closed-form bounds
     (module docstring) keep within ``limits``; a few hundred microseconds.
@@ -75,26 +149,9 @@ def shortest_rest_to_rest(trajectory: JointTrajectory, dynamics: PlanarDynamics,
     path_duration_s = trajectory.duration_s
     V = _widened(np.asarray(trajectory.peak_velocity_rad_s(), dtype=float))
     acc = _widened(np.asarray(trajectory.peak_acceleration_rad_s2(), dtype=float))
-    share = LIMIT_SHARE
-    velocity = share * np.asarray(limits.velocity_rad_s)
-    cap = float(min(1.0, *(velocity[V > 0] / V[V > 0]))) if np.any(V > 0) else 1.0
-    c = cap * np.geomspace(1.0, 1e-3, SPEED_SCALES)
-    mass = dynamics.mass_matrix_sup()
-    h = dynamics.coriolis_sup()
-    # Constraints limit >= c^2 G + 1.5 c K / r: two for acceleration, two for torque.
-    G = np.concatenate([acc, mass @ acc + h * np.array([2 * V[0] * V[1] + V[1] ** 2, V[0] ** 2])])
-    K = np.concatenate([V, mass @ V])
-    bound = share * np.concatenate([np.asarray(limits.acceleration_rad_s2), np.asarray(limits.effort_n_m)])
-    room = bound[None, :] - (c * c)[:, None] * G[None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        needed = np.where(np.isinf(bound)[None, :], 0.0, 1.5 * c[:, None] * K[None, :] / room)
-    feasible = np.all((room > 0.0) | np.isinf(bound)[None, :], axis=1)
-    ramp = np.maximum(np.where(feasible, needed.max(1), np.inf), MIN_RAMP_S)
-    fits = ramp <= path_duration_s / c
-    total = np.where(feasible & fits, path_duration_s / c + ramp, np.inf)
-    best = int(np.argmin(total))
-    if not np.isfinite(total[best]):
+    c, r = rest_to_rest_scales(np.array([path_duration_s]), V[None, :], acc[None, :], dynamics, limits)
+    if not np.isfinite(c[0]):
         raise InvalidParameterError(
             "limits", limits, "limits a rest-to-rest timing can keep (an acceleration or effort limit binds at rest)"
         )
-    return RestToRestTiming(float(path_duration_s), float(c[best]), float(ramp[best]))
+    return RestToRestTiming(float(path_duration_s), float(c[0]), float(r[0]))

@@ -2,8 +2,9 @@
 
 The design is K x K levels (K = 3 in the paper), ordered as Table 1: W descending by
 rows, L descending within a row (Test 1 = (L_max, W_max)). Each experiment gets its own
-random stream spawned from one seed, so the results do not depend on ``jobs`` (how many
-worker processes solve them) or on the order in which they finish.
+random stream spawned from one seed, so the results do not depend on where they are solved
+(``jobs`` worker processes, or a Dask cluster: :mod:`pipeline.io.executor`) or on the order in
+which they finish.
 """
 
 from __future__ import annotations
@@ -17,8 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
+from pipeline.io.executor import Executor, LocalPool, as_executor, map_tasks
 from pipeline.io.jsonio import read_json
-from pipeline.io.parallel import item_seeds, process_map
+from pipeline.io.parallel import item_seeds
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.scene import Scene
 from pipeline.motion.families import PAPER, TrajectoryFamily, family_from_name
@@ -84,26 +86,27 @@ def run_doe(
     scene: Scene,
     config: SolverConfig,
     seed: int,
-    jobs: int = 1,
+    jobs: int | Executor = 1,
     progress: Callable[[ExperimentResult], None] | None = None,
 ) -> list[ExperimentResult]:
-    """Solve every experiment of ``design``; results in design order, the same for any ``jobs``.
+    """Solve every experiment of ``design``; results in design order, the same wherever they run.
 
     Args:
-        arm: The arm (its URDF is reloaded in each worker process when jobs > 1).
+        arm: The arm (its URDF is reloaded in each worker when the experiments run elsewhere).
         design: The (L, W) grid.
         scene: Scene settings.
         config: Solver settings.
         seed: Master seed; experiment i uses the i-th spawned child stream
             (:func:`pipeline.io.parallel.item_seeds`).
-        jobs: Worker processes (1 = in this process); one experiment per worker call
-            (:func:`pipeline.io.parallel.process_map`).
+        jobs: Where to solve them (:func:`pipeline.io.executor.map_tasks`): a number of local
+            processes (1 = in this process), a :class:`pipeline.io.executor.LocalPool` or a
+            :class:`pipeline.io.executor.DaskScheduler`; one experiment per worker call.
         progress: Called with each result as it completes.
     """
-    check_positive_int("jobs", jobs)
+    executor = as_executor(jobs)
     points = design.points()
     tasks = [(L, W, stream) for (L, W), stream in zip(points, item_seeds(seed, len(points)), strict=True)]
-    if jobs == 1:
+    if executor == LocalPool(1):
 
         def function(task: tuple[float, float, np.random.SeedSequence]) -> ExperimentResult:
             return solve_experiment(arm, task[0], task[1], scene, config, np.random.default_rng(task[2]))
@@ -111,12 +114,11 @@ def run_doe(
     else:
         function = functools.partial(_solve_in_worker, str(arm.urdf_path), scene, config)
 
-    def report(done: list[ExperimentResult]) -> None:
-        for result in done:
-            if progress:
-                progress(result)
+    def report(_index: int, result: ExperimentResult) -> None:
+        if progress:
+            progress(result)
 
-    return process_map(function, tasks, jobs=jobs, chunk_size=1, on_done=report)
+    return map_tasks(executor, function, tasks, report, chunk_size=1)
 
 
 @dataclass(frozen=True)

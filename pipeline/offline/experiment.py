@@ -64,7 +64,8 @@ class ExperimentResult:
         length_m, width_m: The obstacle L, W [m].
         family: Trajectory family.
         parameters: The 8 sinusoid parameters (rad, rad/s); canonical (Eq. 8) for the paper
-            family; for exact-endpoints, joint 2's phase is the pinned (pi - w2 T) / 2.
+            family; for exact-endpoints, joint 2's phase is the pinned one ((pi - w2 T) / 2 for
+            an obstacle centred on the y axis).
         free_parameters: The family's free parameters, canonical (what the regression fits).
         fitness: Objective at the optimum (Eq. 5 + penalties) [m^2].
         tracking_fitness: Eq. 5 alone at the optimum [m^2].

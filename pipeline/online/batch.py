@@ -39,6 +39,7 @@ class GeneratedBatch:
             region map, outside its range, or where ``error`` is set).
         endpoint_error_bound_m: (n,) its endpoint-error bound [m] (NaN likewise).
         range_status: (n,) index into :data:`pipeline.certify.STATUSES` (-1 likewise).
+        leaf: (n,) the map's leaf holding each obstacle (-1 likewise).
     """
 
     lengths_m: np.ndarray
@@ -50,6 +51,7 @@ class GeneratedBatch:
     certified_clearance_m: np.ndarray | None = None
     endpoint_error_bound_m: np.ndarray | None = None
     range_status: np.ndarray | None = None
+    leaf: np.ndarray | None = None
 
     def trajectory(self, i: int) -> JointTrajectory:
         """Obstacle ``i``'s joint trajectory."""
@@ -131,7 +133,7 @@ def generate_batch(
         parameters = coefficients.family.expand(free, None)
     (l_lo, l_hi), (w_lo, w_hi) = plan.l_range, plan.w_range
     extrapolated = ~((L >= l_lo) & (L <= l_hi) & (W >= w_lo) & (W <= w_hi))
-    bounds: tuple[np.ndarray | None, ...] = (None, None, None)
+    bounds: tuple[np.ndarray | None, ...] = (None, None, None, None)
     if region_map is not None:
         cells = region_map.cells_at(L, W)
         bad = np.array([e is not None for e in errors], dtype=bool) | extrapolated
@@ -139,5 +141,6 @@ def generate_batch(
             np.where(bad, np.nan, cells["clearance_bound_m"]),
             np.where(bad, np.nan, cells["endpoint_bound_m"]),
             np.where(bad, -1, cells["status"]),
+            np.where(bad, -1, cells["leaf"]),
         )
     return GeneratedBatch(L, W, np.asarray(parameters, dtype=float), durations, extrapolated, tuple(errors), *bounds)

@@ -15,6 +15,14 @@ certifies, per query:
 
 Clearance and endpoints are statements about the configurations visited, which every timing of
 the same path shares (:mod:`pipeline.motion.timing`): they are certified once, for every timing.
+
+**From the map, at lookup cost** (:func:`execution_from_map`): for the regression's own answer
+inside the fitted range, the region map's leaf holding the obstacle carries bounds proven for
+every obstacle of the leaf (:mod:`pipeline.certify.execution_bounds`): the angle range, the paper
+timing's speed, acceleration and torque bounds, and a rest-to-rest timing (c, r) with its bounds.
+They are used when they were made for this arm (the same limits and inertias) and keep every
+limit; otherwise (another arm, or a leaf whose bound exceeds a limit the trajectory may still
+keep) the per-query certificate decides.
 """
 
 from __future__ import annotations
@@ -24,6 +32,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import ExecutionRefusedError, InvalidParameterError
 from pipeline.model.arm import PlanarArm
 from pipeline.model.dynamics import PlanarDynamics, identify_dynamics
@@ -35,7 +44,7 @@ from pipeline.motion.timing import PAPER_TIMING, PaperTiming, RestToRestTiming
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.online.generator import GeneratedTrajectory
 
-__all__ = ["ENDPOINT_SLACK_M", "Execution", "certify_answer_execution", "dynamics_of", "retime"]
+__all__ = ["ENDPOINT_SLACK_M", "Execution", "certify_answer_execution", "dynamics_of", "execution_from_map", "retime"]
 
 #: Rounding slack of a per-query endpoint error [m] (a few dozen operations on values below 1 m).
 ENDPOINT_SLACK_M = 1e-12
@@ -138,6 +147,46 @@ def certify_answer_execution(
             raise ExecutionRefusedError(*size, timing.name, tuple(str(v) for v in found if v.quantity == "angle"))
         retimed = _slower(retimed)
     raise ExecutionRefusedError(*size, timing.name, tuple(str(v) for v in found))
+
+
+def execution_from_map(
+    generated: GeneratedTrajectory,
+    region_map: RegionMap | None,
+    dynamics: PlanarDynamics,
+    limits: ArmLimits,
+    endpoint_tolerance_m: float,
+    timing: PaperTiming | ShortestRestToRest = PAPER_TIMING,
+) -> Execution | None:
+    """The execution of the regression's answer ``generated`` read off the region map's leaf
+    (module docstring), or None where the map does not decide it: no map or no execution bounds
+    in it, another arm's limits or inertias, the obstacle outside the fitted range, an endpoint
+    bound above the tolerance, or a leaf bound above a limit."""
+    if region_map is None or region_map.execution is None or generated.endpoint_error_bound_m is None:
+        return None
+    bounds = region_map.execution
+    if bounds.limits != limits or bounds.dynamics != dynamics:
+        return None
+    error = generated.endpoint_error_bound_m
+    if error > endpoint_tolerance_m:
+        return None
+    leaf = region_map.leaf_at(generated.length_m, generated.width_m)
+    if leaf is None:
+        return None
+    speed_scale, ramp, angles, rest, paper = bounds.leaf(leaf)
+    trajectory = generated.trajectory
+    if isinstance(timing, PaperTiming):
+        chosen, bound = PAPER_TIMING, paper
+    elif speed_scale == speed_scale:  # a rest-to-rest timing (not NaN)
+        chosen, bound = RestToRestTiming(trajectory.duration_s, speed_scale, ramp), rest
+    else:
+        return None
+    executed = TimedTrajectory(trajectory, chosen)
+    certificate = ExecutionCertificate(
+        chosen.name, executed.duration_s, angles, bound[0], bound[1], bound[2], {}, 0, limits, "range"
+    )
+    if certificate.violations(limits):
+        return None
+    return Execution(executed, certificate, limits, (error, error), endpoint_tolerance_m)
 
 
 def _slower(timing: RestToRestTiming) -> RestToRestTiming:

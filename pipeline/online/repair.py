@@ -16,7 +16,9 @@
 4. Certify that it executes (:mod:`pipeline.online.execution`): endpoint errors within the
    tolerance, and, for the chosen timing (the paper's by default, or the shortest rest-to-rest
    timing within the limits), joint angles, speeds, accelerations and torques within the arm's
-   limits over all of [0, T'].
+   limits over all of [0, T']. For the regression's own answer, the region map's leaf answers
+   this at lookup cost where its bounds were made for this arm and keep the limits
+   (:func:`pipeline.online.execution.execution_from_map`); the per-query certificate elsewhere.
 5. Return the trajectory with its certificates, or raise NoCertifiedTrajectoryError (clearance)
    or ExecutionRefusedError (endpoints, limits) saying why.
    A refusal quotes a tight bound (within :data:`pipeline.geometry.motion_certificate.DEFAULT_TOLERANCE_M`
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import math
 import time
+import weakref
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -47,7 +50,7 @@ from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.fitness import FitnessConfig, FitnessProblem, fitness_problem
 from pipeline.online.arm_check import arm_for, check_arm_matches
-from pipeline.online.execution import Execution, certify_answer_execution
+from pipeline.online.execution import Execution, certify_answer_execution, dynamics_of, execution_from_map
 from pipeline.online.generator import ATTACHED, GeneratedTrajectory, _Attached, generate
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
@@ -147,6 +150,11 @@ class CertifiedTrajectory:
     def certificate_source(self) -> str:
         """Where the certified clearance comes from: "range" (the region map) or "query"."""
         return "query" if self.certificate is not None else str(self.generated.certificate_source)
+
+    @property
+    def execution_source(self) -> str:
+        """Where the limit bounds come from: "range" (the region map's leaf) or "query"."""
+        return self.execution.certificate.source
 
 
 _DEFAULT_CONFIG = RepairConfig()
@@ -298,13 +306,24 @@ def generate_certified(
     if not isinstance(timing, PaperTiming | ShortestRestToRest):
         raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
     if limits is None:
-        limits = ArmLimits.recorded(arm, coefficients.provenance)
+        limits = _recorded_limits(arm, coefficients)
     elif not isinstance(limits, ArmLimits):
         raise InvalidParameterError("limits", type(limits).__name__, "an ArmLimits or None")
     answer = _certify_clearance(generated, coefficients, arm, config)
     tolerance = (
         endpoint_tolerance_of(coefficients) if config.endpoint_tolerance_m is None else config.endpoint_tolerance_m
     )
+    if not answer.repaired:
+        execution = execution_from_map(
+            answer.generated,
+            coefficients.region_map if region_map is ATTACHED else region_map,
+            dynamics_of(arm),
+            limits,
+            tolerance,
+            timing,
+        )
+        if execution is not None:
+            return replace(answer, execution=execution)
     from_map = answer.generated.endpoint_error_bound_m if not answer.repaired else None
     execution = certify_answer_execution(
         answer.generated,
@@ -317,6 +336,17 @@ def generate_certified(
         map_endpoint_bound_m=from_map,
     )
     return replace(answer, execution=execution)
+
+
+_LIMITS: weakref.WeakKeyDictionary[Coefficients, tuple[PlanarArm, ArmLimits]] = weakref.WeakKeyDictionary()
+
+
+def _recorded_limits(arm: PlanarArm, coefficients: Coefficients) -> ArmLimits:
+    """:meth:`ArmLimits.recorded` of ``arm`` and ``coefficients``, read once per pair."""
+    cached = _LIMITS.get(coefficients)
+    if cached is None or cached[0] is not arm:
+        cached = _LIMITS[coefficients] = (arm, ArmLimits.recorded(arm, coefficients.provenance))
+    return cached[1]
 
 
 def _certify_clearance(

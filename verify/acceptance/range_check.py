@@ -26,6 +26,13 @@ must hold for every measured case whatever the certificate did; it is checked on
 up to rounding, and ``b_e`` is a rigorous upper bound, so ``max(start, end) <= b_e +
 FLOAT_SLACK_M`` (1e-9 m, for rounding only) must hold.
 
+**Execution bounds** (a map that has them, :mod:`pipeline.certify.execution_bounds`). Each
+case's joint check gives the exact closed-form peaks of |dq| and |ddq| and the angle range of
+the paper timing (``JointCheck``), and its torques at the dense samples (RNEA's closed form). The
+leaf's bounds are rigorous upper bounds of all of them (the angle range encloses), so each
+``bound - value`` must be >= -:data:`EXECUTION_SLACK` (rounding only); the torques are compared
+only when the sweep's arm has the map's inertias (``dynamics``).
+
 Cases outside the map's range are not checked (``n_out_of_range``); cases that could not be
 generated have nothing to check (``n_not_measured``). A map of other coefficients (another
 sha256) is reported as not belonging and not used for any check. Any violation makes the
@@ -50,6 +57,64 @@ from pipeline.validation import check_non_negative
 
 from .metrics import MeasureSettings
 from .results import CaseResult
+
+#: Rounding slack of the execution bounds' check [rad, rad/s, rad/s^2, N m].
+EXECUTION_SLACK = 1e-9
+#: The execution quantities checked, in report order.
+EXECUTION_QUANTITIES = ("angle", "speed", "acceleration", "torque")
+
+
+@dataclass(frozen=True)
+class ExecutionCheck:
+    """The map's execution bounds against the sweep's measured joints (paper timing).
+
+    Attributes:
+        checked: Cases compared.
+        worst_slack: Per quantity (:data:`EXECUTION_QUANTITIES`), the smallest ``bound - value``
+            over the cases [rad, rad/s, rad/s^2, N m] (None: not compared).
+        violations: Case indices past a bound by more than :data:`EXECUTION_SLACK`.
+    """
+
+    checked: int
+    worst_slack: dict
+    violations: tuple[int, ...]
+
+    def to_json(self) -> dict[str, Any]:
+        """Plain JSON."""
+        return {"checked": self.checked, "worst_slack": dict(self.worst_slack), "violations": list(self.violations)}
+
+
+def _execution_check(
+    region_map: RegionMap, cases: Sequence[CaseResult], leaf: np.ndarray, measured: np.ndarray, dynamics
+) -> ExecutionCheck | None:
+    """Compare every measured case's joint peaks with its leaf's execution bounds (module docstring)."""
+    bounds = region_map.execution
+    if bounds is None:
+        return None
+    rows = [k for k in np.flatnonzero(measured) if cases[k].measurement.joints is not None]
+    if not rows:
+        return ExecutionCheck(0, {q: None for q in EXECUTION_QUANTITIES}, ())
+    joints = [cases[k].measurement.joints for k in rows]
+    leaves = leaf[rows]
+    ranges = np.array([j.range_rad for j in joints], dtype=float)  # (n, 2, 2)
+    angles = bounds.angle_range_rad[leaves]
+    slack = {
+        "angle": np.minimum(ranges[:, :, 0] - angles[:, :, 0], angles[:, :, 1] - ranges[:, :, 1]).min(1),
+        "speed": (bounds.paper_speed_rad_s[leaves] - np.array([j.peak_velocity_rad_s for j in joints])).min(1),
+        "acceleration": (
+            bounds.paper_acceleration_rad_s2[leaves] - np.array([j.peak_acceleration_rad_s2 for j in joints])
+        ).min(1),
+    }
+    if dynamics is not None and dynamics == bounds.dynamics:
+        sampled = np.array([j.peak_torque_sampled_n_m for j in joints], dtype=float)
+        if np.all(np.isfinite(sampled)):
+            slack["torque"] = (bounds.paper_torque_n_m[leaves] - sampled).min(1)
+    index = np.array([cases[k].index for k in rows], dtype=np.int64)
+    bad = np.zeros(len(rows), dtype=bool)
+    for values in slack.values():
+        bad |= values < -EXECUTION_SLACK
+    worst = {q: (float(slack[q].min()) if q in slack else None) for q in EXECUTION_QUANTITIES}
+    return ExecutionCheck(len(rows), worst, tuple(int(i) for i in index[bad]))
 
 
 def clearance_slack_m(settings: MeasureSettings) -> float:
@@ -173,6 +238,8 @@ class RangeCheck:
         certified: certified clearance + slack >= the map's clearance bound.
         sampled: sampled (Coal) clearance + Coal's error >= the map's clearance bound.
         endpoint: max endpoint error <= the map's endpoint bound + rounding.
+        execution: The joints against the map's execution bounds (None: the map has none, or
+            it was not checked).
         region_map: The map itself (for drawing; not in the JSON), None if it does not belong.
     """
 
@@ -185,6 +252,7 @@ class RangeCheck:
     certified: BoundCheck | None
     sampled: BoundCheck | None
     endpoint: BoundCheck | None
+    execution: ExecutionCheck | None = None
     region_map: RegionMap | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -195,7 +263,7 @@ class RangeCheck:
     @property
     def violations(self) -> tuple[int, ...]:
         """Every case index that contradicts the map (sorted, once each)."""
-        checks = (self.certified, self.sampled, self.endpoint)
+        checks = (self.certified, self.sampled, self.endpoint, self.execution)
         return tuple(sorted({i for c in checks if c is not None for i in c.violations}))
 
     @property
@@ -228,6 +296,7 @@ class RangeCheck:
                 "certified_clearance": None if self.certified is None else self.certified.to_json(),
                 "sampled_clearance": None if self.sampled is None else self.sampled.to_json(),
                 "endpoint_error": None if self.endpoint is None else self.endpoint.to_json(),
+                "execution": None if self.execution is None else self.execution.to_json(),
                 "violations": list(self.violations),
             },
         }
@@ -262,6 +331,7 @@ def check_range(
     settings: MeasureSettings,
     *,
     path: str | None = None,
+    dynamics=None,
 ) -> RangeCheck:
     """Report ``region_map`` and cross-check every in-range case of a sweep against it
     (vectorised through :meth:`RegionMap.cells_at`; inequalities in the module docstring).
@@ -273,6 +343,8 @@ def check_range(
         settings: How the cases were measured (the certificate's tolerance; in decide mode only
             the tight bounds are compared).
         path: The map's file, for the report.
+        dynamics: The sweep's arm's :class:`pipeline.model.dynamics.PlanarDynamics` (the torque
+            bounds are compared only if it is the map's).
     """
     report = MapReport.of(region_map, coefficients, path)
     if not report.belongs:
@@ -296,5 +368,6 @@ def check_range(
         ),
         sampled=BoundCheck.of(col["sampled"][measured] - bound_c[measured], col["index"][measured], SAMPLED_SLACK_M),
         endpoint=BoundCheck.of(bound_e[measured] - col["endpoint"][measured], col["index"][measured], ENDPOINT_SLACK_M),
+        execution=_execution_check(region_map, cases, cells["leaf"], measured, dynamics),
         region_map=region_map,
     )

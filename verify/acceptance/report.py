@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from .range_check import BoundCheck, RangeCheck
+from .range_check import BoundCheck, ExecutionCheck, RangeCheck
 from .results import CaseResult
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -171,7 +171,19 @@ def _map_rows(check: RangeCheck) -> list[tuple[str, str]]:
         ("  sampled", _bound_text(check.sampled, "sampled (Coal) >= map bound")),
         ("  endpoints", _bound_text(check.endpoint, "endpoint error <= map bound")),
     ]
+    if check.execution is not None:
+        rows.append(("  execution", _execution_text(check.execution)))
     return rows
+
+
+def _execution_text(check: ExecutionCheck) -> str:
+    units = {"angle": "rad", "speed": "rad/s", "acceleration": "rad/s^2", "torque": "N m"}
+    worst = ", ".join(
+        f"{name} {value:.4g} {units[name]}" if value is not None else f"{name} not compared"
+        for name, value in check.worst_slack.items()
+    )
+    verdict = "ok" if not check.violations else f"{len(check.violations)} VIOLATION(S)"
+    return f"{verdict}: joints of {check.checked} cases within the map's bounds (paper timing); least room: {worst}"
 
 
 def _map_violation_lines(run: SweepRun, list_failures: int | None) -> list[str]:

@@ -35,6 +35,7 @@ from pipeline.model.obstacle import Obstacle
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
 from pipeline.online.arm_check import arm_for
+from pipeline.online.execution import dynamics_of
 from pipeline.validation import check_non_negative, check_positive_int
 
 from .cases import SweepRange, case_study_sizes, sample_cases
@@ -340,7 +341,9 @@ def run_sweep(
         range_check=(
             None
             if region_map is None
-            else check_range(region_map, coefficients, results, settings, path=region_map_path)
+            else check_range(
+                region_map, coefficients, results, settings, path=region_map_path, dynamics=dynamics_of(arm)
+            )
         ),
     )
 

@@ -23,9 +23,11 @@ from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.io.jsonio import read_json
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
+from pipeline.motion.rest_to_rest import REST_TO_REST
 from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory
 from pipeline.offline.experiment import SolverConfig, solve_experiment
 from pipeline.online.batch import GeneratedBatch, generate_batch
+from pipeline.online.batch_execution import ExecutionBatch, execution_batch
 from pipeline.online.generator import RANGE_SOURCE, generate, generate_parameters
 from pipeline.online.repair import generate_certified
 from verify.acceptance.metrics import MeasureSettings
@@ -99,6 +101,58 @@ def bench_range_batched(
         elapsed, batch = _timed(lambda: generate_batch(coefficients, lengths, widths, region_map=region_map))
         times.append(elapsed / len(cases))
     return times, batch
+
+
+def bench_rest_to_rest(
+    coefficients: Any, cases: np.ndarray, arm: PlanarArm, region_map: RegionMap, repeats: int
+) -> tuple[list[float], list[Any]]:
+    """(r*): time ``generate_certified(..., timing=REST_TO_REST, region_map=m)`` per query: the
+    regression's answer certified in full (clearance, endpoints, and the shortest rest-to-rest
+    timing's angles, speeds, accelerations and torques), from the map's leaf where it decides,
+    per query elsewhere. Returns (times [s], the last pass's answers, None where it refused)."""
+
+    def one(length: float, width: float) -> Any:
+        try:
+            return generate_certified(
+                coefficients, length, width, arm, region_map=region_map, timing=REST_TO_REST, out_of_range="ignore"
+            )
+        except (NoCertifiedTrajectoryError, ExecutionRefusedError):
+            return None
+
+    for length, width in cases[: min(len(cases), WARMUP_CALLS)]:
+        one(float(length), float(width))
+    times: list[float] = []
+    answers: list[Any] = []
+    for _ in range(repeats):
+        answers = []
+        for length, width in cases:
+            started = time.perf_counter()
+            answer = one(float(length), float(width))
+            times.append(time.perf_counter() - started)
+            answers.append(answer)
+    return times, answers
+
+
+def bench_rest_to_rest_batched(
+    coefficients: Any, cases: np.ndarray, region_map: RegionMap, repeats: int
+) -> tuple[list[float], GeneratedBatch, ExecutionBatch]:
+    """(r*'): time ``generate_batch`` and ``execution_batch(..., REST_TO_REST)`` over all cases
+    at once (the map's bounds, no per-query certificate); returns (time per obstacle [s] of each
+    pass, the last pass's batch and its execution batch)."""
+    lengths, widths = np.ascontiguousarray(cases[:, 0]), np.ascontiguousarray(cases[:, 1])
+
+    def run() -> tuple[GeneratedBatch, ExecutionBatch]:
+        batch = generate_batch(coefficients, lengths, widths, region_map=region_map)
+        return batch, execution_batch(coefficients, batch, REST_TO_REST, region_map=region_map)
+
+    for _ in range(max(2, WARMUP_CALLS // 4)):
+        run()
+    times = []
+    batch, result = run()
+    for _ in range(repeats):
+        elapsed, (batch, result) = _timed(run)
+        times.append(elapsed / len(cases))
+    return times, batch, result
 
 
 @dataclass(frozen=True)

@@ -18,11 +18,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pipeline.certify.map_for_coefficients import default_config
+from pipeline.certify.map_for_coefficients import default_config, with_execution_bounds
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap, load_region_map
 from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.io.progress import ProgressCallback
+from pipeline.model.arm import PlanarArm
+from pipeline.model.dynamics import identify_dynamics
+from pipeline.model.limits import ArmLimits
 from pipeline.offline.coefficients import Coefficients
 from pipeline.online.loading import map_path_beside
 
@@ -97,12 +100,14 @@ def bench_region_map(
     config: RangeCertificateConfig | None = None,
     log: Callable[[str], None] = lambda _: None,
     progress: ProgressCallback | None = None,
+    arm: PlanarArm | None = None,
 ) -> BenchRegionMap:
     """The region map of ``coefficients`` for (a*): ``path`` if given, else the one attached to
     them (``coefficients.region_map``: :func:`pipeline.load_coefficients` attaches the one beside
     their file), else certified here with ``config`` (default: the build's, :func:`default_config`),
     its stages reported to ``progress``
-    (:func:`pipeline.certify.range_certificate.certify_range`).
+    (:func:`pipeline.certify.range_certificate.certify_range`), with the execution bounds of ``arm``
+    (its URDF limits and the acceleration limits recorded with the coefficients) if given.
 
     Raises:
         DataFileError: ``path`` is missing or malformed, or certifies other coefficients.
@@ -124,4 +129,7 @@ def bench_region_map(
     started = time.perf_counter()
     config = config if config is not None else default_config(coefficients)
     region_map = certify_range(coefficients, config, progress)
+    if arm is not None:
+        limits = ArmLimits.recorded(arm, coefficients.provenance)
+        region_map = with_execution_bounds(region_map, coefficients, identify_dynamics(arm), limits)
     return BenchRegionMap(region_map, "certified", None, time.perf_counter() - started, reason)

@@ -57,6 +57,7 @@ from pipeline.offline.experiment import SolverConfig
 from pipeline.offline.fitness import FitnessConfig
 from pipeline.offline.pso import PsoConfig
 from pipeline.online.loading import BESIDE
+from pipeline.online.repair import endpoint_tolerance_of
 from verify.acceptance.cases import SweepRange, sample_cases
 from verify.acceptance.metrics import check_arm_matches
 from verify.acceptance.run import arm_for_sweep
@@ -70,6 +71,8 @@ from .methods import (
     bench_ompl,
     bench_pso,
     bench_range_batched,
+    bench_rest_to_rest,
+    bench_rest_to_rest_batched,
     bench_sweep,
     certificate_counts,
     range_counts,
@@ -267,6 +270,56 @@ def _range_methods(ctx: _Context, bench_map: BenchRegionMap, answers_a: list[Any
     return [per_query, batched]
 
 
+def _rest_to_rest_methods(ctx: _Context, bench_map: BenchRegionMap) -> list[MethodResult]:
+    """(r*) per query and (r*') batched: certified to execute with the rest-to-rest timing, from the map."""
+    region_map, settings, cases = bench_map.region_map, ctx.settings, ctx.cases
+    if region_map.execution is None:
+        return []
+    ctx.log("timing (r*) certified rest-to-rest answers from the map, one query at a time ...")
+    times, answers = bench_rest_to_rest(ctx.coefficients, cases, ctx.arm, region_map, settings.slow_repeats)
+    answered = [a for a in answers if a is not None]
+    from_map = sum(a.execution_source == "range" for a in answered)
+    keeps = sum(a.certified_clearance_m >= ctx.margin_m for a in answered)
+    per_query = MethodResult(
+        key="r_range",
+        label="(r*) certified rest-to-rest, from the map",
+        obstacles=len(cases),
+        times_s=tuple(times),
+        queries=len(answers),
+        answered=len(answered),
+        certified=sum(a.certified_clearance_m > 0.0 for a in answered),
+        keeps_margin=keeps,
+        note="generate_certified(coefficients, L, W, timing=REST_TO_REST, region_map=m): clearance, endpoints, "
+        f"angles, |dq|, |ddq|, |tau| over [0, T']; limit bounds from the map's leaf for {from_map} of "
+        f"{len(answered)} answers (per query for the rest); passes: {settings.slow_repeats}",
+        extra={"execution_from_map": from_map},
+    )
+    ctx.log("timing (r*') certified rest-to-rest from the map, batched ...")
+    batch_cases = _batch_cases(cases, settings.batch_size)
+    times_batch, batch, result = bench_rest_to_rest_batched(ctx.coefficients, batch_cases, region_map, settings.repeats)
+    n = len(cases)
+    within = result.within_limits[:n]
+    clearance = batch.certified_clearance_m[:n]
+    tolerance = endpoint_tolerance_of(ctx.coefficients)
+    full = within & (clearance >= ctx.margin_m) & (batch.endpoint_error_bound_m[:n] <= tolerance)
+    batched = MethodResult(
+        key="r_range_batch",
+        label=f"(r*') certified rest-to-rest, batched ({len(batch_cases)} per call)",
+        obstacles=len(cases),
+        times_s=tuple(times_batch),
+        queries=n,
+        answered=int(np.sum(full)),
+        certified=int(np.sum(full)),
+        keeps_margin=int(np.sum(full)),
+        note=f"generate_batch + execution_batch(coefficients, batch, REST_TO_REST) / {len(batch_cases)}: T', the "
+        f"rest-to-rest timing and its bounds from the map's leaf; {int(np.sum(within))} of {n} obstacles within "
+        f"the arm's limits, {int(np.sum(full))} also with the margin and the endpoint tolerance from the map "
+        "(answered: these, certified in full without a per-query certificate)",
+        extra={"within_limits": int(np.sum(within)), "certified_in_full": int(np.sum(full))},
+    )
+    return [per_query, batched]
+
+
 def _certified_method(ctx: _Context) -> MethodResult:
     """(b): the generator with certification (certify-or-repair)."""
     ctx.log("timing (b) the generator with certification (certify-or-repair) ...")
@@ -393,9 +446,10 @@ def run_bench(
     # Build timing first (a missing or malformed file is reported before minutes of work).
     timing = read_build_timing(settings.build_timing) if settings.build_timing is not None else None
     config, pso_source = solver_config(coefficients, settings)
-    bench_map = bench_region_map(coefficients, settings.region_map, log=log, progress=progress)
+    bench_map = bench_region_map(coefficients, settings.region_map, log=log, progress=progress, arm=arm)
     methods, sweep_info, answers_a = _sweep_and_generator(ctx)
     methods.extend(_range_methods(ctx, bench_map, answers_a))
+    methods.extend(_rest_to_rest_methods(ctx, bench_map))
     methods.append(_certified_method(ctx))
     skipped: dict[str, str] = {}
     if settings.pso_cases > 0:
