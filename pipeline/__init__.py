@@ -54,6 +54,8 @@ _LAZY = {
     "PAPER_TIMING": "pipeline.motion.timing",
     "RestToRestTiming": "pipeline.motion.timing",
     "REST_TO_REST": "pipeline.motion.rest_to_rest",
+    "ExecutionBatch": "pipeline.online.batch_execution",
+    "execution_batch": "pipeline.online.batch_execution",
 }
 
 __all__ = [
@@ -67,6 +69,7 @@ __all__ = [
     "CertifiedBatch",
     "CertifiedTrajectory",
     "DataFileError",
+    "ExecutionBatch",
     "ExecutionRefusedError",
     "GeneratedBatch",
     "GeneratedTrajectory",
@@ -85,6 +88,7 @@ __all__ = [
     "UnreachableObstacleError",
     "WorkerPoolError",
     "certify_batch",
+    "execution_batch",
     "generate",
     "generate_batch",
     "generate_certified",
