@@ -172,6 +172,12 @@ class BuildConfig:
             raise InvalidParameterError(OPTIONS["family"], self.family, "a TrajectoryFamily or its name")
         if not isinstance(self.scene, Scene):
             raise InvalidParameterError(OPTIONS["scene"], self.scene, "a pipeline.model.scene.Scene")
+        if self.scene.centre_x_m != 0.0:
+            raise InvalidParameterError(
+                "centre_x_m",
+                self.scene.centre_x_m,
+                "0: the build's range certificate and the online generator place the obstacle at x = 0",
+            )
         if self.acceleration_limits_rad_s2 is not None:
             try:
                 limits = tuple(float(v) for v in self.acceleration_limits_rad_s2)

@@ -177,6 +177,10 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
         scene = Scene.from_dict(scene_doc)
     except (PipelineError, TypeError) as exc:
         raise DataFileError(source, f"scene: {exc}") from None
+    if scene.centre_x_m != 0.0:
+        raise DataFileError(
+            source, f"scene: centre_x_m = {scene.centre_x_m!r}, expected 0 (the generator places the obstacle at x = 0)"
+        )
     lengths = _pair(scene_doc, "link_lengths_m", source)
     radii = _pair(scene_doc, "link_radii_m", source)
     if min(lengths) <= 0 or min(radii) < 0:
