@@ -3,10 +3,11 @@ what every trajectory of the leaf does to the arm's limits, proven for every (L,
 and all of [0, T] (computed by :mod:`pipeline.certify.execution_range`, where the derivation is).
 
 Per leaf the map stores the path duration range, the angle ranges, the paper timing's peak
-|dq| and |ddq| (arm-independent), and the rest-to-rest timing's speed scale c and ramp r for
-the arm's limits; the torque bounds and the rest-to-rest bounds follow in closed form from them
-and the arm's dynamics (:func:`pipeline.motion.rest_to_rest.rest_to_rest_bounds`), so they are
-computed when the map is read. Every stored value is rounded outward to
+|dq| and |ddq| (arm-independent), the torque terms G (the paper timing's torque bound) and K of
+the arm's dynamics, and the rest-to-rest timing's speed scale c and ramp r for the arm's
+limits; the rest-to-rest bounds follow in closed form from them
+(:func:`pipeline.motion.rest_to_rest.rest_to_rest_bounds`), so they are computed when the map
+is read. Every stored value is rounded outward to
 :data:`SIGNIFICANT_DIGITS` decimal digits (a lower bound down, an upper bound up, c down and r
 up, which only lowers the timing's bounds), and a leaf whose rounded ramps would not fit
 (r > T_lo / c) has no rest-to-rest timing. NumPy only: reading a map needs neither Pinocchio
@@ -44,6 +45,10 @@ COLUMNS = (
     "peak_speed2_rad_s",
     "peak_acceleration1_rad_s2",
     "peak_acceleration2_rad_s2",
+    "paper_torque1_n_m",
+    "paper_torque2_n_m",
+    "ramp_torque1_n_m_s",
+    "ramp_torque2_n_m_s",
     "speed_scale",
     "ramp_s",
 )
@@ -131,10 +136,7 @@ class ExecutionBounds:
     @cached_property
     def paper_torque_n_m(self) -> np.ndarray:
         """(n, 2) bounds of |tau_i| with the paper timing [N m]."""
-        n = self.size
-        return rest_to_rest_bounds(
-            np.ones(n), np.full(n, np.inf), self.paper_speed_rad_s, self.paper_acceleration_rad_s2, self.dynamics
-        )[2]
+        return self._pair("paper_torque", "n_m")
 
     @cached_property
     def rest_to_rest(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -146,6 +148,7 @@ class ExecutionBounds:
             self.paper_speed_rad_s,
             self.paper_acceleration_rad_s2,
             self.dynamics,
+            torque_terms=(self.paper_torque_n_m, self._pair("ramp_torque", "n_m_s")),
         )
 
     @cached_property

@@ -18,15 +18,25 @@ exceed the true maxima by about the parameters' variation over the leaf (small: 
 the range certificate's, down to 1/1024 of the range per side); at a maximum the range of cos
 (or sin) over a phase interval is exactly 1, so the time cut costs nothing there.
 
-**Limit bounds (for one arm).** With the arm's closed-form dynamics
-(:class:`pipeline.model.dynamics.PlanarDynamics`) and limits (:class:`pipeline.model.limits.ArmLimits`):
+**Torque terms (for one arm).** With the arm's closed-form dynamics
+(:class:`pipeline.model.dynamics.PlanarDynamics`), a timing sigma gives dq = theta' sigma' and
+ddq = theta'' sigma'^2 + theta' sigma'', and since the Coriolis terms are quadratic in dq,
 
-* the paper timing's torque bound ``sum_j Mmax_ij Acc_j + Hmax Q_i`` (Q_1 = 2 V_1 V_2 + V_2^2,
-  Q_2 = V_1^2; :func:`pipeline.motion.rest_to_rest.rest_to_rest_bounds` with c = 1 and no ramp);
-* the rest-to-rest timing (c, r) of :func:`pipeline.motion.rest_to_rest.rest_to_rest_scales`
-  computed from (T_lo, V, Acc): its closed-form bounds hold for every path of the leaf, since
-  each has peaks <= (V, Acc) and duration T >= T_lo >= c r (the ramps fit). A query of the leaf
-  runs ``RestToRestTiming(T, c, r)``, of duration T' = T / c + r <= T_hi / c + r.
+    tau(tau') = sigma'^2 [M theta'' + h Q(theta')] + sigma'' [M theta'],
+
+both brackets evaluated at the path time sigma(tau') (M, h at q2; Q_1 = 2 theta1' theta2' +
+theta2'^2, Q_2 = -theta1'^2). On each piece, M and h are enclosed over the piece's range of q2
+(exact ranges of cos and sin), and the brackets in interval arithmetic: their largest
+magnitudes over the leaf are G_i (the paper timing's torque bound, sigma' = 1, sigma'' = 0) and
+K_i. Keeping the brackets whole keeps the correlation between the joints' terms, which bounding
+each product separately would lose.
+
+**Limit bounds.** With the arm's limits (:class:`pipeline.model.limits.ArmLimits`), the
+rest-to-rest timing (c, r) of :func:`pipeline.motion.rest_to_rest.rest_to_rest_scales` computed
+from (T_lo, V, Acc, G, K) has |dq_i| <= c V_i, |ddq_i| <= c^2 Acc_i + 1.5 c V_i / r and
+|tau_i| <= c^2 G_i + 1.5 c K_i / r (sigma' <= c, |sigma''| <= 1.5 c / r); these hold for every
+path of the leaf, since each has smaller peaks and duration T >= T_lo >= c r (the ramps fit). A
+query of the leaf runs ``RestToRestTiming(T, c, r)``, of duration T' = T / c + r <= T_hi / c + r.
 
 **Rounding.** The stored columns are rounded outward (:mod:`pipeline.certify.execution_bounds`).
 Before that, every enclosure is widened by the execution certificate's slack
@@ -83,47 +93,66 @@ def _leaf_parameters(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray
     return out, T_box.value
 
 
-def kinematic_bounds(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray) -> dict[str, np.ndarray]:
-    """The arm-independent bounds of the module docstring over (L, W) boxes.
+def kinematic_bounds(
+    model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray, dynamics: PlanarDynamics
+) -> dict[str, np.ndarray]:
+    """The bounds of the module docstring over (L, W) boxes, before any limit.
 
     Args:
         model: The range model of the coefficients.
         centre_m, half_m: Box centres and half widths (n, 2), columns L, W [m].
+        dynamics: The arm's dynamics (for the torque terms G and K).
 
     Returns:
-        The columns ``duration_lo_s`` .. ``peak_acceleration2_rad_s2`` of :data:`COLUMNS`, each (n,)
-        (infinite where the family's parameters are unbounded over the box).
+        The columns ``duration_lo_s`` .. ``ramp_torque2_n_m_s`` of
+        :data:`pipeline.certify.execution_bounds.COLUMNS` but c and r, each (n,) (infinite where
+        the family's parameters are unbounded over the box).
     """
     centre_m, half_m = np.asarray(centre_m, dtype=float), np.asarray(half_m, dtype=float)
     parts = [
-        _kinematic_chunk(model, centre_m[k : k + _CHUNK], half_m[k : k + _CHUNK])
+        _kinematic_chunk(model, centre_m[k : k + _CHUNK], half_m[k : k + _CHUNK], dynamics)
         for k in range(0, centre_m.shape[0], _CHUNK)
     ]
     return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
 
 
-def _kinematic_chunk(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray) -> dict[str, np.ndarray]:
+def _kinematic_chunk(
+    model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray, dynamics: PlanarDynamics
+) -> dict[str, np.ndarray]:
     params, T = _leaf_parameters(model, centre_m, half_m)
     edges = np.linspace(0.0, 1.0, TIME_PIECES + 1)
     t = Interval(edges[None, :-1] * T.lo[:, None], edges[None, 1:] * T.hi[:, None])  # (n, S), t >= 0
     out = {"duration_lo_s": T.lo.copy(), "duration_hi_s": T.hi.copy()}
-    finite_t = np.isfinite(T.lo) & np.isfinite(T.hi)
-    for joint in (0, 1):
-        A, w, phi, gamma = (_column(p) for p in params[4 * joint : 4 * joint + 4])
-        finite = finite_t & np.all(
-            [np.isfinite(p.lo) & np.isfinite(p.hi) for p in params[4 * joint : 4 * joint + 4]], 0
-        )
-        with np.errstate(invalid="ignore", over="ignore"):
+    finite = np.isfinite(T.lo) & np.isfinite(T.hi)
+    finite &= np.all([np.isfinite(p.lo) & np.isfinite(p.hi) for p in params], 0)
+    angle, d1, d2 = [], [], []
+    with np.errstate(invalid="ignore", over="ignore"):
+        for joint in (0, 1):
+            A, w, phi, gamma = (_column(p) for p in params[4 * joint : 4 * joint + 4])
             phase = w * t + phi
-            sin, cos = phase.sin(), phase.cos()
-            angle = _widen(A * sin + gamma)
-            speed = _widen(A * w * cos)
-            acceleration = _widen(A * w.square() * sin)
+            sin = phase.sin()
+            angle.append(A * sin + gamma)
+            d1.append(A * w * phase.cos())
+            d2.append(-(A * w.square() * sin))
+        # M(q2) and h(q2) over each piece's range of q2, then the torque terms (module docstring).
+        cos2, sin2 = angle[1].cos(), angle[1].sin()
+        m0, mc, ms = (np.asarray(m) for m in (dynamics.m0, dynamics.mc, dynamics.ms))
+        M = [[cos2 * mc[i, j] + sin2 * ms[i, j] + m0[i, j] for j in (0, 1)] for i in (0, 1)]
+        h = (sin2 * (-mc[0, 0]) + cos2 * ms[0, 0]) * 0.5
+        G = (
+            M[0][0] * d2[0] + M[0][1] * d2[1] + h * (d1[0] * d1[1] * 2.0 + d1[1].square()),
+            M[1][0] * d2[0] + M[1][1] * d2[1] - h * d1[0].square(),
+        )
+        K = (M[0][0] * d1[0] + M[0][1] * d1[1], M[1][0] * d1[0] + M[1][1] * d1[1])
+    for joint in (0, 1):
         suffix = str(joint + 1)
-        out["angle_lo" + suffix + "_rad"] = np.where(finite, angle.lo.min(1), -np.inf)
-        out["angle_hi" + suffix + "_rad"] = np.where(finite, angle.hi.max(1), np.inf)
-        out["peak_speed" + suffix + "_rad_s"] = np.where(finite, speed.mag().max(1), np.inf)
-        out["peak_acceleration" + suffix + "_rad_s2"] = np.where(finite, acceleration.mag().max(1), np.inf)
+        widened = {name: _widen(x[joint]) for name, x in (("angle", angle), ("d1", d1), ("d2", d2), ("G", G), ("K", K))}
+        out["angle_lo" + suffix + "_rad"] = np.where(finite, widened["angle"].lo.min(1), -np.inf)
+        out["angle_hi" + suffix + "_rad"] = np.where(finite, widened["angle"].hi.max(1), np.inf)
+        out["peak_speed" + suffix + "_rad_s"] = np.where(finite, widened["d1"].mag().max(1), np.inf)
+        out["peak_acceleration" + suffix + "_rad_s2"] = np.where(finite, widened["d2"].mag().max(1), np.inf)
+        out["paper_torque" + suffix + "_n_m"] = np.where(finite, widened["G"].mag().max(1), np.inf)
+        out["ramp_torque" + suffix + "_n_m_s"] = np.where(finite, widened["K"].mag().max(1), np.inf)
     return out
 
 
@@ -145,15 +174,21 @@ def execution_bounds(
         dynamics: The arm's dynamics.
         limits: The arm's limits.
     """
-    columns = kinematic_bounds(model, centre_m, half_m)
-    V = np.stack([columns["peak_speed1_rad_s"], columns["peak_speed2_rad_s"]], -1)
-    acc = np.stack([columns["peak_acceleration1_rad_s2"], columns["peak_acceleration2_rad_s2"]], -1)
-    finite = np.all(np.isfinite(V) & np.isfinite(acc), 1) & np.isfinite(columns["duration_lo_s"])
+    columns = kinematic_bounds(model, centre_m, half_m, dynamics)
+
+    def pair(stem: str) -> np.ndarray:
+        return np.stack([columns[stem.format(1)], columns[stem.format(2)]], -1)
+
+    V, acc = pair("peak_speed{}_rad_s"), pair("peak_acceleration{}_rad_s2")
+    G, K = pair("paper_torque{}_n_m"), pair("ramp_torque{}_n_m_s")
+    finite = np.all(np.isfinite(np.concatenate([V, acc, G, K], 1)), 1) & np.isfinite(columns["duration_lo_s"])
     c, r = np.full(V.shape[0], np.nan), np.full(V.shape[0], np.nan)
     rows = np.flatnonzero(finite)
     for k in range(0, rows.size, _CHUNK):
         part = rows[k : k + _CHUNK]
-        c[part], r[part] = rest_to_rest_scales(columns["duration_lo_s"][part], V[part], acc[part], dynamics, limits)
+        c[part], r[part] = rest_to_rest_scales(
+            columns["duration_lo_s"][part], V[part], acc[part], dynamics, limits, torque_terms=(G[part], K[part])
+        )
     columns["speed_scale"], columns["ramp_s"] = c, r
     columns = {key: outward(values, key in ROUNDED_DOWN) for key, values in columns.items()}
     # Rounding c down and r up only lowers the bounds; the ramps must still fit (r <= T_lo / c).

@@ -66,6 +66,7 @@ def rest_to_rest_scales(
     peak_acceleration_rad_s2: np.ndarray,
     dynamics: PlanarDynamics,
     limits: ArmLimits,
+    torque_terms: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The speed scale c and ramp r [s] of the shortest rest-to-rest timing that the closed-form
     bounds (module docstring) keep within ``limits``, for n paths at once.
@@ -80,6 +81,9 @@ def rest_to_rest_scales(
             |theta_i''| over the path(s), widened for rounding, (n, 2).
         dynamics: The arm's inverse dynamics.
         limits: The limits to keep.
+        torque_terms: (G, K), each (n, 2): bounds with |tau_i| <= c^2 G_i + 1.5 c K_i / r
+            (:mod:`pipeline.certify.execution_range`); None: from the peaks and the suprema of
+            |M| and |h| (module docstring).
 
     Returns:
         (c, r), each (n,); NaN where no timing keeps the limits (a limit that binds at rest).
@@ -95,9 +99,11 @@ def rest_to_rest_scales(
     mass = dynamics.mass_matrix_sup()
     h = dynamics.coriolis_sup()
     # Constraints limit >= c^2 G + 1.5 c K / r: two for acceleration, two for torque.
-    quadratic = np.stack([2 * V[:, 0] * V[:, 1] + V[:, 1] ** 2, V[:, 0] ** 2], -1)
-    G = np.concatenate([acc, acc @ mass.T + h * quadratic], 1)  # (n, 4)
-    K = np.concatenate([V, V @ mass.T], 1)
+    if torque_terms is None:
+        quadratic = np.stack([2 * V[:, 0] * V[:, 1] + V[:, 1] ** 2, V[:, 0] ** 2], -1)
+        torque_terms = (acc @ mass.T + h * quadratic, V @ mass.T)
+    G = np.concatenate([acc, np.asarray(torque_terms[0], dtype=float).reshape(-1, 2)], 1)  # (n, 4)
+    K = np.concatenate([V, np.asarray(torque_terms[1], dtype=float).reshape(-1, 2)], 1)
     bound = share * np.concatenate([np.asarray(limits.acceleration_rad_s2), np.asarray(limits.effort_n_m)])
     unlimited = np.isinf(bound)
     room = bound[None, None, :] - (c * c)[:, :, None] * G[:, None, :]  # (n, S, 4)
@@ -119,18 +125,25 @@ def rest_to_rest_bounds(
     peak_velocity_rad_s: np.ndarray,
     peak_acceleration_rad_s2: np.ndarray,
     dynamics: PlanarDynamics,
+    torque_terms: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The closed-form bounds (module docstring) of |dq|, |ddq| [rad/s, rad/s^2] and |tau| [N m]
     of a rest-to-rest timing (c, r) of paths with the given peaks; each (n, 2). ``ramp_s`` = inf
-    with c = 1 gives the paper timing's bounds."""
+    with c = 1 gives the paper timing's bounds. ``torque_terms`` as :func:`rest_to_rest_scales`."""
     c = np.asarray(speed_scale, dtype=float).reshape(-1, 1)
     r = np.asarray(ramp_s, dtype=float).reshape(-1, 1)
     V = np.asarray(peak_velocity_rad_s, dtype=float).reshape(-1, 2)
     acc = np.asarray(peak_acceleration_rad_s2, dtype=float).reshape(-1, 2)
     speed = c * V
     acceleration = c * c * acc + 1.5 * c * V / r
-    quadratic = np.stack([2 * V[:, 0] * V[:, 1] + V[:, 1] ** 2, V[:, 0] ** 2], -1)
-    torque = acceleration @ dynamics.mass_matrix_sup().T + dynamics.coriolis_sup() * c * c * quadratic
+    if torque_terms is None:
+        quadratic = np.stack([2 * V[:, 0] * V[:, 1] + V[:, 1] ** 2, V[:, 0] ** 2], -1)
+        torque = acceleration @ dynamics.mass_matrix_sup().T + dynamics.coriolis_sup() * c * c * quadratic
+    else:
+        G, K = (np.asarray(x, dtype=float).reshape(-1, 2) for x in torque_terms)
+        with np.errstate(invalid="ignore"):  # 0 * inf (no ramp, paper timing) is 0
+            ramp_term = np.where(K == 0.0, 0.0, 1.5 * c * K / r)
+        torque = c * c * G + ramp_term
     return _widened(speed), _widened(acceleration), _widened(torque)
 
 
