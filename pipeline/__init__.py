@@ -30,6 +30,7 @@ from pipeline.exceptions import (
     RegionMapLimitsError,
     RegionMapMismatchError,
     RegionMapMismatchWarning,
+    SchedulerUnreachableError,
     UnreachableObstacleError,
     WorkerPoolError,
 )
@@ -85,6 +86,7 @@ __all__ = [
     "RegionMapMismatchWarning",
     "RepairConfig",
     "RestToRestTiming",
+    "SchedulerUnreachableError",
     "UnreachableObstacleError",
     "WorkerPoolError",
     "certify_batch",

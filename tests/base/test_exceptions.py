@@ -28,6 +28,7 @@ EXAMPLES = [
     ex.BuildNotConvergedError(["test 3: endpoint error 6.1 mm > 5 mm"]),
     ex.InfeasibleSceneError(0.3, 0.12, "P5", -0.001, 4, 441),
     ex.RegionMapMismatchError("a" * 64, "b" * 64),
+    ex.RegionMapLimitsError("velocity_rad_s", [3.0, 3.0], [0.3, 0.3]),
 ]
 
 
