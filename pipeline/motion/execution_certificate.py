@@ -28,11 +28,13 @@ intervals, so intervals are bisected where the question is open, and only there:
   tolerance; the bounds end within the tolerance of the true maxima;
 * **decide** (limits given): where a bound exceeds its limit while no sample does (a sample
   beyond it proves the violation) and the tolerance allows, starting from the whole of [0, T']
-  as one interval. For the paper timing a coarser question is asked first, in closed form: the
-  exact maxima of |theta_i'| and |theta_i''| and the exact angle ranges of the sinusoids over
-  [0, T] (:meth:`pipeline.motion.trajectory.JointTrajectory.peak_velocity_rad_s` and the like), and
-  the torque bound ``sum_j Mmax_ij max|ddq_j| + Hmax Q_i`` with the suprema over q2 of |M_ij| and
-  |h| (Q_1 = 2 V_1 V_2 + V_2^2, Q_2 = V_1^2); if these keep every limit, nothing else runs.
+  as one interval. A coarser question is asked first, in closed form: the exact maxima V_i of
+  |theta_i'| and A_i of |theta_i''| and the exact angle ranges of the sinusoids over [0, T]
+  (:meth:`pipeline.motion.trajectory.JointTrajectory.peak_velocity_rad_s` and the like) give, for
+  the paper timing, |dq_i| <= V_i and |ddq_i| <= A_i, and for a rest-to-rest timing (sigma' <= c,
+  |sigma''| <= 1.5 c / r) |dq_i| <= c V_i and |ddq_i| <= c^2 A_i + 1.5 c V_i / r; the torque
+  bound is ``sum_j Mmax_ij max|ddq_j| + Hmax c^2 Q_i`` with the suprema over q2 of |M_ij| and
+  |h| (Q_1 = 2 V_1 V_2 + V_2^2, Q_2 = V_1^2). If these keep every limit, nothing else runs.
 
 The bound is the largest enclosure over the final partition (rigorous), the sampled maximum a
 value the quantity takes (so the true maximum lies between them).
@@ -55,7 +57,7 @@ import numpy as np
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.timed_trajectory import TimedTrajectory
-from pipeline.motion.timing import PaperTiming
+from pipeline.motion.timing import PaperTiming, RestToRestTiming
 
 __all__ = [
     "FLOAT_SLACK_ABSOLUTE",
@@ -223,7 +225,7 @@ class ExecutionCertificate:
             |dq_i| [rad/s], |ddq_i| [rad/s^2], |tau_i| [N m].
         sampled: The largest values sampled (values the quantities take), per quantity as the bounds:
             {"speed_rad_s": (2,), "acceleration_rad_s2": (2,), "torque_n_m": (2,), "angle_range_rad": ...}.
-        intervals: Time intervals of the final partition (0: decided in closed form, paper timing).
+        intervals: Time intervals of the final partition (0: decided in closed form).
         decided_against: The limits the bounds were decided against (None: tight bounds).
         source: "query" (this certificate, over this trajectory) or "range" (the bounds of the
             region map's leaf holding the obstacle, proven for every obstacle of the leaf:
@@ -263,11 +265,19 @@ class ExecutionCertificate:
 
 
 def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLimits) -> ExecutionCertificate | None:
-    """The paper timing's bounds in closed form (module docstring), if they keep every limit; else None."""
+    """The bounds in closed form (module docstring), if they keep every limit; else None. For a
+    rest-to-rest timing (speed scale c, ramp r: sigma' <= c, |sigma''| <= 1.5 c / r) the speeds
+    scale by c, the accelerations are bounded by c^2 max|theta''| + 1.5 c max|theta'| / r, and
+    the torques follow from those as for the paper timing (c = 1, no ramp)."""
     trajectory = timed.trajectory
-    speed, accel = trajectory.peak_velocity_rad_s(), trajectory.peak_acceleration_rad_s2()
+    V, acc = np.asarray(trajectory.peak_velocity_rad_s()), np.asarray(trajectory.peak_acceleration_rad_s2())
+    c, ramp_term = 1.0, 0.0
+    if isinstance(timed.timing, RestToRestTiming):
+        c = timed.timing.speed_scale
+        ramp_term = 1.5 * c / timed.timing.ramp_s
+    speed, accel = c * V, c * c * acc + ramp_term * V
     (lo1, hi1), (lo2, hi2) = trajectory.angle_ranges_rad()
-    quadratic = np.array([2.0 * speed[0] * speed[1] + speed[1] ** 2, speed[0] ** 2])
+    quadratic = c * c * np.array([2.0 * V[0] * V[1] + V[1] ** 2, V[0] ** 2])
     torque = dynamics.mass_matrix_sup() @ accel + dynamics.coriolis_sup() * quadratic
     bounds = np.array([hi1, hi2, -lo1, -lo2, *speed, *accel, *torque])
     bounds = bounds + FLOAT_SLACK_RELATIVE * np.abs(bounds) + FLOAT_SLACK_ABSOLUTE
@@ -309,7 +319,7 @@ def certify_execution(
             fraction of it (of 1e-3 for maxima below that).
     """
     limit = None if limits is None else _limit_vector(limits)
-    if limit is not None and isinstance(timed.timing, PaperTiming):
+    if limit is not None and isinstance(timed.timing, PaperTiming | RestToRestTiming):
         coarse = _closed_form(timed, dynamics, limits)
         if coarse is not None:
             return coarse

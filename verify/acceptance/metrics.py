@@ -15,7 +15,12 @@ For one case the verifier measures
   at matched times (t = S(x) / v) over path points uniform in x, one per ``resolution_m`` of path
   length;
 * **joint peaks**: closed-form max |dtheta/dt| [rad/s] and |d2theta/dt2| [rad/s^2], and the
-  closed-form range of each joint angle [rad], against the URDF's limits.
+  closed-form range of each joint angle [rad], against the URDF's limits, and a certified bound of
+  the torques (paper timing);
+* **rest-to-rest timing**: the shortest rest-to-rest timing within the arm's limits (the URDF's
+  and the thresholds' acceleration limits), its T', certified bounds of |dq|, |ddq|, |tau| over
+  all of [0, T'] against the values at :data:`REST_TO_REST_SAMPLES` instants, and dq = ddq = 0
+  at both ends.
 
 The acceptance thresholds are :class:`AcceptanceThresholds`; the result is a
 :class:`verify.acceptance.results.CaseResult` made of typed parts, whose verdict says which check
@@ -25,6 +30,7 @@ failed and why.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -55,12 +61,16 @@ from .results import (
     JointCheck,
     Measurement,
     Pair,
+    RestToRestCheck,
     Tracking,
     Verdict,
     failed_case,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    from pipeline.model.dynamics import PlanarDynamics
+    from pipeline.model.limits import ArmLimits
+    from pipeline.motion.timing import RestToRestTiming
     from pipeline.offline.coefficients import Coefficients
 
 
@@ -327,14 +337,23 @@ def joint_check(
     trajectory: JointTrajectory, arm: PlanarArm, acceleration_limits_rad_s2: Pair | None = None
 ) -> JointCheck:
     """Closed-form joint peaks and ranges against the URDF's limits (and the given acceleration
-    limits), and the torques: a certified bound over all of [0, T] (paper timing, decided against
+    limits), the torques: a certified bound over all of [0, T] (paper timing, decided against
     the URDF's effort limits) checked against the closed-form dynamics at :data:`TORQUE_SAMPLES`
-    instants (a bound below a sampled torque is a failure of the certificate, reported)."""
+    instants (a bound below a sampled torque is a failure of the certificate, reported), and the
+    shortest rest-to-rest timing within the same limits (:func:`rest_to_rest_check`)."""
+    from pipeline.model.limits import ArmLimits
+    from pipeline.online.execution import dynamics_of
+
     peak_velocity = _pair(trajectory.peak_velocity_rad_s())
     peak_acceleration = _pair(trajectory.peak_acceleration_rad_s2())
     ranges = joint_ranges(trajectory)
     velocity_limits = _pair(arm.velocity_limits_rad_s)
     position_limits = (_pair(arm.position_limits_rad[0]), _pair(arm.position_limits_rad[1]))
+    dynamics, limits = dynamics_of(arm), ArmLimits.from_arm(arm, acceleration_limits_rad_s2)
+    try:
+        rest_to_rest, rest_to_rest_error = rest_to_rest_check(trajectory, arm, dynamics, limits), None
+    except InvalidParameterError as exc:  # a limit binds at rest
+        rest_to_rest, rest_to_rest_error = None, f"no rest-to-rest timing keeps the limits ({exc})"
     return JointCheck(
         peak_velocity_rad_s=peak_velocity,
         peak_acceleration_rad_s2=peak_acceleration,
@@ -351,22 +370,28 @@ def joint_check(
             if acceleration_limits_rad_s2 is None
             else all(p <= a for p, a in zip(peak_acceleration, acceleration_limits_rad_s2, strict=True))
         ),
-        **_torque_check(trajectory, arm),
+        **_torque_check(trajectory, dynamics, limits),
+        rest_to_rest=rest_to_rest,
+        rest_to_rest_error=rest_to_rest_error,
     )
 
 
 #: Instants of the sweep's dense torque check.
 TORQUE_SAMPLES = 2001
+#: Instants of the rest-to-rest timing's sampled maxima: (per ramp, in the middle), each piece
+#: sampled uniformly. The peaks of |ddq| and |tau| lie in the ramps, which with the shipped arm's
+#: limits last a few hundredths of a second of a T' of seconds: 41 instants per ramp resolve them
+#: better than 2001 uniform instants over [0, T'] (about 15 per ramp) at under half the cost. The
+#: middle is the paper's sinusoids slowed by c, whose peaks 321 instants give to about 1e-5.
+REST_TO_REST_SAMPLES: tuple[int, int] = (41, 321)
 
 
-def _torque_check(trajectory: JointTrajectory, arm: PlanarArm) -> dict:
+def _torque_check(trajectory: JointTrajectory, dynamics: PlanarDynamics, limits: ArmLimits) -> dict:
     from pipeline.model.limits import ArmLimits
     from pipeline.motion.execution_certificate import certify_execution
     from pipeline.motion.timed_trajectory import TimedTrajectory
     from pipeline.motion.timing import PAPER_TIMING
-    from pipeline.online.execution import dynamics_of
 
-    dynamics, limits = dynamics_of(arm), ArmLimits.from_arm(arm)
     effort = _pair(limits.effort_n_m)
     certificate = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics, ArmLimits(effort_n_m=effort))
     t = np.linspace(0.0, trajectory.duration_s, TORQUE_SAMPLES)
@@ -378,6 +403,83 @@ def _torque_check(trajectory: JointTrajectory, arm: PlanarArm) -> dict:
         "effort_limits_n_m": effort,
         "within_effort_limits": all(b <= e for b, e in zip(bound, effort, strict=True)),
     }
+
+
+_PINOCCHIO_DATA: weakref.WeakKeyDictionary[PlanarArm, Any] = weakref.WeakKeyDictionary()
+
+
+def _pinocchio_data(arm: PlanarArm) -> Any:
+    """Pinocchio's data of ``arm``'s model, made once per arm."""
+    data = _PINOCCHIO_DATA.get(arm)
+    if data is None:
+        data = _PINOCCHIO_DATA[arm] = arm.model.createData()
+    return data
+
+
+def rest_to_rest_instants(timing: RestToRestTiming, samples: tuple[int, int] = REST_TO_REST_SAMPLES) -> np.ndarray:
+    """Sorted distinct instants [s] over [0, T']: ``samples[0]`` uniform over each ramp (the
+    ends included) and ``samples[1]`` uniform over the middle [r, T' - r]."""
+    ramp, middle = (check_positive_int("samples", n, minimum=2) for n in samples)
+    end, r = timing.duration_s, timing.ramp_s
+    pieces = (np.linspace(0.0, r, ramp), np.linspace(r, end - r, middle), np.linspace(end - r, end, ramp))
+    return np.unique(np.concatenate(pieces))
+
+
+def rest_to_rest_check(
+    trajectory: JointTrajectory,
+    arm: PlanarArm,
+    dynamics: PlanarDynamics,
+    limits: ArmLimits,
+    samples: tuple[int, int] = REST_TO_REST_SAMPLES,
+) -> RestToRestCheck:
+    """The shortest rest-to-rest timing of ``trajectory``'s path within ``limits``
+    (:func:`pipeline.motion.rest_to_rest.shortest_rest_to_rest`), certified over all of [0, T']
+    (:func:`pipeline.motion.execution_certificate.certify_execution`, decide mode against
+    ``limits``), with the largest |dq|, |ddq| and |tau| at the instants :func:`rest_to_rest_instants`
+    (torques by the closed-form dynamics; at each joint's peak sample also by Pinocchio's RNEA,
+    the larger kept) and |dq|, |ddq| at both ends.
+
+    Raises:
+        InvalidParameterError: no rest-to-rest timing keeps ``limits`` (one binds at rest).
+    """
+    import pinocchio as pin
+
+    from pipeline.motion.execution_certificate import certify_execution
+    from pipeline.motion.rest_to_rest import shortest_rest_to_rest
+    from pipeline.motion.timed_trajectory import TimedTrajectory
+
+    timing = shortest_rest_to_rest(trajectory, dynamics, limits)
+    timed = TimedTrajectory(trajectory, timing)
+    certificate = certify_execution(timed, dynamics, limits)
+    instants = rest_to_rest_instants(timing, samples)
+    q, dq, ddq = timed.states(instants)  # both ends included
+    torque = np.abs(dynamics.torque(q, dq, ddq))
+    peak_torque = torque.max(0)
+    data = _pinocchio_data(arm)
+    for joint in (0, 1):
+        k = int(np.argmax(torque[:, joint]))
+        rnea = pin.rnea(arm.model, data, q[k], dq[k], ddq[k])
+        peak_torque[joint] = max(peak_torque[joint], abs(float(rnea[joint])))
+    ends = [0, -1]
+    return RestToRestCheck(
+        path_duration_s=float(trajectory.duration_s),
+        duration_s=float(timed.duration_s),
+        speed_scale=float(timing.speed_scale),
+        ramp_s=float(timing.ramp_s),
+        speed_bound_rad_s=_pair(certificate.speed_bound_rad_s),
+        acceleration_bound_rad_s2=_pair(certificate.acceleration_bound_rad_s2),
+        torque_bound_n_m=_pair(certificate.torque_bound_n_m),
+        sampled_speed_rad_s=_pair(np.abs(dq).max(0)),
+        sampled_acceleration_rad_s2=_pair(np.abs(ddq).max(0)),
+        sampled_torque_n_m=_pair(peak_torque),
+        samples=int(instants.size),
+        end_speed_rad_s=float(np.abs(dq[ends]).max()),
+        end_acceleration_rad_s2=float(np.abs(ddq[ends]).max()),
+        velocity_limits_rad_s=_pair(limits.velocity_rad_s),
+        acceleration_limits_rad_s2=_pair(limits.acceleration_rad_s2),
+        effort_limits_n_m=_pair(limits.effort_n_m),
+        intervals=int(certificate.intervals),
+    )
 
 
 def acceptance_failures(measurement: Measurement, thresholds: AcceptanceThresholds) -> list[str]:
@@ -424,6 +526,10 @@ def acceptance_failures(measurement: Measurement, thresholds: AcceptanceThreshol
             failures.append(
                 f"joint acceleration peak {j.peak_acceleration_rad_s2} rad/s^2 exceeds {j.acceleration_limits_rad_s2}"
             )
+        if j.rest_to_rest is not None:
+            failures += j.rest_to_rest.problems()
+        elif j.rest_to_rest_error is not None:
+            failures.append(j.rest_to_rest_error)
     return failures
 
 

@@ -3,14 +3,16 @@ comparison of two coefficients sets (``python -m verify.sweep --compare A B``)."
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from .range_check import BoundCheck, ExecutionCheck, RangeCheck
-from .results import CaseResult
+from .results import JOINT_QUANTITIES, CaseResult, Pair
 
 if TYPE_CHECKING:  # pragma: no cover
     from .run import SweepRun
+    from .summary import SweepSummary
 
 
 def _mm(value: float | None, digits: int = 3) -> str:
@@ -102,6 +104,7 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
                 ),
             )
         )
+        rows += _rest_to_rest_rows(s, measured)
     rows.append(
         (
             "sampling",
@@ -125,6 +128,39 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
     if s.n_errors:
         rows.append(("errors", f"{s.n_errors} cases could not be generated"))
     return rows
+
+
+def _room_text(room: dict[str, Pair | None]) -> str:
+    """The least room of one timing: the limited quantities, per joint, in their units."""
+    parts = [
+        f"{name} ({pair[0]:.4g}, {pair[1]:.4g}) {unit}"
+        for name, unit in JOINT_QUANTITIES
+        if (pair := room[name]) is not None and not all(math.isinf(v) for v in pair)
+    ]
+    return ", ".join(parts) or "n/a"
+
+
+def _rest_to_rest_rows(s: SweepSummary, measured: int) -> list[tuple[str, str]]:
+    """The rest-to-rest timing's verdict and T' / T, and both timings' least room to the limits."""
+    room = s.least_room
+    unlimited = [
+        name
+        for name, _ in JOINT_QUANTITIES
+        if all(r[name] is None or all(math.isinf(v) for v in r[name]) for r in room.values())
+    ]
+    ratio = "n/a" if s.rest_to_rest_ratio_max is None else f"{s.rest_to_rest_ratio_max:.4f}"
+    return [
+        (
+            "rest-to-rest",
+            f"{s.n_rest_to_rest_passed} / {measured} certified within the limits over [0, T'] "
+            f"(bounds >= samples, at rest at both ends); T'/T max {ratio}",
+        ),
+        (
+            "least room",
+            f"limit - bound, paper: {_room_text(room['paper'])}; rest-to-rest: {_room_text(room['rest_to_rest'])}"
+            + (f" ({', '.join(unlimited)} unlimited)" if unlimited else ""),
+        ),
+    ]
 
 
 def _bound_text(check: BoundCheck | None, what: str) -> str:

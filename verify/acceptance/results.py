@@ -5,7 +5,8 @@ A :class:`CaseResult` is the case (index, obstacle size, extrapolated or not), i
 when the trajectory could be generated, its :class:`Measurement`: duration and parameters, the
 :class:`Clearance` (sampled, and the :class:`CertifiedClearance` when the certificate ran), the
 :class:`EndpointErrors`, the :class:`Tracking` errors and the :class:`JointCheck` against the
-URDF. Lengths in m, times in s, angles in rad.
+URDF (with the :class:`RestToRestCheck` of the rest-to-rest timing). Lengths in m, times in s,
+angles in rad.
 
 ``CaseResult.to_json`` writes the flat document the sweep's ``--json`` has always written
 (``"L"``, ``"W"``, ``"T_s"``, ``"clearance_m"``, ...); the viewer reads that form.
@@ -23,6 +24,17 @@ from pipeline.exceptions import InvalidParameterError
 from pipeline.validation import check_finite, check_non_negative, check_positive, check_positive_int
 
 Pair = tuple[float, float]
+
+#: The limited joint quantities whose room is reported: name, unit.
+JOINT_QUANTITIES: tuple[tuple[str, str], ...] = (("speed", "rad/s"), ("acceleration", "rad/s^2"), ("torque", "N m"))
+#: |dq|, |ddq| at both ends of a rest-to-rest timing must be at most this [rad/s, rad/s^2].
+AT_REST_TOLERANCE = 1e-12
+
+
+def _room(limits: Pair, bounds: Pair) -> Pair:
+    """limit - bound per joint (inf where the limit is)."""
+    a, b = (math.inf if math.isinf(lim) else lim - bound for lim, bound in zip(limits, bounds, strict=True))
+    return a, b
 
 
 @dataclass(frozen=True)
@@ -134,6 +146,9 @@ class JointCheck:
             must not lie below it.
         effort_limits_n_m: The URDF's effort limits [N m].
         within_effort_limits: Whether the torque bound respects them.
+        rest_to_rest: The shortest rest-to-rest timing within the limits, certified (None if
+            there is none: ``rest_to_rest_error`` says why).
+        rest_to_rest_error: Why there is no rest-to-rest timing.
     """
 
     peak_velocity_rad_s: Pair
@@ -150,6 +165,9 @@ class JointCheck:
     effort_limits_n_m: Pair = (math.inf, math.inf)
     within_effort_limits: bool = True
 
+    rest_to_rest: RestToRestCheck | None = None
+    rest_to_rest_error: str | None = None
+
     @property
     def within_limits(self) -> bool:
         """Speeds, angles, torques and (if limited) accelerations all within their limits."""
@@ -159,6 +177,135 @@ class JointCheck:
             and self.within_acceleration_limits is not False
             and self.within_effort_limits
         )
+
+    @property
+    def room(self) -> dict[str, Pair]:
+        """Paper timing: limit minus bound per quantity of :data:`JOINT_QUANTITIES` and joint (the
+        closed-form peaks for speed and acceleration, the certified bound for torque; inf where
+        unlimited) [rad/s, rad/s^2, N m]."""
+        acceleration = self.acceleration_limits_rad_s2 or (math.inf, math.inf)
+        return {
+            "speed": _room(self.velocity_limits_rad_s, self.peak_velocity_rad_s),
+            "acceleration": _room(acceleration, self.peak_acceleration_rad_s2),
+            "torque": _room(self.effort_limits_n_m, self.torque_bound_n_m),
+        }
+
+
+@dataclass(frozen=True)
+class RestToRestCheck:
+    """The shortest rest-to-rest timing within the arm's limits, certified over all of [0, T'].
+
+    Attributes:
+        path_duration_s: T, the paper timing's duration [s].
+        duration_s: T' = T / c + r [s].
+        speed_scale: c; ramp_s: r [s].
+        speed_bound_rad_s, acceleration_bound_rad_s2, torque_bound_n_m: Certified upper bounds of
+            |dq_i|, |ddq_i|, |tau_i| over [0, T'] (decided against the limits).
+        sampled_speed_rad_s, sampled_acceleration_rad_s2, sampled_torque_n_m: Their largest values
+            at ``samples`` uniform instants (torques by the closed-form dynamics and, at each
+            joint's peak sample, Pinocchio's RNEA; the larger).
+        samples: Number of those instants.
+        end_speed_rad_s, end_acceleration_rad_s2: Largest |dq_i|, |ddq_i| at tau = 0 and T'.
+        velocity_limits_rad_s, acceleration_limits_rad_s2, effort_limits_n_m: The limits (inf: none).
+        intervals: Time intervals of the certificate's final partition.
+    """
+
+    path_duration_s: float
+    duration_s: float
+    speed_scale: float
+    ramp_s: float
+    speed_bound_rad_s: Pair
+    acceleration_bound_rad_s2: Pair
+    torque_bound_n_m: Pair
+    sampled_speed_rad_s: Pair
+    sampled_acceleration_rad_s2: Pair
+    sampled_torque_n_m: Pair
+    samples: int
+    end_speed_rad_s: float
+    end_acceleration_rad_s2: float
+    velocity_limits_rad_s: Pair
+    acceleration_limits_rad_s2: Pair
+    effort_limits_n_m: Pair
+    intervals: int
+
+    def __post_init__(self) -> None:
+        check_positive("path_duration_s", self.path_duration_s)
+        check_positive("duration_s", self.duration_s)
+        check_positive_int("samples", self.samples, minimum=2)
+
+    @property
+    def duration_ratio(self) -> float:
+        """T' / T."""
+        return self.duration_s / self.path_duration_s
+
+    def quantities(self) -> dict[str, tuple[Pair, Pair, Pair]]:
+        """(certified bound, sampled maximum, limit) per quantity of :data:`JOINT_QUANTITIES`."""
+        return {
+            "speed": (self.speed_bound_rad_s, self.sampled_speed_rad_s, self.velocity_limits_rad_s),
+            "acceleration": (
+                self.acceleration_bound_rad_s2,
+                self.sampled_acceleration_rad_s2,
+                self.acceleration_limits_rad_s2,
+            ),
+            "torque": (self.torque_bound_n_m, self.sampled_torque_n_m, self.effort_limits_n_m),
+        }
+
+    @property
+    def room(self) -> dict[str, Pair]:
+        """Limit minus certified bound per quantity and joint (inf where unlimited)."""
+        return {name: _room(limit, bound) for name, (bound, _, limit) in self.quantities().items()}
+
+    @property
+    def at_rest(self) -> bool:
+        """dq and ddq are 0 (to :data:`AT_REST_TOLERANCE`) at both ends."""
+        return self.end_speed_rad_s <= AT_REST_TOLERANCE and self.end_acceleration_rad_s2 <= AT_REST_TOLERANCE
+
+    def problems(self) -> list[str]:
+        """What is wrong, in words (empty: certified within the limits, consistent with the
+        samples, at rest at both ends)."""
+        found = []
+        for (name, unit), (bound, sampled, limit) in zip(JOINT_QUANTITIES, self.quantities().values(), strict=True):
+            if any(b < s for b, s in zip(bound, sampled, strict=True)):
+                found.append(
+                    f"rest-to-rest certified {name} bound {_text(bound)} {unit} below a sampled {name} {_text(sampled)}"
+                )
+            if any(b > lim for b, lim in zip(bound, limit, strict=True)):
+                found.append(f"rest-to-rest {name} bound {_text(bound)} {unit} exceeds the limits {_text(limit)}")
+        if not self.at_rest:
+            found.append(
+                f"rest-to-rest timing not at rest at its ends: |dq| up to {self.end_speed_rad_s:.3g} rad/s, "
+                f"|ddq| up to {self.end_acceleration_rad_s2:.3g} rad/s^2"
+            )
+        return found
+
+    def to_json(self) -> dict[str, Any]:
+        """Plain JSON (infinite limits and room become null)."""
+        out: dict[str, Any] = {
+            "T_s": self.duration_s,
+            "T_ratio": self.duration_ratio,
+            "speed_scale": self.speed_scale,
+            "ramp_s": self.ramp_s,
+        }
+        for name in (
+            "speed_bound_rad_s",
+            "acceleration_bound_rad_s2",
+            "torque_bound_n_m",
+            "sampled_speed_rad_s",
+            "sampled_acceleration_rad_s2",
+            "sampled_torque_n_m",
+            "samples",
+            "end_speed_rad_s",
+            "end_acceleration_rad_s2",
+            "intervals",
+        ):
+            out[name] = getattr(self, name)
+        out["room"] = dict(zip(("speed_rad_s", "acceleration_rad_s2", "torque_n_m"), self.room.values(), strict=True))
+        out["problems"] = self.problems()
+        return {key: _jsonable(value) for key, value in out.items()}
+
+
+def _text(pair: Pair) -> str:
+    return "(" + ", ".join(f"{v:.4g}" for v in pair) + ")"
 
 
 @dataclass(frozen=True)
@@ -322,6 +469,9 @@ class CaseResult:
         ):
             out[name] = None if joints is None else getattr(joints, name)
         out["endpoint_error_m"] = self.endpoint_error_m
+        rest = None if joints is None else joints.rest_to_rest
+        out["rest_to_rest"] = None if rest is None else rest.to_json()
+        out["rest_to_rest_error"] = None if joints is None else joints.rest_to_rest_error
         return {key: _jsonable(value) for key, value in out.items()}
 
 
@@ -331,6 +481,8 @@ def failed_case(index: int, L_m: float, W_m: float, extrapolated: bool, error: s
 
 
 def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {key: _jsonable(v) for key, v in value.items()}
     if isinstance(value, tuple | list):
         return [_jsonable(v) for v in value]
     if isinstance(value, float | np.floating):

@@ -1,5 +1,6 @@
 """A sweep's aggregate numbers as one frozen record: counts, statistics of each per-case quantity,
-joint peaks, certificate effort, and the worst and failing cases. Every length in m."""
+joint peaks, the least room to the joint limits of the paper and the rest-to-rest timings,
+certificate effort, and the worst and failing cases. Every length in m."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from pipeline.exceptions import InvalidParameterError
 from pipeline.validation import check_non_negative, check_positive_int
 
 from .metrics import AcceptanceThresholds
-from .results import CaseResult, Pair
+from .results import JOINT_QUANTITIES, CaseResult, Pair
 
 #: How many worst cases (by clearance, by endpoint error) a summary keeps.
 DEFAULT_WORST = 5
@@ -52,6 +53,13 @@ class SweepSummary:
         certified_clearance, sampled_clearance, endpoint_error, tracking_max, tracking_rms: Statistics [m].
         peak_velocity_max_rad_s, peak_acceleration_max_rad_s2: Largest joint peaks over the cases, per joint.
         torque_bound_max_n_m: Largest certified torque bound over the cases, per joint [N m].
+        least_room: Per timing ("paper", "rest_to_rest"), per quantity of
+            :data:`verify.acceptance.results.JOINT_QUANTITIES`, the least limit minus bound over
+            the cases, per joint [rad/s, rad/s^2, N m] (inf: unlimited; None: no case).
+        n_rest_to_rest: Cases with a rest-to-rest timing within the limits.
+        n_rest_to_rest_passed: Those certified within the limits, the bounds >= their samples,
+            at rest at both ends.
+        rest_to_rest_ratio_max: Largest T' / T (None: no case).
         time_samples_range: (fewest, most) time samples of a case.
         certificate_evaluations_total: Clearance evaluations of every certificate together.
         n_certificate_not_converged: Certificates that stopped before their tolerance.
@@ -76,6 +84,10 @@ class SweepSummary:
     peak_velocity_max_rad_s: Pair | None
     peak_acceleration_max_rad_s2: Pair | None
     torque_bound_max_n_m: Pair | None
+    least_room: dict[str, dict[str, Pair | None]]
+    n_rest_to_rest: int
+    n_rest_to_rest_passed: int
+    rest_to_rest_ratio_max: float | None
     time_samples_range: tuple[int, int] | None
     certificate_evaluations_total: int
     n_certificate_not_converged: int
@@ -139,6 +151,13 @@ class SweepSummary:
             "peak_acceleration_max_rad_s2": _list(self.peak_acceleration_max_rad_s2),
             "torque_bound_max_n_m": _list(self.torque_bound_max_n_m),
             "n_within_joint_limits": self.n_within_joint_limits,
+            "least_room": {
+                timing: {f"{name}_{unit}": _list(room[name]) for name, unit in _ROOM_KEYS}
+                for timing, room in self.least_room.items()
+            },
+            "n_rest_to_rest": self.n_rest_to_rest,
+            "n_rest_to_rest_passed": self.n_rest_to_rest_passed,
+            "rest_to_rest_ratio_max": self.rest_to_rest_ratio_max,
             "time_samples_min": None if samples is None else samples[0],
             "time_samples_max": None if samples is None else samples[1],
             "certificate_evaluations_total": self.certificate_evaluations_total,
@@ -149,8 +168,13 @@ class SweepSummary:
         }
 
 
-def _list(pair: Pair | None) -> list[float] | None:
-    return None if pair is None else [float(v) for v in pair]
+#: The least-room keys of the JSON: quantity and unit.
+_ROOM_KEYS = (("speed", "rad_s"), ("acceleration", "rad_s2"), ("torque", "n_m"))
+
+
+def _list(pair: Pair | None) -> list[float | None] | None:
+    """The pair as a JSON list (non-finite values become None)."""
+    return None if pair is None else [float(v) if np.isfinite(v) else None for v in pair]
 
 
 def brief(case: CaseResult) -> dict[str, Any]:
@@ -172,6 +196,18 @@ def _values(cases: Sequence[CaseResult], value: Callable[[CaseResult], float | N
     return [v for v in (value(c) for c in cases) if v is not None]
 
 
+def _least(rooms: list[dict[str, Pair]]) -> dict[str, Pair | None]:
+    """Per quantity, the least room over ``rooms`` per joint (None without any)."""
+    out: dict[str, Pair | None] = {}
+    for name, _ in JOINT_QUANTITIES:
+        if rooms:
+            least = np.min(np.asarray([room[name] for room in rooms], dtype=float), axis=0)
+            out[name] = (float(least[0]), float(least[1]))
+        else:
+            out[name] = None
+    return out
+
+
 def _peak(pairs: list[Pair]) -> Pair | None:
     if not pairs:
         return None
@@ -187,6 +223,7 @@ def summarize(
     with_bound = [c for c in cases if c.certified_clearance_m is not None]
     certificates = [m.clearance.certified for m in measured if m.clearance.certified is not None]
     samples = [m.clearance.time_samples for m in measured]
+    rests = [m.joints.rest_to_rest for m in measured if m.joints.rest_to_rest is not None]
     return SweepSummary(
         n_cases=len(cases),
         n_passed=sum(c.passed for c in cases),
@@ -204,6 +241,13 @@ def summarize(
         peak_velocity_max_rad_s=_peak([m.joints.peak_velocity_rad_s for m in measured]),
         peak_acceleration_max_rad_s2=_peak([m.joints.peak_acceleration_rad_s2 for m in measured]),
         torque_bound_max_n_m=_peak([m.joints.torque_bound_n_m for m in measured]),
+        least_room={
+            "paper": _least([m.joints.room for m in measured]),
+            "rest_to_rest": _least([r.room for r in rests]),
+        },
+        n_rest_to_rest=len(rests),
+        n_rest_to_rest_passed=sum(not r.problems() for r in rests),
+        rest_to_rest_ratio_max=max((r.duration_ratio for r in rests), default=None),
         time_samples_range=(min(samples), max(samples)) if samples else None,
         certificate_evaluations_total=sum(c.evaluations for c in certificates),
         n_certificate_not_converged=sum(not c.converged for c in certificates),
