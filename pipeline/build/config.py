@@ -19,11 +19,13 @@ from pipeline.model.arm import DEFAULT_URDF
 from pipeline.model.scene import Scene, read_scene_file
 from pipeline.motion.families import PAPER, TrajectoryFamily, family_from_name
 from pipeline.offline.convergence import ConvergenceCriteria
+from pipeline.offline.designs import DESIGN_KINDS, Factor, FullFactorial, ScaledDesign, design_class
 from pipeline.offline.doe import Design
 from pipeline.offline.endpoint_regression import EndpointConstraint
 from pipeline.offline.experiment import SolverConfig
 from pipeline.offline.fitness import FitnessConfig
 from pipeline.offline.pso import PsoConfig
+from pipeline.offline.variables import NAMES, SIZE, Variables, check_name
 
 __all__ = ["OPTIONS", "SCENE_OPTIONS", "BuildConfig", "scene_from_options"]
 
@@ -36,6 +38,8 @@ OPTIONS: dict[str, str] = {
     "levels": "--levels",
     "length_range_m": "--L-range",
     "width_range_m": "--W-range",
+    "vary": "--vary",
+    "design_kind": "--design",
     "family": "--family",
     "jobs": "--jobs",
     "scheduler": "--scheduler",
@@ -74,7 +78,12 @@ _SUB_NAMES = {
     "W range max": "width_range_m",
     "tolerance_m": "endpoint_tolerance_m",
     "endpoint_error_max_m": "doe_endpoint_error_max_m",
+    "design": "design_kind",
 }
+#: The variables ``--vary`` takes (L and W have --L-range and --W-range).
+VARY_NAMES: tuple[str, ...] = tuple(name for name in NAMES if name not in SIZE)
+# Other spellings of the variables -> the name (the scene fields they set, other cases).
+_ALIASES = {"X": "x", "D": "d", "centre_x_m": "x", "center_x_m": "x", "top_y_m": "d"}
 
 
 def _renamed(exc: InvalidParameterError, option: str) -> InvalidParameterError:
@@ -91,8 +100,18 @@ class BuildConfig:
             written, not before.
         seed: Master random seed (integer >= 0); the same seed gives byte-identical doe.json,
             coefficients.json and region_map.json whatever ``jobs``.
-        levels: K, levels per factor of the K x K design (>= 3).
+        levels: K, levels per factor of the full-factorial design (K^k runs, >= 3); the
+            response-surface designs have 3 levels (``levels`` must be 3 with them).
         length_range_m, width_range_m: (min, max) of L and W [m].
+        vary: The scene variables varied beside L and W (:mod:`pipeline.offline.variables`: x,
+            the obstacle's centre x, or d, its far edge y), as
+            :class:`pipeline.offline.designs.Factor` objects or (name, min, max) [m]; () for the
+            paper's (L, W). With any, the coefficients vary them too, and the build writes no
+            region map (the range certificate covers (L, W) only).
+        design_kind: The design: a :class:`pipeline.offline.designs.ScaledDesign` subclass
+            (:class:`~pipeline.offline.designs.FullFactorial`, the default,
+            :class:`~pipeline.offline.designs.BoxBehnken`,
+            :class:`~pipeline.offline.designs.CentralComposite`) or its command-line name.
         family: Trajectory family (object, or its name as on the command line).
         jobs: Worker processes (>= 1), or 0 for every CPU (the default); does not change the result.
         scheduler: Address of a Dask scheduler (``host:port`` or ``tcp://host:port``) whose
@@ -122,6 +141,8 @@ class BuildConfig:
     levels: int = 3
     length_range_m: tuple[float, float] = (0.20, 0.30)
     width_range_m: tuple[float, float] = (0.08, 0.12)
+    vary: tuple[Factor | tuple[str, float, float], ...] = ()
+    design_kind: type[ScaledDesign] | str = FullFactorial
     family: TrajectoryFamily | str = PAPER
     jobs: int = 0
     scheduler: str | None = None
@@ -193,6 +214,8 @@ class BuildConfig:
         for name in ("polish", "allow_unconverged", "range_map"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidParameterError(OPTIONS[name], getattr(self, name), "True or False")
+        self._check_vary()
+        self._check_design_kind()
         # Build every sub-configuration once, so that a bad value fails here.
         self.design()
         self.solver()
@@ -209,12 +232,55 @@ class BuildConfig:
         """Where the DOE and the range map run: the Dask scheduler, or ``workers`` local processes."""
         return LocalPool(self.workers) if self.scheduler is None else DaskScheduler(self.scheduler)
 
+    def _check_vary(self) -> None:
+        """``vary`` as Factors: known names other than L and W, each once, min < max."""
+        option = OPTIONS["vary"]
+        if not isinstance(self.vary, tuple | list):
+            raise InvalidParameterError(option, self.vary, "a sequence of (name, min, max)")
+        factors = []
+        for item in self.vary:
+            if not isinstance(item, Factor):
+                if not isinstance(item, tuple | list) or len(item) != 3:
+                    raise InvalidParameterError(option, item, "NAME MIN MAX")
+                name = vary_name(item[0])
+                try:
+                    item = Factor(name, (item[1], item[2]))
+                except InvalidParameterError as exc:
+                    raise InvalidParameterError(f"{option} {name}", exc.value, exc.expected) from None
+            if item.name in SIZE:
+                flag = OPTIONS["length_range_m" if item.name == "L" else "width_range_m"]
+                raise InvalidParameterError(option, item.name, f"x or d ({item.name}'s range is {flag})")
+            if item.name in (f.name for f in factors):
+                raise InvalidParameterError(option, item.name, "each name once")
+            factors.append(item)
+        object.__setattr__(self, "vary", tuple(factors))
+
+    def _check_design_kind(self) -> None:
+        option = OPTIONS["design_kind"]
+        kind = self.design_kind
+        if isinstance(kind, str):
+            try:
+                kind = design_class(kind)
+            except InvalidParameterError as exc:
+                raise InvalidParameterError(option, kind, exc.expected) from None
+        if not (isinstance(kind, type) and kind in DESIGN_KINDS.values()):
+            raise InvalidParameterError(option, self.design_kind, f"one of {', '.join(DESIGN_KINDS)} or its class")
+        object.__setattr__(self, "design_kind", kind)
+        if kind is not FullFactorial and self.levels != 3:
+            raise InvalidParameterError(OPTIONS["levels"], self.levels, f"3 with --design {kind.kind} (3 levels)")
+
+    @property
+    def variables(self) -> Variables:
+        """The scene variables the DOE and the coefficients vary: (L, W) and ``vary``'s."""
+        return Variables((*SIZE, *(f.name for f in self.vary)))
+
     @property
     def certifiable_refit(self) -> bool:
         """True if the build runs the certifiable regression's rounds before the map (a range
-        map, rounds > 0, the endpoint constraint, the paper family)."""
+        map, (L, W) alone, rounds > 0, the endpoint constraint, the paper family)."""
         return bool(
             self.range_map
+            and self.variables.is_size_only
             and self.clearance_rounds > 0
             and self.endpoint_tolerance_m is not None
             and self.family == PAPER
@@ -229,14 +295,19 @@ class BuildConfig:
             name = _SUB_NAMES.get(exc.name, exc.name)
             raise _renamed(exc, OPTIONS.get(name, name)) from None
 
-    def design(self) -> Design:
-        """The K x K design over (L, W)."""
+    def design(self) -> ScaledDesign:
+        """The design: over (L, W) and ``vary``'s variables, of kind ``design_kind`` (the
+        default: the paper's K x K full factorial over (L, W))."""
         for name in ("length_range_m", "width_range_m"):
             value = getattr(self, name)
             if not isinstance(value, tuple | list) or len(value) != 2:
                 raise InvalidParameterError(OPTIONS[name], value, "(min, max) [m]")
             object.__setattr__(self, name, tuple(value))
-        return self._named(lambda: Design(self.levels, tuple(self.length_range_m), tuple(self.width_range_m)))
+        size = self._named(lambda: Design(self.levels, tuple(self.length_range_m), tuple(self.width_range_m)))
+        factors = (*size.full_factorial().factors, *self.vary)
+        if self.design_kind is FullFactorial:
+            return FullFactorial(factors, self.levels)
+        return self._named(lambda: self.design_kind(factors))
 
     def solver(self) -> SolverConfig:
         """PSO, polish and objective settings of every experiment."""
@@ -263,6 +334,18 @@ class BuildConfig:
     def criteria(self) -> ConvergenceCriteria:
         """The thresholds the results must meet."""
         return self._named(lambda: ConvergenceCriteria(endpoint_error_max_m=self.doe_endpoint_error_max_m))
+
+
+def vary_name(name: object) -> str:
+    """A ``--vary`` name, or a one-line error naming the valid ones and the closest."""
+    if name in SIZE:
+        flag = OPTIONS["length_range_m" if name == "L" else "width_range_m"]
+        raise InvalidParameterError(OPTIONS["vary"], name, f"one of {', '.join(VARY_NAMES)} ({name}'s range is {flag})")
+    if isinstance(name, str) and name not in VARY_NAMES and name in _ALIASES:
+        raise InvalidParameterError(
+            OPTIONS["vary"], name, f"did you mean {_ALIASES[name]!r}? one of {', '.join(VARY_NAMES)}"
+        )
+    return check_name(name, VARY_NAMES, OPTIONS["vary"])
 
 
 def scene_from_options(scene_file: str | Path | None = None, **options: float | None) -> Scene:

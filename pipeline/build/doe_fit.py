@@ -4,19 +4,26 @@ convergence check (:mod:`pipeline.offline.convergence`) and the regression, in m
 Every check that can fail on the configuration runs before the work: the configuration's
 values (:class:`pipeline.build.config.BuildConfig` validates them on construction), the URDF,
 and the path and inverse kinematics of every DOE obstacle and of the regression's endpoint grid.
+
+A DOE over more scene variables than (L, W) (``BuildConfig.vary``, e.g. the obstacle's centre
+x) solves each run in its moved scene, checks each run and a grid over the whole box (every
+extra variable at :data:`EXTRA_GRID_POINTS` levels) before the work, and regresses the full
+quadratic in the k variables (:func:`fit_variables`), with the endpoint constraint on a coarser
+grid per variable (:data:`K_ENDPOINT_GRID`: grid_points^k obstacles in all).
 """
 
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from pipeline.build.config import SCENE_OPTIONS, BuildConfig
-from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError
+from pipeline.build.config import OPTIONS, SCENE_OPTIONS, BuildConfig
+from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError, UnreachableObstacleError
 from pipeline.io.jsonio import dumps
 from pipeline.io.progress import ProgressCallback
 from pipeline.io.provenance import package_versions, sha256_file
@@ -39,14 +46,27 @@ from pipeline.offline.convergence import (
     regression_collisions,
     regression_problems,
 )
+from pipeline.offline.designs import ScaledDesign
 from pipeline.offline.doe import DoeData, doe_document, doe_from_json, load_doe, run_doe
+from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_points_with_endpoints
 from pipeline.offline.experiment import ExperimentResult, SolverConfig, score_parameters
-from pipeline.offline.fitness import fitness_problem
+from pipeline.offline.fitness import FitnessProblem, fitness_problem
+from pipeline.offline.regression import fit_quadratic_points
+from pipeline.offline.variables import SIZE
 
-__all__ = ["DOE_STAGE", "DoeFit", "fit_doe"]
+__all__ = ["DOE_STAGE", "DoeFit", "fit_doe", "fit_variables"]
 
 #: Progress stage name of the DOE.
 DOE_STAGE = "DOE"
+#: Levels of each variable beyond L and W in the grid checked before the work and for collisions
+#: of the regressed trajectories (the (L, W) grid keeps its 21 x 21).
+EXTRA_GRID_POINTS = 5
+#: (grid_points, check_points) of the endpoint constraint over k > 2 variables, in place of the
+#: (L, W) fit's 21 and 101 per axis (21^3 and 101^3 obstacles would cost minutes and gigabytes).
+K_ENDPOINT_GRID = (9, 21)
+
+#: One group of the grid: the extra variables' values and the (L, W) grid's problems in that scene.
+_GridGroup = tuple[dict[str, float], list[FitnessProblem]]
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,26 +93,93 @@ class DoeFit:
     timing: dict
 
 
-def _check_before_work(config: BuildConfig, arm: PlanarArm) -> list:
-    """Every obstacle's path and IK, and those of a grid over the range (where no end pose may
-    collide), before any PSO; returns the grid's problems for the check after the regression."""
+def _run_problem(arm: PlanarArm, config: BuildConfig, values: dict[str, float]) -> FitnessProblem:
+    """The objective's problem of one run (its path and IK checked), errors naming the option."""
     solver = config.solver()
-    for L, W in config.design().points():
+    L, W = values["L"], values["W"]
+    extra = {name: value for name, value in values.items() if name not in SIZE}
+    scene = config.variables.scene_for(config.scene, extra)
+    try:
+        return fitness_problem(arm, L, W, scene, solver.fitness, solver.family)
+    except UnreachableObstacleError as exc:
+        if not extra:
+            raise
+        where = ", ".join(f"{name} = {value} m" for name, value in values.items())
+        raise _unreachable_range(config, f"obstacle {where}: {exc}") from None
+    except InvalidParameterError as exc:  # a scene value that does not fit this obstacle
+        option = SCENE_OPTIONS.get(exc.name, f"--scene key {exc.name}")
+        where = ", ".join(f"{name} = {value} m" for name, value in values.items())
+        raise InvalidParameterError(option, exc.value, f"{exc.expected} (obstacle {where})") from None
+
+
+def _unreachable_range(config: BuildConfig, why: str) -> InvalidParameterError:
+    """The one-line error of ``--vary`` ranges the arm cannot reach."""
+    ranges = " ".join(f"{f.name} {f.range_m[0]} {f.range_m[1]}" for f in config.vary)
+    return InvalidParameterError(OPTIONS["vary"], ranges, f"a range the arm reaches ({why})")
+
+
+def _grid_groups(config: BuildConfig, arm: PlanarArm) -> list[_GridGroup]:
+    """The (L, W) grid over the range in the scene of every combination of the extra variables'
+    :data:`EXTRA_GRID_POINTS` levels (one group, the base scene, for (L, W))."""
+    solver, variables = config.solver(), config.variables
+    ranges = config.design().ranges_m
+    axes = [np.linspace(*ranges[name], EXTRA_GRID_POINTS) for name in variables.extra]
+    groups = []
+    for combination in itertools.product(*axes):
+        values = {name: float(v) for name, v in zip(variables.extra, combination, strict=True)}
+        scene = variables.scene_for(config.scene, values)
         try:
-            fitness_problem(arm, L, W, config.scene, solver.fitness, solver.family)
-        except InvalidParameterError as exc:  # a scene value that does not fit this obstacle
-            option = SCENE_OPTIONS.get(exc.name, f"--scene key {exc.name}")
-            raise InvalidParameterError(option, exc.value, f"{exc.expected} (obstacle L = {L} m, W = {W} m)") from None
-    grid = grid_problems(arm, config.scene, solver.fitness, solver.family, config.length_range_m, config.width_range_m)
-    end_pose_collisions(grid)
-    return grid
+            problems = grid_problems(
+                arm, scene, solver.fitness, solver.family, config.length_range_m, config.width_range_m
+            )
+        except UnreachableObstacleError as exc:
+            if not values:
+                raise
+            where = ", ".join(f"{name} = {value} m" for name, value in values.items())
+            raise _unreachable_range(config, f"the (L, W) range at {where}: {exc}") from None
+        groups.append((values, problems))
+    return groups
+
+
+def _check_before_work(config: BuildConfig, arm: PlanarArm) -> list[_GridGroup]:
+    """Every run's path and IK, and those of a grid over the range (where no end pose may
+    collide), before any PSO; returns the grid for the check after the regression. Over more
+    variables than (L, W), the regression's endpoint grid too."""
+    design = config.design()
+    for values in design.runs():
+        _run_problem(arm, config, values)
+    groups = _grid_groups(config, arm)
+    end_pose_collisions([problem for _, problems in groups for problem in problems])
+    constraint = _endpoint_constraint(config)
+    if constraint is not None and not config.variables.is_size_only:
+        try:
+            endpoint_targets(
+                design.ranges_m, config.scene, arm.link_lengths_m, constraint.grid_points, config.variables
+            )
+        except UnreachableObstacleError as exc:
+            raise _unreachable_range(config, f"the regression's endpoint grid: {exc}") from None
+    return groups
+
+
+def _endpoint_constraint(config: BuildConfig) -> EndpointConstraint | None:
+    """The regression's endpoint constraint, on the coarser grids of :data:`K_ENDPOINT_GRID`
+    over more variables than (L, W)."""
+    constraint = config.endpoint_constraint()
+    if constraint is None or config.variables.is_size_only:
+        return constraint
+    grid, check = K_ENDPOINT_GRID
+    return replace(
+        constraint,
+        grid_points=min(grid, constraint.grid_points),
+        check_points=min(check, constraint.check_points),
+    )
 
 
 def _paper_rows(arm: PlanarArm, config: BuildConfig) -> list[dict] | None:
     """The paper's Table 2 rows scored on our fitness, if our design and scene are the paper's.
 
     The fitness is a function of the 8 parameters, so the comparison holds for either family."""
-    if not config.scene.is_close(Scene()):
+    if not config.scene.is_close(Scene()) or not config.variables.is_size_only:
         return None
     paper = load_doe(paper_data_path("paper_table2_doe.json"))
     points = config.design().points()
@@ -126,13 +213,18 @@ def _provenance(config: BuildConfig, arm: PlanarArm, solver: SolverConfig) -> di
         "polish": solver.polish,
         "versions": package_versions(),
     }
+    design = config.design()
+    if not (design.variables.is_size_only and design.kind == "full-factorial"):  # the paper's: no key
+        provenance["design"] = design.kind
+        provenance["variables"] = list(design.variables.names)
     if config.acceleration_limits_rad_s2 is not None:
         provenance[ACCELERATION_LIMITS_KEY] = list(config.acceleration_limits_rad_s2)
     return provenance
 
 
-def _timing_document(results: list[ExperimentResult], jobs: int) -> dict:
+def _timing_document(results: list[ExperimentResult], jobs: int, design: ScaledDesign) -> dict:
     """build_timing.json's DOE part (its totals are set by the build)."""
+    extra = design.variables.extra
     return {
         "total_s": 0.0,
         "jobs": jobs,
@@ -141,11 +233,12 @@ def _timing_document(results: list[ExperimentResult], jobs: int) -> dict:
                 "test": i + 1,
                 "L": r.length_m,
                 "W": r.width_m,
+                **{name: values[name] for name in extra},
                 "seconds": r.seconds,
                 "coal_queries": r.coal_queries,
                 "objective_evaluations": r.objective_evaluations,
             }
-            for i, r in enumerate(results)
+            for i, (r, values) in enumerate(zip(results, design.runs(), strict=True))
         ],
         "coal_queries": int(sum(r.coal_queries for r in results)),
         "objective_evaluations": int(sum(r.objective_evaluations for r in results)),
@@ -177,7 +270,7 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
             progress(DOE_STAGE, len(done), total)
 
     results = run_doe(arm, design, config.scene, solver, int(config.seed), config.executor, progress=report)
-    problems = experiment_problems(results, arm, config.scene, solver.fitness, config.criteria())
+    problems = _experiment_problems(results, design, arm, config)
 
     provenance = _provenance(config, arm, solver)
     document = doe_document(results, design, config.scene, arm, solver, provenance, solver.fitness.elbow)
@@ -192,19 +285,90 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
     doe_path = config.out_folder / "doe.json"
     doe_text = dumps(document)
     doe = doe_from_json(json.loads(doe_text), str(doe_path))
+    extra = {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_text.encode()).hexdigest()}}
     with warnings.catch_warnings():
         # A constraint the fit did not meet is reported as a convergence problem, not a warning.
         warnings.simplefilter("ignore", EndpointConstraintWarning)
-        coefficients, _ = fit_coefficients(
-            doe,
-            {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_text.encode()).hexdigest()}},
-            config.endpoint_constraint(),
-        )
+        if doe.variables.is_size_only:
+            coefficients, _ = fit_coefficients(doe, extra, config.endpoint_constraint())
+        else:
+            coefficients = fit_variables(doe, design.ranges_m, extra, _endpoint_constraint(config))
     problems += regression_problems(coefficients.extra["fit"])
-    problems += regression_collisions(coefficients.predict_free, grid)
+    for values, group in grid:
+        collisions = regression_collisions(lambda L, W, v=values: coefficients.predict_free(L, W, **v), group)
+        where = ", ".join(f"{name} = {value:.3f} m" for name, value in values.items())
+        problems += [replace(p, missed=f"at {where}: {p.missed}") if where else p for p in collisions]
     if problems:
         coefficients = coefficients.marked_unconverged(problems)
-    timing = _timing_document(results, config.workers)
+    timing = _timing_document(results, config.workers, design)
     if config.scheduler is not None:
         timing["scheduler"] = config.scheduler
     return DoeFit(tuple(results), document, doe_text, doe, paper_rows, coefficients, tuple(problems), timing)
+
+
+def _experiment_problems(
+    results: list[ExperimentResult], design: ScaledDesign, arm: PlanarArm, config: BuildConfig
+) -> list[ConvergenceProblem]:
+    """:func:`pipeline.offline.convergence.experiment_problems`, each run checked in its own scene."""
+    solver, criteria = config.solver(), config.criteria()
+    if design.variables.is_size_only:
+        return experiment_problems(results, arm, config.scene, solver.fitness, criteria)
+    problems = []
+    for test, (result, values) in enumerate(zip(results, design.runs(), strict=True), start=1):
+        scene = design.variables.scene_for(config.scene, {k: v for k, v in values.items() if k not in SIZE})
+        for problem in experiment_problems([result], arm, scene, solver.fitness, criteria):
+            where = ", ".join(f"{name} = {values[name]:.3f} m" for name in design.variables.extra)
+            problems.append(replace(problem, test=test, missed=f"{problem.missed} ({where})"))
+    return problems
+
+
+def fit_variables(
+    doe: DoeData,
+    ranges_m: dict[str, tuple[float, float]],
+    extra: dict | None = None,
+    endpoint_constraint: EndpointConstraint | None = None,
+) -> Coefficients:
+    """Regress a DOE over k scene variables (``doe.variables``, L and W among them) into
+    coefficients over those variables: :func:`pipeline.offline.coefficients.fit_coefficients`'s
+    steps with the k-variable regression (:func:`pipeline.offline.regression.fit_quadratic_points`,
+    :func:`pipeline.offline.endpoint_regression.fit_points_with_endpoints`).
+
+    Args:
+        doe: The DOE as read back from its file.
+        ranges_m: The fitted range, (lo, hi) per variable [m] (the design's box).
+        extra: More top-level keys of the coefficients (provenance).
+        endpoint_constraint: The endpoint constraint (paper family), or None for the plain fit.
+    """
+    variables = doe.variables
+    fitted_range = {name: (float(ranges_m[name][0]), float(ranges_m[name][1])) for name in variables.names}
+    points, free = doe.points, doe.free_parameters()
+    if endpoint_constraint is None or doe.family.pins_endpoints:
+        fit = fit_quadratic_points(points, free, variables)
+        method = {"regression": "least squares"}
+    else:
+        grid = endpoint_constraint.grid_points
+        targets = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, grid, variables)
+        check = None
+        if endpoint_constraint.check_points:
+            check_points = endpoint_constraint.check_points
+            check = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, check_points, variables)
+        fit, fit_report = fit_points_with_endpoints(points, free, targets, endpoint_constraint, check)
+        method = {"regression": "least squares + endpoint constraint", "endpoint_constraint": fit_report}
+    quality = {
+        "r_squared": fit.r_squared,
+        "loo_rmse": fit.loo_rmse,
+        "max_residual": fit.max_residual,
+        "experiments": len(points),
+        **method,
+    }
+    return Coefficients(
+        family=doe.family,
+        parameters=fit.coefficients,
+        fitted_range_m=fitted_range,
+        scene=doe.scene,
+        link_lengths_m=doe.link_lengths_m,
+        link_radii_m=doe.link_radii_m,
+        elbow=doe.elbow,
+        extra={"fit": quality, **(extra or {})},
+        variables=variables,
+    )

@@ -15,6 +15,10 @@ A build whose results miss the convergence thresholds writes nothing and raises
 DOE and coefficients are written, marked (``"converged": false`` and the reasons), without a
 region map, and :func:`pipeline.load_coefficients` warns whenever such a file is loaded.
 
+A build that varies more scene variables than (L, W) (``BuildConfig.vary``) writes no region map
+either: the range certificate and the certifiable refit cover (L, W) only
+(:attr:`BuildResult.range_map_skipped` says why a map is missing).
+
 Worker processes (``jobs`` other than 1) start with ``spawn`` and re-import the main script: a
 script that calls :func:`run_build` must do so under ``if __name__ == "__main__":``; without it
 the pool breaks and the call raises :class:`pipeline.exceptions.WorkerPoolError` saying so. With
@@ -84,6 +88,16 @@ class BuildResult:
         """True if every DOE optimum and the regression met the thresholds."""
         return not self.problems
 
+    @property
+    def range_map_skipped(self) -> str | None:
+        """Why the build wrote no region map though ``range_map`` asked for one, or None."""
+        if not self.config.range_map or self.region_map is not None:
+            return None
+        if not self.config.variables.is_size_only:
+            names = ", ".join(self.config.variables.names)
+            return f"the range certificate covers (L, W) only and these coefficients vary {names}"
+        return "the build did not converge"
+
 
 def _unwritten(config: BuildConfig, fit: DoeFit, timing: dict) -> BuildResult:
     return BuildResult(
@@ -123,7 +137,7 @@ def run_build(config: BuildConfig, progress: ProgressCallback | None = None) -> 
 
     coefficients, text = as_written(fit.coefficients, str(config.out_folder / COEFFICIENTS_NAME))
     certified = None
-    if config.range_map and not fit.problems:
+    if config.range_map and not fit.problems and config.variables.is_size_only:
         certified = certify_coefficients(config, fit.doe, coefficients, text, arm, progress)
         coefficients, text = certified.coefficients, certified.text
         timing.update(certified.timing)

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import TextIO
 
 from pipeline.build import BuildConfig, BuildResult, run_build
-from pipeline.build.config import SCENE_OPTIONS, scene_from_options
+from pipeline.build.config import OPTIONS, SCENE_OPTIONS, VARY_NAMES, scene_from_options, vary_name
 from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS, clearance_refit_lines
 from pipeline.certify.map_for_coefficients import summary_lines
 from pipeline.certify.region_map import DEFAULT_MAP_NAME
@@ -36,7 +36,7 @@ from pipeline.cli import (
     run_cli,
 )
 from pipeline.commands.regress import OVERWRITE_RULE, add_regression_arguments
-from pipeline.exceptions import BuildNotConvergedError
+from pipeline.exceptions import BuildNotConvergedError, InvalidParameterError
 from pipeline.io.progress import ProgressBars
 from pipeline.model.arm import DEFAULT_URDF
 from pipeline.model.scene import SCENE_FIELDS, Scene
@@ -44,6 +44,7 @@ from pipeline.motion.families import FAMILY_NAMES, PAPER, PAPER_SOURCE
 from pipeline.offline import report
 from pipeline.offline.coefficients import read_coefficients
 from pipeline.offline.convergence import ConvergenceCriteria
+from pipeline.offline.designs import DEFAULT_RANGES_M, DESIGN_KINDS, FullFactorial
 from pipeline.offline.endpoint_regression import EndpointConstraint
 
 PROG = "python -m pipeline.build"
@@ -126,12 +127,38 @@ def parser() -> Parser:
         default=d.seed,
         help="master random seed [integer >= 0]; the same seed, the same files (default: 0)",
     )
-    p.add_argument("--levels", type=int, default=d.levels, help="levels per factor [count], K x K design, K >= 3")
+    p.add_argument(
+        "--levels",
+        type=int,
+        default=d.levels,
+        help="levels per factor [count] of the full-factorial design (K^k runs: K x K over (L, W)), K >= 3",
+    )
     p.add_argument(
         "--L-range", nargs=2, type=float, default=list(d.length_range_m), metavar=("MIN", "MAX"), help="L range [m]"
     )
     p.add_argument(
         "--W-range", nargs=2, type=float, default=list(d.width_range_m), metavar=("MIN", "MAX"), help="W range [m]"
+    )
+    default_ranges = ", ".join(f"{name}: {lo:g} {hi:g}" for name, (lo, hi) in DEFAULT_RANGES_M.items())
+    p.add_argument(
+        "--vary",
+        nargs="+",
+        action="append",
+        default=[],
+        metavar="NAME [MIN MAX]",
+        help=f"vary a scene variable beside L and W over [MIN, MAX] [m] (repeatable): {', '.join(VARY_NAMES)} "
+        "(x: the obstacle's centre x, d: its far edge y, default --top-y); a NAME alone takes its default range "
+        f"({default_ranges}; |x| < 0.06 m keeps P1..P5 of every corner of the default (L, W) range in reach). "
+        "The coefficients then vary these too (python -m pipeline.generate --x), and no region map is written: "
+        "the range certificate covers (L, W) only",
+    )
+    p.add_argument(
+        "--design",
+        choices=tuple(DESIGN_KINDS),
+        default=FullFactorial.kind,
+        help="the DOE: full-factorial (--levels per factor, the paper's 3 x 3 over (L, W)), box-behnken "
+        "(3 or more factors: 2k(k-1)+1 runs) or central-composite (face-centred, 2^k+2k+1 runs); the last two "
+        "from pyDOE, with one centre run (default: full-factorial)",
     )
     p.add_argument("--family", choices=FAMILY_NAMES, default=PAPER.name, help="trajectory family")
     p.add_argument(
@@ -206,6 +233,30 @@ def parser() -> Parser:
     return p
 
 
+def _vary(item: list[str]) -> tuple[str, float, float]:
+    """One ``--vary NAME [MIN MAX]`` as (name, min, max); a NAME alone takes its default range.
+
+    Raises:
+        InvalidParameterError: not NAME or NAME MIN MAX, a bad name (with the closest valid one),
+            no default range for NAME, or a bound that is not a number.
+    """
+    option = OPTIONS["vary"]
+    if len(item) not in (1, 3):
+        raise InvalidParameterError(option, " ".join(item), "NAME MIN MAX, or NAME alone for its default range")
+    name = vary_name(item[0])
+    if len(item) == 1:
+        if name not in DEFAULT_RANGES_M:
+            raise InvalidParameterError(option, name, f"NAME MIN MAX ({name} has no default range)")
+        return (name, *DEFAULT_RANGES_M[name])
+    bounds = []
+    for text in item[1:]:
+        try:
+            bounds.append(float(text))
+        except ValueError:
+            raise InvalidParameterError(f"{option} {name}", text, "a number [m]") from None
+    return (name, bounds[0], bounds[1])
+
+
 def config_from_args(args: argparse.Namespace) -> BuildConfig:
     """The :class:`BuildConfig` of parsed options.
 
@@ -219,6 +270,8 @@ def config_from_args(args: argparse.Namespace) -> BuildConfig:
         levels=args.levels,
         length_range_m=tuple(args.L_range),
         width_range_m=tuple(args.W_range),
+        vary=tuple(_vary(item) for item in args.vary),
+        design_kind=args.design,
         family=args.family,
         jobs=args.jobs,
         scheduler=args.scheduler,
@@ -289,8 +342,8 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
         print("\n".join(clearance_refit_lines(result.refit_report)), file=out)
     if result.region_map is not None:
         print("\n".join(summary_lines(result.region_map)), file=out)
-    elif config.range_map:
-        print("range certificate: skipped, the build did not converge", file=out)
+    elif result.range_map_skipped is not None:
+        print(f"range certificate: skipped, {result.range_map_skipped}", file=out)
     if not result.converged:
         print(
             f'{PROG}: warning: the build did not converge; written with "converged": false:'

@@ -4,6 +4,12 @@
 coefficients of :data:`pipeline.offline.regression.BASIS`, the (L, W) range they were fitted on,
 and the scene and arm they assume. ``PAPER_SOURCE`` names the paper's own Eq. 9, shipped with
 the package (``pipeline/data/paper_eq9_coefficients.json``).
+
+Coefficients over more scene variables than L and W (:mod:`pipeline.offline.variables`, e.g.
+the obstacle's centre x) name them: ``"variables": ["L", "W", "x"]``, written only when they are
+not exactly (L, W), so an (L, W) file keeps its bytes. Their ``basis`` is the full quadratic in
+those variables and ``fitted_range`` has one entry per variable. The scene is the base scene
+(its ``centre_x_m`` is 0); a variable's value replaces its scene field per answer.
 """
 
 from __future__ import annotations
@@ -23,7 +29,8 @@ from pipeline.io.jsonio import dumps, read_json, write_text_atomic
 from pipeline.model.scene import Scene
 from pipeline.motion.families import PAPER_SOURCE, TrajectoryFamily, family_from_name
 from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
-from pipeline.offline.regression import BASIS, fit_quadratic, predict
+from pipeline.offline.regression import fit_quadratic, predict, predict_points
+from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables
 
 FORMAT = "twolink-coefficients/1"
 PAPER = PAPER_SOURCE
@@ -44,8 +51,8 @@ class Coefficients:
 
     Attributes:
         family: The trajectory family the coefficients span.
-        parameters: Free-parameter name -> (b0..b5) in BASIS order.
-        fitted_range_m: {"L": (lo, hi), "W": (lo, hi)} [m].
+        parameters: Free-parameter name -> (b0..b5) in BASIS order (``variables.basis`` order).
+        fitted_range_m: {"L": (lo, hi), "W": (lo, hi)} [m], and one (lo, hi) per extra variable.
         scene: The scene the coefficients were fitted in.
         link_lengths_m: (l1, l2) of the arm [m].
         link_radii_m: (r1, r2) link capsule radii [m].
@@ -57,6 +64,7 @@ class Coefficients:
             :class:`pipeline.certify.region_map.RegionMap` whose sha256 link matches
             ``source_sha256``), attached by :func:`pipeline.read_coefficients`; None without one.
             The generator's answers carry its bounds.
+        variables: The scene variables the coefficients vary (default (L, W); always with L and W).
     """
 
     family: TrajectoryFamily
@@ -70,6 +78,7 @@ class Coefficients:
     source: str = ""
     source_sha256: str = ""
     region_map: object = field(default=None, repr=False)
+    variables: Variables = DEFAULT_VARIABLES
 
     @property
     def converged(self) -> bool:
@@ -91,22 +100,41 @@ class Coefficients:
         """The file's provenance block (seed, levels, versions, ...), or {}."""
         return dict(self.extra.get("provenance", {}))
 
-    def predict_free(self, length_m, width_m) -> np.ndarray:
-        """The family's free parameters at (L, W) [m]: shape (..., k), k as in ``family.free_parameter_names``."""
-        ordered = {name: self.parameters[name] for name in self.family.free_parameter_names}
-        return predict(ordered, length_m, width_m)
+    def predict_free(self, length_m, width_m, **values) -> np.ndarray:
+        """The family's free parameters at (L, W) [m] and the extra variables' ``values`` by name
+        (e.g. ``x=0.05``; arrays broadcast): shape (..., k), k as in ``family.free_parameter_names``.
 
-    def in_range(self, length_m: float, width_m: float) -> bool:
-        """True if (L, W) lies in the fitted range (inclusive)."""
+        Raises:
+            InvalidParameterError: a variable of the coefficients without a value, or a value
+                for one they do not vary (the message names it).
+        """
+        ordered = {name: self.parameters[name] for name in self.family.free_parameter_names}
+        if not values and self.variables is DEFAULT_VARIABLES:  # the (L, W) route, as it always was
+            return predict(ordered, length_m, width_m)
+        extra = self.variables.take(values)
+        if not extra:
+            return predict(ordered, length_m, width_m)
+        arrays = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (length_m, width_m, *extra.values())))
+        return predict_points(ordered, np.stack(arrays, -1))
+
+    def in_range(self, length_m: float, width_m: float, **values) -> bool:
+        """True if (L, W) and the extra variables' ``values`` (by name) lie in the fitted range
+        (inclusive). Raises as :meth:`predict_free`."""
         (l_lo, l_hi), (w_lo, w_hi) = self.fitted_range_m["L"], self.fitted_range_m["W"]
-        return l_lo <= length_m <= l_hi and w_lo <= width_m <= w_hi
+        if not values and self.variables.is_size_only:
+            return l_lo <= length_m <= l_hi and w_lo <= width_m <= w_hi
+        given = {"L": length_m, "W": width_m, **self.variables.take(values)}
+        ranges = self.fitted_range_m
+        return all(ranges[name][0] <= value <= ranges[name][1] for name, value in given.items())
 
     def to_json(self) -> dict:
         """The plain-JSON document of the coefficients file."""
+        named = {} if self.variables.is_size_only else {"variables": list(self.variables.names)}
         document = {
             "format": FORMAT,
             "family": self.family.name,
-            "basis": list(BASIS),
+            **named,
+            "basis": list(self.variables.basis),
             "parameters": {name: list(values) for name, values in self.parameters.items()},
             "fitted_range": {key: list(value) for key, value in self.fitted_range_m.items()},
             "scene": {
@@ -148,28 +176,33 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
         family = family_from_name(document.get("family"))
     except PipelineError as exc:
         raise DataFileError(source, str(exc)) from None
-    if document.get("basis") != list(BASIS):
-        raise DataFileError(source, f"basis is {document.get('basis')!r}, expected {list(BASIS)}")
+    variables = _variables(document, source)
+    basis = list(variables.basis)
+    if document.get("basis") != basis:
+        raise DataFileError(source, f"basis is {document.get('basis')!r}, expected {basis}")
     raw = document.get("parameters")
     if not isinstance(raw, dict):
-        raise DataFileError(source, "'parameters' must be an object of name -> 6 coefficients")
+        raise DataFileError(source, f"'parameters' must be an object of name -> {len(basis)} coefficients")
     parameters = {}
     for name in family.free_parameter_names:
         values = raw.get(name)
         if (
             not isinstance(values, list)
-            or len(values) != len(BASIS)
+            or len(values) != len(basis)
             or not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in values)
         ):
-            raise DataFileError(source, f"parameter {name!r} must be {len(BASIS)} finite numbers, found {values!r}")
+            raise DataFileError(source, f"parameter {name!r} must be {len(basis)} finite numbers, found {values!r}")
         parameters[name] = tuple(float(v) for v in values)
     fitted = document.get("fitted_range")
     if not isinstance(fitted, dict):
-        raise DataFileError(source, "'fitted_range' must be an object with 'L' and 'W'")
-    fitted_range = {key: _pair(fitted, key, source) for key in ("L", "W")}
+        keys = " and ".join(repr(name) for name in variables.names)
+        raise DataFileError(source, f"'fitted_range' must be an object with {keys}")
+    fitted_range = {key: _pair(fitted, key, source) for key in variables.names}
     for key, (lo, hi) in fitted_range.items():
-        if not 0 < lo <= hi:
+        if key in SIZE and not 0 < lo <= hi:
             raise DataFileError(source, f"fitted_range {key} = [{lo}, {hi}] must satisfy 0 < lo <= hi")
+        if not lo <= hi:
+            raise DataFileError(source, f"fitted_range {key} = [{lo}, {hi}] must satisfy lo <= hi")
     scene_doc = document.get("scene")
     if not isinstance(scene_doc, dict):
         raise DataFileError(source, "'scene' must be an object")
@@ -179,7 +212,9 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
         raise DataFileError(source, f"scene: {exc}") from None
     if scene.centre_x_m != 0.0:
         raise DataFileError(
-            source, f"scene: centre_x_m = {scene.centre_x_m!r}, expected 0 (the generator places the obstacle at x = 0)"
+            source,
+            f"scene: centre_x_m = {scene.centre_x_m!r}, expected 0 (the generator places the obstacle at x = 0, "
+            "or at the x given online for coefficients that vary x)",
         )
     lengths = _pair(scene_doc, "link_lengths_m", source)
     radii = _pair(scene_doc, "link_radii_m", source)
@@ -194,7 +229,7 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
         raise DataFileError(
             source, f"{CONVERGED_KEY!r} must be true or false and {UNCONVERGED_REASONS_KEY!r} a list of strings"
         )
-    known = {"format", "family", "basis", "parameters", "fitted_range", "scene"}
+    known = {"format", "family", "variables", "basis", "parameters", "fitted_range", "scene"}
     return Coefficients(
         family=family,
         parameters=parameters,
@@ -206,7 +241,25 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
         extra={k: v for k, v in document.items() if k not in known},
         source=source,
         source_sha256=sha256,
+        variables=variables,
     )
+
+
+def _variables(document: dict, source: str) -> Variables:
+    """The file's ``variables`` (absent: (L, W)), which must hold L and W, in the canonical order."""
+    if "variables" not in document:
+        return DEFAULT_VARIABLES
+    names = document["variables"]
+    if not isinstance(names, list) or not all(isinstance(name, str) for name in names):
+        raise DataFileError(source, f"'variables' must be a list of names, found {names!r}")
+    try:
+        variables = Variables(tuple(names))
+    except PipelineError as exc:
+        raise DataFileError(source, f"variables: {exc}") from None
+    if list(variables.names) != names or variables.names[:2] != SIZE:
+        expected = list(Variables((*SIZE, *variables.extra)).names)
+        raise DataFileError(source, f"variables are {names!r}, expected L and W first, in the order {expected}")
+    return variables
 
 
 def read_coefficients(source: str | Path) -> Coefficients:

@@ -1,7 +1,12 @@
-"""Design of experiments: the paper's full factorial over (L, W), solved point by point.
+"""Design of experiments: the paper's full factorial over (L, W), or a design over k scene
+variables (:mod:`pipeline.offline.designs`), solved point by point.
 
-The design is K x K levels (K = 3 in the paper), ordered as Table 1: W descending by
-rows, L descending within a row (Test 1 = (L_max, W_max)). Each experiment gets its own
+The paper's design is K x K levels (K = 3 in the paper), ordered as Table 1: W descending by
+rows, L descending within a row (Test 1 = (L_max, W_max)). A run of a design that varies more
+than L and W (e.g. the obstacle's centre x) is solved in the scene of its values
+(:meth:`pipeline.offline.variables.Variables.scene_for`); doe.json then names the variables
+(``"variables"``) and gives each experiment's values beside L and W. A DOE over (L, W) alone
+writes neither, so its file is the paper design's, byte for byte. Each experiment gets its own
 random stream spawned from one seed, so the results do not depend on where they are solved
 (``jobs`` worker processes, or a Dask cluster: :mod:`pipeline.io.executor`) or on the order in
 which they finish.
@@ -25,7 +30,9 @@ from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.scene import Scene
 from pipeline.motion.families import PAPER, TrajectoryFamily, family_from_name
 from pipeline.motion.trajectory import PARAMETER_NAMES, canonicalize
+from pipeline.offline.designs import Factor, FullFactorial, ScaledDesign
 from pipeline.offline.experiment import ExperimentResult, SolverConfig, solve_experiment
+from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables
 from pipeline.validation import check_positive, check_positive_int
 
 FORMAT = "twolink-doe/1"
@@ -61,6 +68,20 @@ class Design:
         widths = np.linspace(self.width_range_m[1], self.width_range_m[0], self.levels)
         return [(round(float(L), 12), round(float(W), 12)) for W in widths for L in lengths]
 
+    @property
+    def variables(self) -> Variables:
+        """(L, W)."""
+        return DEFAULT_VARIABLES
+
+    def runs(self) -> list[dict[str, float]]:
+        """Each run's values by name."""
+        return [{"L": L, "W": W} for L, W in self.points()]
+
+    def full_factorial(self) -> FullFactorial:
+        """The same design as a :class:`pipeline.offline.designs.FullFactorial` (same points, same JSON)."""
+        factors = (Factor("L", self.length_range_m), Factor("W", self.width_range_m))
+        return FullFactorial(factors, self.levels)
+
     def to_json(self) -> dict:
         return {
             "levels": self.levels,
@@ -70,19 +91,31 @@ class Design:
         }
 
 
-def _solve_in_worker(
-    urdf_path: str, scene: Scene, config: SolverConfig, task: tuple[float, float, np.random.SeedSequence]
-) -> ExperimentResult:
+#: One experiment's task: L, W, the other variables' values by name, its random stream.
+_Task = tuple[float, float, dict[str, float], np.random.SeedSequence]
+
+
+def run_scene(design: Design | ScaledDesign, scene: Scene, values: dict[str, float]) -> Scene:
+    """The scene of the run with ``values`` (name -> value, L and W among them): ``scene`` with
+    the fields of the other variables replaced (``scene`` itself for (L, W))."""
+    return design.variables.scene_for(scene, {k: v for k, v in values.items() if k not in SIZE})
+
+
+def _solve(arm: PlanarArm, scene: Scene, config: SolverConfig, task: _Task) -> ExperimentResult:
+    length_m, width_m, extra, seed_sequence = task
+    moved = DEFAULT_VARIABLES.scene_for(scene, extra)  # scene_for reads the names of ``extra`` only
+    return solve_experiment(arm, length_m, width_m, moved, config, np.random.default_rng(seed_sequence))
+
+
+def _solve_in_worker(urdf_path: str, scene: Scene, config: SolverConfig, task: _Task) -> ExperimentResult:
     """One experiment in a worker process (the arm is reloaded there: milliseconds, against
     seconds of PSO)."""
-    length_m, width_m, seed_sequence = task
-    arm = load_planar_arm(urdf_path)
-    return solve_experiment(arm, length_m, width_m, scene, config, np.random.default_rng(seed_sequence))
+    return _solve(load_planar_arm(urdf_path), scene, config, task)
 
 
 def run_doe(
     arm: PlanarArm,
-    design: Design,
+    design: Design | ScaledDesign,
     scene: Scene,
     config: SolverConfig,
     seed: int,
@@ -93,8 +126,9 @@ def run_doe(
 
     Args:
         arm: The arm (its URDF is reloaded in each worker when the experiments run elsewhere).
-        design: The (L, W) grid.
-        scene: Scene settings.
+        design: The runs: the (L, W) grid, or a design over k variables (each run solved in
+            ``scene`` with its variables' fields replaced, :func:`run_scene`).
+        scene: Scene settings (the base scene of the runs).
         config: Solver settings.
         seed: Master seed; experiment i uses the i-th spawned child stream
             (:func:`pipeline.io.parallel.item_seeds`).
@@ -104,13 +138,13 @@ def run_doe(
         progress: Called with each result as it completes.
     """
     executor = as_executor(jobs)
-    points = design.points()
-    tasks = [(L, W, stream) for (L, W), stream in zip(points, item_seeds(seed, len(points)), strict=True)]
+    runs = design.runs()
+    tasks = [
+        (values["L"], values["W"], {k: v for k, v in values.items() if k not in SIZE}, stream)
+        for values, stream in zip(runs, item_seeds(seed, len(runs)), strict=True)
+    ]
     if executor == LocalPool(1):
-
-        def function(task: tuple[float, float, np.random.SeedSequence]) -> ExperimentResult:
-            return solve_experiment(arm, task[0], task[1], scene, config, np.random.default_rng(task[2]))
-
+        function = functools.partial(_solve, arm, scene, config)
     else:
         function = functools.partial(_solve_in_worker, str(arm.urdf_path), scene, config)
 
@@ -130,10 +164,12 @@ class DoeData:
         lengths_m, widths_m: (L, W) of each experiment [m].
         parameters: (n, 8) parameters in PARAMETER_NAMES order (canonical for the paper family).
         free: (n, k) the family's free parameters in FREE_PARAMETERS order.
-        scene: Scene of the experiments.
+        scene: Scene of the experiments (the base scene, for a DOE over more variables than (L, W)).
         link_lengths_m, link_radii_m, elbow: Arm data needed by the generator.
         document: The whole parsed file.
         source: File path.
+        variables: The scene variables the DOE varies (default (L, W)).
+        extra_m: (n, k - 2) each experiment's values of ``variables.extra`` [m]; None for (L, W).
     """
 
     family: TrajectoryFamily
@@ -147,6 +183,16 @@ class DoeData:
     elbow: int
     document: dict
     source: str
+    variables: Variables = DEFAULT_VARIABLES
+    extra_m: np.ndarray | None = None
+
+    @property
+    def points(self) -> np.ndarray:
+        """Each experiment's variable values (n, k), columns in ``variables``' order."""
+        columns = [self.lengths_m, self.widths_m]
+        if self.extra_m is not None:
+            columns.extend(self.extra_m.T)
+        return np.column_stack(columns)
 
     def free_parameters(self) -> dict[str, np.ndarray]:
         """Homogenised (Eq. 8) free parameters of the family, name -> (n,)."""
@@ -180,10 +226,11 @@ def doe_from_json(document: dict, path: str) -> DoeData:
     except PipelineError as exc:
         raise DataFileError(path, str(exc)) from None
     all_free = family.free_parameter_names == PARAMETER_NAMES
+    variables = _doe_variables(document, path)
     experiments = document.get("experiments")
     if not isinstance(experiments, list) or not experiments:
         raise DataFileError(path, "'experiments' must be a non-empty list")
-    lengths, widths, rows, free_rows = [], [], [], []
+    lengths, widths, rows, free_rows, extra_rows = [], [], [], [], []
     for i, experiment in enumerate(experiments):
         if not isinstance(experiment, dict):
             raise DataFileError(path, f"experiment {i} is not an object")
@@ -192,6 +239,10 @@ def doe_from_json(document: dict, path: str) -> DoeData:
             raise DataFileError(path, f"experiment {i}: L = {L!r}, W = {W!r}; expected positive numbers")
         if not isinstance(params, dict) or not all(_number(params.get(n)) for n in PARAMETER_NAMES):
             raise DataFileError(path, f"experiment {i}: 'parameters' needs finite {', '.join(PARAMETER_NAMES)}")
+        extra = [experiment.get(name) for name in variables.extra]
+        if not all(map(_number, extra)):
+            raise DataFileError(path, f"experiment {i}: needs finite values of {', '.join(variables.extra)}")
+        extra_rows.append([float(v) for v in extra])
         lengths.append(float(L))
         widths.append(float(W))
         rows.append([float(params[n]) for n in PARAMETER_NAMES])
@@ -226,22 +277,50 @@ def doe_from_json(document: dict, path: str) -> DoeData:
         elbow=int(scene_doc.get("elbow", 1)),
         document=document,
         source=str(path),
+        variables=variables,
+        extra_m=np.array(extra_rows).reshape(len(rows), -1) if variables.extra else None,
     )
+
+
+def _doe_variables(document: dict, path: str) -> Variables:
+    """The DOE file's ``variables`` (absent: (L, W)); L and W must be among them."""
+    if "variables" not in document:
+        return DEFAULT_VARIABLES
+    names = document["variables"]
+    if not isinstance(names, list) or not all(isinstance(name, str) for name in names):
+        raise DataFileError(path, f"'variables' must be a list of names, found {names!r}")
+    try:
+        variables = Variables(tuple(names))
+    except PipelineError as exc:
+        raise DataFileError(path, f"variables: {exc}") from None
+    if variables.names[:2] != SIZE:
+        raise DataFileError(path, f"variables are {names!r}; L and W must be among them")
+    return variables
 
 
 def doe_document(
     results: Sequence[ExperimentResult],
-    design: Design,
+    design: Design | ScaledDesign,
     scene: Scene,
     arm: PlanarArm,
     config: SolverConfig,
     provenance: dict,
     elbow: int,
 ) -> dict:
-    """The doe.json document (deterministic: no wall times)."""
+    """The doe.json document (deterministic: no wall times); for a design over more than (L, W),
+    with ``"variables"`` and each experiment's values of them after its L and W."""
+    variables = design.variables
+    experiments = []
+    for i, (result, values) in enumerate(zip(results, design.runs(), strict=True)):
+        record = result.to_json()
+        size = {"L": record.pop("L"), "W": record.pop("W")}
+        extra = {name: values[name] for name in variables.extra}
+        experiments.append({"test": i + 1, **size, **extra, **record})
+    head = {"format": FORMAT, "family": config.family.name}
+    if not variables.is_size_only:
+        head["variables"] = list(variables.names)
     return {
-        "format": FORMAT,
-        "family": config.family.name,
+        **head,
         "design": design.to_json(),
         "scene": {
             **scene.to_dict(),
@@ -249,6 +328,6 @@ def doe_document(
             "link_radii_m": list(arm.link_radii_m),
             "elbow": elbow,
         },
-        "experiments": [{"test": i + 1, **r.to_json()} for i, r in enumerate(results)],
+        "experiments": experiments,
         "provenance": provenance,
     }

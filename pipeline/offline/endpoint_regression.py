@@ -22,6 +22,12 @@ points where the error exceeds it are added to the constrained obstacles, worst 
 fit is repeated from where it stopped (constraint generation) until the check grid's maximum
 is within tolerance (1 - headroom / 2) or ``check_rounds`` is reached. The report gives both
 grids' maxima.
+
+Over k scene variables (:class:`pipeline.offline.variables.Variables`, e.g. (L, W, x)) the model
+is the full quadratic in k variables and the grids have ``grid_points`` (``check_points``) per
+variable, grid_points^k obstacles in all (:func:`fit_points_with_endpoints`). An obstacle moved
+by x has the path of x = 0 moved by x: P1 and P5 shift by x, T does not change (the generator's
+T, to the bit).
 """
 
 from __future__ import annotations
@@ -32,13 +38,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError
+from pipeline.exceptions import EndpointConstraintWarning, InvalidParameterError, UnreachableObstacleError
 from pipeline.model.kinematics import forward_kinematics, reach_annulus_m
 from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import PARAMETER_NAMES
-from pipeline.offline.regression import QuadraticFit, coefficient_of_determination, design_matrix, fit_quadratic
+from pipeline.offline.regression import (
+    QuadraticFit,
+    coefficient_of_determination,
+    design_matrix,
+    fit_quadratic,
+    fit_quadratic_points,
+)
+from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables
 from pipeline.validation import check_positive, check_positive_int
 
 
@@ -92,13 +105,15 @@ class EndpointConstraint:
 
 @dataclass(frozen=True, eq=False)
 class EndpointTargets:
-    """P1, P5 and T on a grid of obstacle sizes.
+    """P1, P5 and T on a grid of obstacles.
 
     Attributes:
         lengths_m, widths_m: Grid sizes [m], shape (G,).
         start_m, end_m: P1 and P5 (x, y) [m], shape (G, 2).
         duration_s: T [s], shape (G,).
         link_lengths_m: (l1, l2) [m].
+        extra_m: The values of ``variables.extra`` (e.g. x) [m], shape (G, k - 2); None for (L, W).
+        variables: The scene variables of the grid (default (L, W)).
     """
 
     lengths_m: np.ndarray
@@ -107,6 +122,21 @@ class EndpointTargets:
     end_m: np.ndarray
     duration_s: np.ndarray
     link_lengths_m: tuple[float, float]
+    extra_m: np.ndarray | None = None
+    variables: Variables = DEFAULT_VARIABLES
+
+    @property
+    def points(self) -> np.ndarray:
+        """The grid's variable values (G, k), columns in ``variables``' order."""
+        if self.extra_m is None:
+            return np.column_stack([self.lengths_m, self.widths_m])
+        return np.column_stack([self.lengths_m, self.widths_m, self.extra_m])
+
+    def design(self) -> np.ndarray:
+        """The quadratic basis at the grid's obstacles, (G, basis size); for (L, W) :func:`design_matrix`."""
+        if self.extra_m is None:
+            return design_matrix(self.lengths_m, self.widths_m)
+        return self.variables.design(self.points)
 
 
 def endpoint_targets(
@@ -114,24 +144,82 @@ def endpoint_targets(
     scene: Scene,
     link_lengths_m: tuple[float, float],
     grid_points: int,
+    variables: Variables | tuple[str, ...] | None = None,
 ) -> EndpointTargets:
-    """The grid_points x grid_points grid over the fitted range, with each obstacle's P1, P5, T.
+    """The grid with ``grid_points`` per variable over the fitted range (one (lo, hi) per
+    variable), with each obstacle's P1, P5, T.
 
     Raises:
         UnreachableObstacleError: a grid obstacle's path leaves the arm's reach.
     """
+    variables = Variables.of(variables)
+    axes = [np.linspace(*fitted_range_m[name], grid_points) for name in variables.names]
+    if variables.is_size_only:
+        reach_m = reach_annulus_m(link_lengths_m)
+        lengths, widths = np.meshgrid(*axes)
+        lengths, widths = lengths.ravel(), widths.ravel()
+        paths = [
+            desired_path(Obstacle.in_scene(L, W, scene), scene, reach_m) for L, W in zip(lengths, widths, strict=True)
+        ]
+        return EndpointTargets(
+            lengths_m=lengths,
+            widths_m=widths,
+            start_m=np.array([p.points_m[0] for p in paths]),
+            end_m=np.array([p.points_m[-1] for p in paths]),
+            duration_s=np.array([p.duration_s for p in paths]),
+            link_lengths_m=(float(link_lengths_m[0]), float(link_lengths_m[1])),
+        )
+    points = np.column_stack([axis.ravel() for axis in np.meshgrid(*axes)])
+    return targets_at(points, variables, scene, link_lengths_m)
+
+
+def targets_at(
+    points: np.ndarray, variables: Variables, scene: Scene, link_lengths_m: tuple[float, float]
+) -> EndpointTargets:
+    """P1, P5 and T of the obstacles at ``points`` (G, k) of ``variables`` (which hold L and W).
+
+    x moves the obstacle and its path rigidly: P1 and P5 are those of the path at x = 0 plus x,
+    T that path's. The other variables replace their scene field (:meth:`Variables.scene_for`).
+
+    Raises:
+        InvalidParameterError: ``variables`` without L or W, or ``points`` not (G, k).
+        UnreachableObstacleError: a constraint point leaves the arm's reach.
+    """
+    variables = Variables.of(variables)
+    if variables.names[:2] != SIZE:
+        raise InvalidParameterError("variables", variables.names, "variables that hold L and W")
+    points = np.asarray(points, dtype=float)
+    if points.ndim != 2 or points.shape[1] != variables.k:
+        raise InvalidParameterError("points", points.shape, f"(G, {variables.k}): one column per variable")
     reach_m = reach_annulus_m(link_lengths_m)
-    axes = [np.linspace(*fitted_range_m[name], grid_points) for name in ("L", "W")]
-    lengths, widths = np.meshgrid(*axes)
-    lengths, widths = lengths.ravel(), widths.ravel()
-    paths = [desired_path(Obstacle.in_scene(L, W, scene), scene, reach_m) for L, W in zip(lengths, widths, strict=True)]
+    extra = variables.extra
+    shift = extra.index("x") if "x" in extra else None
+    paths: dict[tuple[float, ...], object] = {}
+    starts, ends, durations = np.empty((len(points), 2)), np.empty((len(points), 2)), np.empty(len(points))
+    for row, values in enumerate(points.tolist()):
+        L, W, rest = values[0], values[1], values[2:]
+        key = (L, W, *(v for i, v in enumerate(rest) if i != shift))
+        path = paths.get(key)
+        if path is None:
+            fixed = {name: v for i, (name, v) in enumerate(zip(extra, rest, strict=True)) if i != shift}
+            moved = variables.scene_for(scene, {**fixed, "x": 0.0} if shift is not None else fixed)
+            path = paths[key] = desired_path(Obstacle.in_scene(L, W, moved), moved)
+        offset = 0.0 if shift is None else rest[shift]
+        shifted = path.points_m + np.array([offset, 0.0])
+        for name, point in zip(("P1", "P2", "P3", "P4", "P5"), shifted, strict=True):
+            radius = float(np.hypot(*point))
+            if not reach_m[0] <= radius <= reach_m[1]:
+                raise UnreachableObstacleError(name, radius, reach_m)
+        starts[row], ends[row], durations[row] = shifted[0], shifted[-1], path.duration_s
     return EndpointTargets(
-        lengths_m=lengths,
-        widths_m=widths,
-        start_m=np.array([p.points_m[0] for p in paths]),
-        end_m=np.array([p.points_m[-1] for p in paths]),
-        duration_s=np.array([p.duration_s for p in paths]),
+        lengths_m=points[:, 0].copy(),
+        widths_m=points[:, 1].copy(),
+        start_m=starts,
+        end_m=ends,
+        duration_s=durations,
         link_lengths_m=(float(link_lengths_m[0]), float(link_lengths_m[1])),
+        extra_m=points[:, 2:].copy(),
+        variables=variables,
     )
 
 
@@ -165,33 +253,41 @@ def _tip_jacobian(theta: np.ndarray, link_lengths_m: tuple[float, float]) -> np.
 
 def endpoint_slack(b: np.ndarray, X_grid: np.ndarray, targets: EndpointTargets, tolerance_m: float) -> np.ndarray:
     """1 - (e / tolerance)^2 for every grid obstacle and end, (2 G,): >= 0 where the endpoint
-    error e is within the tolerance. ``b`` is the (6, 8) coefficient matrix, row-major
-    (basis x parameter); ``X_grid`` the design matrix of the grid."""
-    delta, _, _ = _ends(X_grid @ np.reshape(b, (6, 8)), targets)
+    error e is within the tolerance. ``b`` is the (m, 8) coefficient matrix, row-major
+    (basis x parameter; m = 6 for (L, W)); ``X_grid`` the design matrix of the grid (G, m)."""
+    delta, _, _ = _ends(X_grid @ np.reshape(b, (X_grid.shape[-1], 8)), targets)
     return (1.0 - np.sum(delta * delta, -1) / tolerance_m**2).ravel()
 
 
 def endpoint_slack_jacobian(
     b: np.ndarray, X_grid: np.ndarray, targets: EndpointTargets, tolerance_m: float
 ) -> np.ndarray:
-    """d :func:`endpoint_slack` / d b, shape (2 G, 48), in closed form."""
-    delta, theta, d_theta = _ends(X_grid @ np.reshape(b, (6, 8)), targets)
+    """d :func:`endpoint_slack` / d b, shape (2 G, 8 m), in closed form (48 for (L, W))."""
+    delta, theta, d_theta = _ends(X_grid @ np.reshape(b, (X_grid.shape[-1], 8)), targets)
     d_theta_sq = np.einsum("gex,gexj->gej", delta, _tip_jacobian(theta, targets.link_lengths_m))
     d_p = (d_theta_sq[..., None] * d_theta).reshape(*delta.shape[:2], 8)  # joint-major = names order
-    return (-2.0 / tolerance_m**2 * np.einsum("gep,gk->gekp", d_p, X_grid)).reshape(-1, 48)
+    return (-2.0 / tolerance_m**2 * np.einsum("gep,gk->gekp", d_p, X_grid)).reshape(-1, 8 * X_grid.shape[-1])
 
 
 def merge_targets(first: EndpointTargets, second: EndpointTargets) -> EndpointTargets:
-    """The obstacles of both, ``first``'s then ``second``'s (same arm)."""
+    """The obstacles of both, ``first``'s then ``second``'s (same arm and variables)."""
+    extra = None if first.extra_m is None else np.concatenate([first.extra_m, second.extra_m])
     return EndpointTargets(
         *(np.concatenate([getattr(first, f), getattr(second, f)]) for f in _TARGET_ARRAYS),
         link_lengths_m=first.link_lengths_m,
+        extra_m=extra,
+        variables=first.variables,
     )
 
 
 def select_targets(targets: EndpointTargets, rows: np.ndarray) -> EndpointTargets:
     """The obstacles ``rows`` (indices or mask) of ``targets``."""
-    return EndpointTargets(*(getattr(targets, f)[rows] for f in _TARGET_ARRAYS), link_lengths_m=targets.link_lengths_m)
+    return EndpointTargets(
+        *(getattr(targets, f)[rows] for f in _TARGET_ARRAYS),
+        link_lengths_m=targets.link_lengths_m,
+        extra_m=None if targets.extra_m is None else targets.extra_m[rows],
+        variables=targets.variables,
+    )
 
 
 _TARGET_ARRAYS = ("lengths_m", "widths_m", "start_m", "end_m", "duration_s")
@@ -201,7 +297,7 @@ def _solve(
     objective, start: np.ndarray, targets: EndpointTargets, tolerance_m: float, max_iterations: int
 ) -> tuple[np.ndarray, bool, str]:
     """One SLSQP solve: least squares subject to the endpoint slack >= 0 at ``targets``."""
-    X_grid = design_matrix(targets.lengths_m, targets.widths_m)
+    X_grid = targets.design()
     from scipy.optimize import minimize  # SciPy only where a fit runs: loading coefficients needs NumPy alone
 
     result = minimize(
@@ -224,7 +320,8 @@ def _solve(
 
 def _grid_max(b: np.ndarray, targets: EndpointTargets) -> np.ndarray:
     """max(|tip(0) - P1|, |tip(T) - P5|) [m] per obstacle of ``targets`` for coefficients ``b``."""
-    return endpoint_errors_m(design_matrix(targets.lengths_m, targets.widths_m) @ b.reshape(6, 8), targets).max(1)
+    X = targets.design()
+    return endpoint_errors_m(X @ b.reshape(X.shape[-1], 8), targets).max(1)
 
 
 def _generate_constraints(
@@ -276,20 +373,63 @@ def fit_with_endpoints(
     """
     if tuple(values) != PARAMETER_NAMES:
         raise InvalidParameterError("parameters", tuple(values), f"the paper family's {PARAMETER_NAMES}")
+    if not targets.variables.is_size_only:
+        raise InvalidParameterError(
+            "targets", targets.variables.names, "(L, W) targets (fit_points_with_endpoints fits k variables)"
+        )
     plain = fit_quadratic(length_m, width_m, values)
-    X_data = design_matrix(length_m, width_m)  # (n, 6)
+    return _fit_with_endpoints(design_matrix(length_m, width_m), plain, values, targets, constraint, check)
+
+
+def fit_points_with_endpoints(
+    points: np.ndarray,
+    values: Mapping[str, np.ndarray],
+    targets: EndpointTargets,
+    constraint: EndpointConstraint,
+    check: EndpointTargets | None = None,
+) -> tuple[QuadraticFit, dict]:
+    """:func:`fit_with_endpoints` over the k variables of ``targets`` (e.g. (L, W, x)): the DOE's
+    runs ``points`` (n, k), columns in ``targets.variables``' order; ``targets`` and ``check``
+    from :func:`endpoint_targets` with those variables. For (L, W) the same floats as
+    :func:`fit_with_endpoints`.
+
+    Raises:
+        InvalidParameterError: as :func:`fit_with_endpoints`, or ``check`` over other variables.
+    """
+    if tuple(values) != PARAMETER_NAMES:
+        raise InvalidParameterError("parameters", tuple(values), f"the paper family's {PARAMETER_NAMES}")
+    variables = targets.variables
+    if check is not None and check.variables != variables:
+        raise InvalidParameterError("check", check.variables.names, f"a check grid over {variables.names}")
+    points = np.asarray(points, dtype=float)
+    if variables.is_size_only:
+        return fit_with_endpoints(points[:, 0], points[:, 1], values, targets, constraint, check)
+    plain = fit_quadratic_points(points, values, variables)
+    return _fit_with_endpoints(variables.design(points), plain, values, targets, constraint, check)
+
+
+def _fit_with_endpoints(
+    X_data: np.ndarray,
+    plain: QuadraticFit,
+    values: Mapping[str, np.ndarray],
+    targets: EndpointTargets,
+    constraint: EndpointConstraint,
+    check: EndpointTargets | None,
+) -> tuple[QuadraticFit, dict]:
+    """The fit of :func:`fit_with_endpoints` from the design ``X_data`` (n, m) and the plain fit."""
+    m = X_data.shape[-1]
     Y = np.stack([np.asarray(values[name], dtype=float) for name in PARAMETER_NAMES], -1)  # (n, 8)
 
     def objective(b: np.ndarray) -> tuple[float, np.ndarray]:
-        residual = X_data @ b.reshape(6, 8) - Y
+        residual = X_data @ b.reshape(m, 8) - Y
         return float(np.sum(residual * residual)), (2.0 * X_data.T @ residual).ravel()
 
-    start = np.stack([plain.coefficients[name] for name in PARAMETER_NAMES], -1).ravel()  # (6, 8) row-major
+    start = np.stack([plain.coefficients[name] for name in PARAMETER_NAMES], -1).ravel()  # (m, 8) row-major
     b, converged, message = _solve(objective, start, targets, constraint.fit_tolerance_m, constraint.max_iterations)
     added, rounds = 0, 0
     if converged and check is not None:
         b, converged, message, added, rounds = _generate_constraints(objective, b, targets, check, constraint)
-    B = b.reshape(6, 8)
+    B = b.reshape(m, 8)
     fitted = X_data @ B
     coefficients, r_squared, max_residual = {}, {}, {}
     for i, name in enumerate(PARAMETER_NAMES):
@@ -318,6 +458,6 @@ def fit_with_endpoints(
             f"endpoint-constrained regression did not converge ({message}); grid endpoint error max "
             f"{after * 1e3:.3f} mm against a tolerance of {constraint.tolerance_m * 1e3:.3f} mm",
             EndpointConstraintWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
-    return QuadraticFit(coefficients, r_squared, plain.loo_rmse, max_residual), report
+    return QuadraticFit(coefficients, r_squared, plain.loo_rmse, max_residual, plain.variables), report

@@ -48,7 +48,8 @@ def certify_batch(
     :func:`pipeline.geometry.sinusoid_certificate.certify`), after one arm check.
 
     Args:
-        coefficients: The coefficients of the batch (their scene places the obstacles).
+        coefficients: The coefficients of the batch (their scene, moved by the batch's values of
+            the extra variables such as x, places the obstacles).
         batch: From :func:`generate_batch`.
         arm: The arm the coefficients were fitted for (None: the arm recorded with them, :func:`arm_for`).
         route: Clearance route (Coal, canonical).
@@ -78,7 +79,9 @@ def certify_batch(
     for i in range(n):
         if batch.error[i] is not None:
             continue
-        obstacle = Obstacle.in_scene(float(batch.lengths_m[i]), float(batch.widths_m[i]), scene)
+        values = {name: float(v[i]) for name, v in batch.variables.items()}
+        moved = coefficients.variables.scene_for(scene, values) if values else scene
+        obstacle = Obstacle.in_scene(float(batch.lengths_m[i]), float(batch.widths_m[i]), moved)
         certificate = certify_trajectory(
             batch.trajectory(i), arm, obstacle, route=route, decide_above_m=decide_above_m, tolerance_m=tolerance_m
         )

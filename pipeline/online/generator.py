@@ -15,6 +15,15 @@ are built only when asked for (lazily, then cached); their T equals the answer's
 No URDF, Pinocchio or Coal is needed here: the arm's link lengths come from the coefficients file.
 The certified bounds come from the region map attached to the coefficients
 (:func:`pipeline.online.loading.load_coefficients`): a lookup in microseconds.
+
+Coefficients over more scene variables than (L, W) (:mod:`pipeline.offline.variables`) take their
+values by keyword: ``generate(coefficients, L, W, x=0.05)``. x moves the obstacle and its path
+rigidly: P1..P5 shift by x, T is the x = 0 path's (the even quartic's closed form, to the bit),
+the regression is evaluated at (L, W, x), the exact-endpoints family's inverse kinematics takes
+the shifted P1 and P5, and the answer's ``scene`` is the moved scene (its ``obstacle`` and
+``path`` follow it; that path's T, the general quartic's, agrees with the answer's to rounding).
+The region map covers (L, W) only: such answers carry no map bounds. Coefficients over (L, W)
+alone take the unchanged route.
 """
 
 from __future__ import annotations
@@ -22,7 +31,7 @@ from __future__ import annotations
 import math
 import warnings
 import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import NamedTuple
 
@@ -45,6 +54,7 @@ from pipeline.motion.families import EndpointContext, TrajectoryFamily
 from pipeline.motion.path import QuarticPath, desired_path, symmetric_quartic, symmetric_quartic_length_m
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
+from pipeline.offline.variables import Variables, quadratic_design
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
 
@@ -56,9 +66,10 @@ class GeneratedTrajectory:
     Attributes:
         length_m, width_m: The obstacle's L, W [m].
         family: Trajectory family of the coefficients.
-        scene: Scene of the coefficients.
+        scene: Scene of the coefficients, with the values of their extra variables (e.g. the
+            obstacle's centre x, ``scene.centre_x_m``) in place.
         trajectory: The joint trajectory; ``trajectory.q(t)`` gives joint angles [rad].
-        extrapolated: True if (L, W) lies outside the fitted range.
+        extrapolated: True if (L, W), or the value of an extra variable, lies outside the fitted range.
         reach_m: The reach annulus (min, max) [m] the constraint points were checked against.
         certified_clearance_m: Certified lower bound on the clearance of both links over all of
             [0, T] [m], from the region map of the coefficients (None without a map, or outside it).
@@ -111,6 +122,11 @@ class GeneratedTrajectory:
         )
         return answer
 
+    @property
+    def centre_x_m(self) -> float:
+        """x of the obstacle's centre [m] (the x given to :func:`generate`, 0 without one)."""
+        return self.scene.centre_x_m
+
     @cached_property
     def obstacle(self) -> Obstacle:
         """The rounded box L x W placed as the scene says."""
@@ -118,7 +134,8 @@ class GeneratedTrajectory:
 
     @cached_property
     def path(self) -> QuarticPath:
-        """The desired path around the obstacle; its ``duration_s`` is this answer's T."""
+        """The desired path around the obstacle; its ``duration_s`` is this answer's T (to rounding
+        for an obstacle moved by x, whose path is the general quartic's)."""
         return desired_path(self.obstacle, self.scene, self.reach_m)
 
     @property
@@ -158,9 +175,15 @@ class QueryPlan(NamedTuple):
     smallest: float  # smallest L and W: twice the corner radius [m]
     corner_radius: float
     height: float
+    variables: Variables
+    extra: tuple[str, ...]  # the variables beyond L and W, () for the (L, W) route
+    extra_ranges: tuple[tuple[float, float], ...]
 
 
+#: The plans of coefficients over (L, W) alone: :func:`generate` takes its (L, W) route on a hit.
 _PLANS: weakref.WeakKeyDictionary[Coefficients, QueryPlan] = weakref.WeakKeyDictionary()
+#: The plans of coefficients over more variables (module docstring).
+_VARYING_PLANS: weakref.WeakKeyDictionary[Coefficients, QueryPlan] = weakref.WeakKeyDictionary()
 
 
 class _Attached:
@@ -203,7 +226,8 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
     """
     if not isinstance(coefficients, Coefficients):
         raise _refuse_coefficients(coefficients)
-    plan = _PLANS.get(coefficients)
+    plans = _PLANS if coefficients.variables.is_size_only else _VARYING_PLANS
+    plan = plans.get(coefficients)
     if plan is None:
         scene = coefficients.scene
         names = coefficients.family.free_parameter_names
@@ -226,8 +250,11 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
             smallest=2.0 * float(scene.corner_radius_m),
             corner_radius=float(scene.corner_radius_m),
             height=float(scene.obstacle_height_m),
+            variables=coefficients.variables,
+            extra=coefficients.variables.extra,
+            extra_ranges=tuple(tuple(coefficients.fitted_range_m[name]) for name in coefficients.variables.extra),
         )
-        _PLANS[coefficients] = plan
+        plans[coefficients] = plan
     return plan
 
 
@@ -242,9 +269,10 @@ def _size(value: object, size: tuple[object, object], name: str) -> float:
     return value
 
 
-def _check_range(plan: QueryPlan, length_m: float, width_m: float, policy: str) -> bool:
+def _check_range(plan: QueryPlan, length_m: float, width_m: float, policy: str, extra: tuple = ()) -> bool:
     outside = False
-    for name, value, (lo, hi) in (("L", length_m, plan.l_range), ("W", width_m, plan.w_range)):
+    checks = (("L", length_m, plan.l_range), ("W", width_m, plan.w_range), *extra)
+    for name, value, (lo, hi) in checks:
         if not lo <= value <= hi:
             outside = True
             if policy == "error":
@@ -259,6 +287,8 @@ def generate(
     length_m: float,
     width_m: float,
     *,
+    x: float | None = None,
+    d: float | None = None,
     out_of_range: str = "warn",
     region_map: RegionMap | _Attached | None = ATTACHED,
 ) -> GeneratedTrajectory:
@@ -267,6 +297,9 @@ def generate(
     Args:
         coefficients: Loaded with :func:`pipeline.load_coefficients` (with their region map attached).
         length_m, width_m: Obstacle size [m] (int or float; not strings).
+        x: The obstacle's centre x [m], for coefficients that vary it (``coefficients.variables``);
+            required for those, refused for others (module docstring).
+        d: The obstacle's far edge y [m] (``Scene.top_y_m``), likewise.
         out_of_range: What to do outside the fitted range: "warn" (an
             OutOfFittedRangeWarning), "error" (OutOfFittedRangeError) or "ignore".
         region_map: The range certificate to read the bounds from: :data:`ATTACHED` (default) the
@@ -277,7 +310,8 @@ def generate(
 
     Raises:
         InvalidParameterError: ``coefficients`` is not a :class:`Coefficients`; an unknown
-            ``out_of_range`` policy.
+            ``out_of_range`` policy; a variable of the coefficients without a value, a value for
+            one they do not vary, or a value that is not a finite number (the message names it).
         ObstacleSizeError (an InvalidParameterError): L or W not a number, not finite and positive,
             smaller than twice the corner radius, or W covering the arm's base; the message names L and W.
         UnreachableObstacleError: the path around this obstacle leaves the arm's reach.
@@ -288,8 +322,11 @@ def generate(
         plan = _PLANS.get(coefficients)
     except TypeError:  # not weak-referenceable: not a Coefficients
         raise _refuse_coefficients(coefficients) from None
-    if plan is None:
+    if plan is None or x is not None or d is not None:  # a first query, or not the (L, W) route
         plan = query_plan(coefficients)
+        if plan.extra or x is not None or d is not None:
+            region_map = _region_map_of(region_map, coefficients, out_of_range)
+            return _generate_moved(coefficients, plan, length_m, width_m, {"x": x, "d": d}, out_of_range, region_map)
     if region_map is ATTACHED:
         region_map = coefficients.region_map
     elif region_map is not None:
@@ -335,7 +372,7 @@ def generate(
     free = np.array([1.0, L, W, L * L, L * W, W * W]).dot(matrix_t)
     family = coefficients.family
     if family.uses_endpoint_context:
-        full = _expand_with_endpoints(coefficients, free, x1, y1, duration, (L, W))
+        full = _expand_with_endpoints(coefficients, free, (x1, y1), (-x1, y1), duration, (L, W))
     else:
         full = family.expand(free, None)
     parameters = tuple(full.tolist())
@@ -348,36 +385,159 @@ def generate(
 
 
 def _expand_with_endpoints(
-    coefficients: Coefficients, free: np.ndarray, x1: float, y1: float, duration: float, size: tuple[float, float]
+    coefficients: Coefficients,
+    free: np.ndarray,
+    start: tuple[float, float],
+    end: tuple[float, float],
+    duration: float,
+    size: tuple[float, ...],
+    names: tuple[str, ...] = ("L", "W"),
 ):
-    """The 8 parameters of a family that needs the IK of P1 = (x1, y1) and P5 = (-x1, y1) and T."""
+    """The 8 parameters of a family that needs the IK of P1 = ``start`` and P5 = ``end`` and T
+    (``size``: the values of the variables ``names``, for the warning)."""
     family = coefficients.family
-    start = inverse_kinematics((x1, y1), coefficients.link_lengths_m, coefficients.elbow)
-    end = inverse_kinematics((-x1, y1), coefficients.link_lengths_m, coefficients.elbow)
+    start = inverse_kinematics(start, coefficients.link_lengths_m, coefficients.elbow)
+    end = inverse_kinematics(end, coefficients.link_lengths_m, coefficients.elbow)
     context = EndpointContext((float(start[0]), float(start[1])), (float(end[0]), float(end[1])), duration)
     full = family.expand(free, context)
     if family.pins_endpoints and not bool(family.endpoints_exact(free, context)):
+        where = ", ".join(f"{name} = {value!r} m" for name, value in zip(names, size, strict=True))
         warnings.warn(
-            f"L = {size[0]!r} m, W = {size[1]!r} m: the {family.name} family could not pin "
+            f"{where}: the {family.name} family could not pin "
             "the tip to P1 and P5 for these parameters (A1 clamped); endpoints are approximate",
             InexactEndpointsWarning,
-            stacklevel=3,
+            stacklevel=4 if len(names) > 2 else 3,
         )
     return full
 
 
-def generate_parameters(coefficients: Coefficients, lengths_m: np.ndarray, widths_m: np.ndarray) -> np.ndarray:
-    """Batched generator: the 8 parameters (n, 8) for n obstacles, equal to :func:`generate`'s.
+def _region_map_of(region_map: object, coefficients: Coefficients, out_of_range: str) -> RegionMap | None:
+    """The arguments' checks of :func:`generate`, for the route over more variables."""
+    if region_map is ATTACHED:
+        region_map = coefficients.region_map
+    elif region_map is not None:
+        check_region_map(region_map, coefficients)
+    if out_of_range not in OUT_OF_RANGE_POLICIES:
+        raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
+    return region_map
+
+
+def _variable(value: object, name: str) -> float:
+    """An extra variable's value as a finite float, else InvalidParameterError naming it."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise InvalidParameterError(name, value, f"{name} a number in metres, not {type(value).__name__}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise InvalidParameterError(name, value, f"{name} a finite number [m]")
+    return value
+
+
+def _generate_moved(
+    coefficients: Coefficients,
+    plan: QueryPlan,
+    length_m: float,
+    width_m: float,
+    given: dict,
+    out_of_range: str,
+    region_map: RegionMap | None,
+) -> GeneratedTrajectory:
+    """:func:`generate` for coefficients over more variables than (L, W) (module docstring).
+
+    The same steps as the (L, W) route, with the scene's fields replaced by the variables'
+    values, every constraint point shifted by the obstacle's centre x, and no map bounds.
+    """
+    values = {name: _variable(value, name) for name, value in plan.variables.take(given).items()}
+    L = _size(length_m, (length_m, width_m), "L")
+    W = _size(width_m, (length_m, width_m), "W")
+    scene = plan.variables.scene_for(coefficients.scene, values)
+    top, y1, c = float(scene.top_y_m), float(scene.y1_m), float(scene.centre_x_m)
+    smallest = plan.smallest
+    if L < smallest or W < smallest or plan.height < smallest:
+        raise ObstacleSizeError(
+            "L, W",
+            (L, W),
+            f"L and W at least twice the obstacle's corner radius, 2 x {plan.corner_radius!r} = {smallest!r} m",
+            (L, W),
+        )
+    bottom = top - W
+    if bottom <= 0.0 <= top:
+        raise ObstacleSizeError(
+            "W", W, f"W less than d = {top!r} m: at this width the obstacle covers the arm's base", (L, W)
+        )
+    # P1..P5 as pipeline.motion.path.constraint_points: the x of the centred path plus c.
+    x1, x2 = L / 2.0 + plan.start_dx, L / 2.0 + plan.approach_dx
+    y2, y3 = bottom - plan.approach_dy, bottom - plan.apex_dy
+    lo, hi = plan.reach
+    points = (("P1", x1 + c, y1), ("P2", x2 + c, y2), ("P3", c, y3), ("P4", -x2 + c, y2), ("P5", -x1 + c, y1))
+    for name, px, py in points:
+        radius = math.hypot(px, py)
+        if not lo <= radius <= hi:
+            raise UnreachableObstacleError(name, radius, plan.reach, size_m=(L, W))
+    extra = tuple((name, values[name], bounds) for name, bounds in zip(plan.extra, plan.extra_ranges, strict=True))
+    (l_lo, l_hi), (w_lo, w_hi) = plan.l_range, plan.w_range
+    extrapolated = not (l_lo <= L <= l_hi and w_lo <= W <= w_hi) or any(
+        not b_lo <= value <= b_hi for _, value, (b_lo, b_hi) in extra
+    )
+    if extrapolated and out_of_range != "ignore":
+        _check_range(plan, L, W, out_of_range, extra)
+    # T of the path at x = 0: the moved path is the same curve, moved rigidly.
+    if x1 > x2 > 0.0:
+        c4, c2, _ = symmetric_quartic(x1, y1, x2, y2, y3)
+        duration = symmetric_quartic_length_m(x1, c4, c2) / plan.speed
+    else:
+        centred = replace(scene, centre_x_m=0.0)
+        duration = desired_path(Obstacle.in_scene(L, W, centred), centred).duration_s
+    # The regression, as Coefficients.predict_free (pipeline.offline.regression.predict_points): same bits.
+    free = quadratic_design(np.array([L, W, *values.values()])).dot(plan.matrix_t)
+    family = coefficients.family
+    size = (L, W, *values.values())
+    if family.uses_endpoint_context:
+        start, end = (x1 + c, y1), (-x1 + c, y1)
+        full = _expand_with_endpoints(coefficients, free, start, end, duration, size, plan.variables.names)
+    else:
+        full = family.expand(free, None)
+    parameters = tuple(full.tolist())
+    if not all(map(math.isfinite, parameters)):
+        raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
+    return GeneratedTrajectory.trusted(
+        L, W, family, scene, JointTrajectory.trusted(parameters, duration), extrapolated, plan.reach, None
+    )
+
+
+def generate_parameters(
+    coefficients: Coefficients,
+    lengths_m: np.ndarray,
+    widths_m: np.ndarray,
+    *,
+    x: np.ndarray | None = None,
+    d: np.ndarray | None = None,
+) -> np.ndarray:
+    """Batched generator: the 8 parameters (n, 8) for n obstacles, equal to :func:`generate`'s
+    (``x``, ``d``: as there, one value per obstacle).
 
     Where the family's parameters are the regression's alone, this is the regression,
     vectorised and without checks; a family that needs each obstacle's path and inverse
     kinematics calls :func:`generate` per obstacle (range checks off).
     """
     if not coefficients.family.uses_endpoint_context:
-        return coefficients.predict_free(np.asarray(lengths_m, float), np.asarray(widths_m, float))
-    pairs = zip(np.atleast_1d(lengths_m), np.atleast_1d(widths_m), strict=True)
+        if x is None and d is None:
+            return coefficients.predict_free(np.asarray(lengths_m, float), np.asarray(widths_m, float))
+        extra = {name: v for name, v in (("x", x), ("d", d)) if v is not None}
+        return coefficients.predict_free(np.asarray(lengths_m, float), np.asarray(widths_m, float), **extra)
+    if x is None and d is None:
+        pairs = zip(np.atleast_1d(lengths_m), np.atleast_1d(widths_m), strict=True)
+        return np.array(
+            [generate(coefficients, float(L), float(W), out_of_range="ignore").trajectory.parameters for L, W in pairs]
+        )
+    extra = coefficients.variables.take({"x": x, "d": d})
+    rows = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, float)) for v in (lengths_m, widths_m, *extra.values())))
     return np.array(
-        [generate(coefficients, float(L), float(W), out_of_range="ignore").trajectory.parameters for L, W in pairs]
+        [
+            generate(
+                coefficients, L, W, out_of_range="ignore", **dict(zip(extra, values, strict=True))
+            ).trajectory.parameters
+            for L, W, *values in zip(*(row.tolist() for row in rows), strict=True)
+        ]
     )
 
 

@@ -205,9 +205,10 @@ def _repair(
     vector itself, so each iteration costs two objective passes.
     """
     problem = fitness_problem(
-        arm, generated.length_m, generated.width_m, coefficients.scene, config.fitness, coefficients.family
+        arm, generated.length_m, generated.width_m, generated.scene, config.fitness, coefficients.family
     )
-    start = coefficients.predict_free(generated.length_m, generated.width_m)
+    variables = coefficients.variables.values_of(generated.scene)  # e.g. the obstacle's centre x
+    start = coefficients.predict_free(generated.length_m, generated.width_m, **variables)
     deadline = time.perf_counter() + config.max_seconds
     slack = 0.5 * config.fitness.margin_buffer_m
     tracking_size = problem.times_s.size * 2
@@ -259,6 +260,8 @@ def generate_certified(
     width_m: float,
     arm: PlanarArm | None = None,
     *,
+    x: float | None = None,
+    d: float | None = None,
     out_of_range: str = "warn",
     config: RepairConfig | None = None,
     region_map: RegionMap | _Attached | None = ATTACHED,
@@ -270,6 +273,9 @@ def generate_certified(
     Args:
         coefficients: The regression coefficients.
         length_m, width_m: Obstacle size [m].
+        x, d: The obstacle's centre x and far edge y [m], for coefficients that vary them (as
+            :func:`pipeline.online.generator.generate`): the certificates and the repair then
+            take the moved obstacle and path (``generated.scene``).
         arm: The arm; None (default): the one recorded with the coefficients
             (:func:`pipeline.online.arm_check.arm_for`); a given arm must be the one they were fitted for.
         out_of_range: As :func:`pipeline.online.generator.generate`.
@@ -298,7 +304,7 @@ def generate_certified(
     config = _DEFAULT_CONFIG if config is None else config
     if not isinstance(config, RepairConfig):
         raise InvalidParameterError("config", type(config).__name__, "a RepairConfig or None")
-    generated = generate(coefficients, length_m, width_m, out_of_range=out_of_range, region_map=region_map)
+    generated = generate(coefficients, length_m, width_m, x=x, d=d, out_of_range=out_of_range, region_map=region_map)
     if arm is None:
         arm = arm_for(coefficients)
     else:

@@ -1,0 +1,268 @@
+"""The obstacle's centre x as an online input (pipeline.online.generator, batch, repair): with
+coefficients over (L, W, x), the answer's obstacle and path are those of x = 0 moved by exactly x,
+T does not change, the exact-endpoints family pins the tip (Pinocchio) to the moved P1 and P5,
+a missing or unexpected x is refused by name, the batch equals the scalar answers, and
+certify-or-repair certifies the moved obstacle."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pipeline.exceptions import (
+    InvalidParameterError,
+    NoCertifiedTrajectoryError,
+    OutOfFittedRangeError,
+    OutOfFittedRangeWarning,
+    UnreachableObstacleError,
+)
+from pipeline.geometry.sinusoid_certificate import certify_trajectory
+from pipeline.model.kinematics import inverse_kinematics
+from pipeline.motion.path import desired_path
+from pipeline.offline.coefficients import Coefficients
+from pipeline.offline.variables import Variables
+from pipeline.online.batch import generate_batch
+from pipeline.online.generator import generate, generate_parameters
+from pipeline.online.repair import RepairConfig, generate_certified
+
+LWX = Variables(("L", "W", "x"))
+X_RANGE = (-0.03, 0.03)
+
+
+def with_x(coefficients: Coefficients, seed: int = 1, scale: float = 0.1) -> Coefficients:
+    """``coefficients`` over (L, W, x): the same (L, W) terms (at positions 0, 1, 2, 4, 5, 7 of
+    the (L, W, x) basis) and random x terms of size ``scale``."""
+    rng = np.random.default_rng(seed)
+    parameters = {}
+    for name, b in coefficients.parameters.items():
+        lifted = np.zeros(LWX.basis_size)
+        lifted[[0, 1, 2, 4, 5, 7]] = b
+        lifted[[3, 6, 8, 9]] = rng.normal(0.0, scale, 4)
+        parameters[name] = tuple(float(v) for v in lifted)
+    return replace(
+        coefficients,
+        parameters=parameters,
+        fitted_range_m={**coefficients.fitted_range_m, "x": X_RANGE},
+        variables=LWX,
+        source="",
+        source_sha256="",
+        region_map=None,
+    )
+
+
+@pytest.fixture(scope="module")
+def paper_x(paper) -> Coefficients:
+    return with_x(paper)
+
+
+@pytest.fixture(scope="module")
+def exact_x(exact) -> Coefficients:
+    return with_x(exact, seed=2, scale=0.05)
+
+
+CASES = [(0.25, 0.10, 0.02), (0.21, 0.085, -0.03), (0.29, 0.115, 0.011), (0.27, 0.09, -0.004)]
+
+
+@pytest.mark.parametrize("family", ["paper", "exact"])
+@pytest.mark.parametrize(("L", "W", "x"), CASES)
+def test_obstacle_and_path_are_moved_by_x_and_t_is_unchanged(request, family, L, W, x) -> None:
+    coefficients = request.getfixturevalue(f"{family}_x")
+    centred = generate(coefficients, L, W, x=0.0)
+    moved = generate(coefficients, L, W, x=x)
+    assert moved.centre_x_m == moved.scene.centre_x_m == moved.obstacle.centre_x_m == x
+    assert replace(moved.scene, centre_x_m=0.0) == coefficients.scene
+    shift = np.array([x, 0.0])
+    assert np.array_equal(moved.obstacle.footprint_corners_m(), centred.obstacle.footprint_corners_m() + shift)
+    assert np.array_equal(moved.path.points_m, centred.path.points_m + shift)
+    # T: the x = 0 path's, and the moved path's own arc length agrees (a rigid shift).
+    assert abs(moved.duration_s - centred.duration_s) <= 1e-15 * centred.duration_s
+    own = desired_path(moved.obstacle, moved.scene)
+    assert abs(own.duration_s - centred.duration_s) <= 1e-14 * centred.duration_s
+    assert abs(moved.path.length_m - centred.path.length_m) <= 1e-14 * centred.path.length_m
+    xs = np.linspace(centred.path.end_x_m, centred.path.start_x_m, 41)
+    np.testing.assert_allclose(moved.path.y(xs + x), centred.path.y(xs), rtol=0, atol=1e-12)
+    # The regression is evaluated at (L, W, x); no map bounds over (L, W, x).
+    if family == "paper":
+        assert np.array_equal(moved.trajectory.parameters, coefficients.predict_free(L, W, x=x))
+    assert moved.certificate_source is None and moved.certified_clearance_m is None
+    assert moved.range_status is None and not moved.extrapolated
+
+
+def test_x_terms_of_zero_give_the_l_w_answer(paper) -> None:
+    """With the x terms zero, x moves only the obstacle and the path: the parameters are the
+    (L, W) coefficients' to rounding and T is theirs to the bit."""
+    flat = with_x(paper, scale=0.0)
+    for L, W, x in CASES:
+        reference = generate(paper, L, W)
+        answer = generate(flat, L, W, x=x)
+        np.testing.assert_allclose(answer.trajectory.parameters, reference.trajectory.parameters, rtol=0, atol=1e-14)
+        assert answer.duration_s == reference.duration_s
+
+
+@pytest.mark.parametrize(("L", "W", "x"), CASES)
+def test_exact_endpoints_pin_the_tip_to_the_moved_p1_and_p5(exact_x, arm, L, W, x) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no InexactEndpointsWarning, no out-of-range warning
+        answer = generate(exact_x, L, W, x=x)
+    points = answer.path.points_m
+    start = inverse_kinematics(points[0], exact_x.link_lengths_m, exact_x.elbow)
+    end = inverse_kinematics(points[-1], exact_x.link_lengths_m, exact_x.elbow)
+    assert abs(start[1] - end[1]) > 1e-3  # theta2_s != theta2_e: the asymmetric phi2 branch
+    q = answer.trajectory.q(np.array([0.0, answer.duration_s]))
+    tips = arm.to_plane(arm.end_effector_positions(q))  # Pinocchio's kinematics of the URDF
+    errors = np.linalg.norm(tips - points[[0, -1]], axis=1)
+    assert errors.max() <= 1e-9
+    half = L / 2 + exact_x.scene.start_dx_m
+    assert points[0, 0] == half + x and points[-1, 0] == -half + x
+
+
+def test_a_missing_or_unexpected_variable_is_refused_by_name(paper, paper_x) -> None:
+    cases = [
+        (lambda: generate(paper_x, 0.25, 0.1), r"^x = None is invalid: .*x= is required"),
+        (lambda: generate(paper, 0.25, 0.1, x=0.01), r"^x = 0\.01 is invalid: .*vary L, W only"),
+        (lambda: generate(paper_x, 0.25, 0.1, x=0.01, d=0.55), r"^d = 0\.55 is invalid: .*vary L, W, x only"),
+        (lambda: generate(paper_x, 0.25, 0.1, x="0.01"), r"^x = '0\.01' is invalid: .*not str"),
+        (lambda: generate(paper_x, 0.25, 0.1, x=math.nan), r"^x = nan is invalid"),
+        (lambda: generate_batch(paper_x, [0.25], [0.1]), r"^x = None is invalid"),
+        (lambda: generate_batch(paper, [0.25], [0.1], x=[0.01]), r"^x = \[0\.01\] is invalid"),
+        (lambda: generate_batch(paper_x, [0.25, 0.2], [0.1, 0.1], x=[0.0, 0.0, 0.0]), r"^x = \(3,\) is invalid"),
+        (lambda: generate_parameters(paper_x, [0.25], [0.1]), r"^x = None is invalid"),
+        (lambda: generate_certified(paper_x, 0.25, 0.1), r"^x = None is invalid"),
+        (lambda: generate_certified(paper, 0.25, 0.1, x=0.01), r"^x = 0\.01 is invalid"),
+    ]
+    for call, message in cases:
+        with pytest.raises(InvalidParameterError, match=message) as info:
+            call()
+        assert "\n" not in str(info.value)
+
+
+def test_x_outside_its_fitted_range_follows_the_policy(paper_x) -> None:
+    with pytest.warns(OutOfFittedRangeWarning, match="x"):
+        answer = generate(paper_x, 0.25, 0.1, x=0.04)
+    assert answer.extrapolated
+    with pytest.raises(OutOfFittedRangeError, match="x"):
+        generate(paper_x, 0.25, 0.1, x=-0.04, out_of_range="error")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert generate(paper_x, 0.25, 0.1, x=0.04, out_of_range="ignore").extrapolated
+    with pytest.raises(UnreachableObstacleError, match="P1"):
+        generate(paper_x, 0.3, 0.1, x=0.2, out_of_range="ignore")
+
+
+@pytest.mark.parametrize("family", ["paper", "exact"])
+def test_batch_equals_scalar_answers(request, family) -> None:
+    coefficients = request.getfixturevalue(f"{family}_x")
+    rng = np.random.default_rng(7)
+    n = 40
+    L = np.concatenate([rng.uniform(0.19, 0.31, n), [0.25, 0.001, 0.3]])
+    W = np.concatenate([rng.uniform(0.075, 0.125, n), [0.1, 0.1, 0.1]])
+    x = np.concatenate([rng.uniform(-0.035, 0.035, n), [np.nan, 0.0, 0.2]])
+    batch = generate_batch(coefficients, L, W, x=x)
+    assert np.array_equal(batch.variables["x"], x, equal_nan=True)
+    for i in range(L.size):
+        try:
+            answer = generate(coefficients, float(L[i]), float(W[i]), x=float(x[i]), out_of_range="ignore")
+        except (InvalidParameterError, UnreachableObstacleError) as exc:
+            assert batch.error[i] is not None and type(exc).__name__ in batch.error[i]
+            assert np.isnan(batch.durations_s[i])
+            continue
+        assert batch.error[i] is None
+        assert batch.durations_s[i] == answer.duration_s
+        np.testing.assert_allclose(batch.parameters[i], answer.trajectory.parameters, rtol=0, atol=1e-15)
+        assert batch.extrapolated[i] == answer.extrapolated
+    assert sum(e is not None for e in batch.error) == 3
+    assert batch.certified_clearance_m is None
+    parameters = generate_parameters(coefficients, L[:n], W[:n], x=x[:n])
+    np.testing.assert_allclose(parameters, batch.parameters[:n], rtol=0, atol=1e-15)
+    # One x for every obstacle.
+    same = generate_batch(coefficients, L[:n], W[:n], x=0.01)
+    single = generate(coefficients, float(L[0]), float(W[0]), x=0.01, out_of_range="ignore")
+    np.testing.assert_allclose(same.parameters[0], single.trajectory.parameters, rtol=0, atol=1e-15)
+
+
+def test_certify_or_repair_certifies_the_moved_obstacle(exact_x, arm) -> None:
+    """The per-query certificate is the moved obstacle's: its bound equals a certificate of the
+    answer's trajectory against the obstacle at x, not at x = 0."""
+    config = RepairConfig(repair=False, certificate_tolerance_m=1e-4)
+    L, W, x = 0.22, 0.085, 0.015
+    answer = generate(exact_x, L, W, x=x)
+    moved = certify_trajectory(answer.trajectory, arm, answer.obstacle, tolerance_m=1e-4).certified_clearance_m
+    centred = generate(exact_x, L, W, x=0.0).obstacle
+    unmoved = certify_trajectory(answer.trajectory, arm, centred, tolerance_m=1e-4).certified_clearance_m
+    assert abs(moved - unmoved) > 1e-3
+    try:
+        result = generate_certified(exact_x, L, W, arm, x=x, config=config)
+    except NoCertifiedTrajectoryError as exc:
+        assert exc.certified_clearance_m == pytest.approx(moved, abs=1e-12)
+        return
+    assert result.generated.obstacle.centre_x_m == x
+    assert result.certificate.certified_clearance_m == pytest.approx(moved, abs=1e-12)
+    points = result.generated.path.points_m
+    tips = arm.to_plane(arm.end_effector_positions(result.trajectory.q(np.array([0.0, result.trajectory.duration_s]))))
+    assert np.linalg.norm(tips - points[[0, -1]], axis=1).max() <= 1e-9
+
+
+def test_a_repair_with_x_works_on_the_moved_obstacle(exact_x, arm) -> None:
+    """At (0.22, 0.085, 0.015) the regression's answer misses the margin; the repair, run on the
+    moved obstacle's objective from the regression at (L, W, x), clears it and keeps the tip
+    pinned to the moved P1 and P5."""
+    answer = generate_certified(exact_x, 0.22, 0.085, arm, x=0.015)
+    margin = exact_x.scene.margin_m
+    assert answer.repaired and answer.regression_certificate.certified_clearance_m < margin
+    assert answer.generated.obstacle.centre_x_m == 0.015
+    tight = certify_trajectory(answer.trajectory, arm, answer.generated.obstacle, tolerance_m=1e-5)
+    assert tight.certified_clearance_m >= margin
+    points = answer.generated.path.points_m
+    tips = arm.to_plane(arm.end_effector_positions(answer.trajectory.q(np.array([0.0, answer.trajectory.duration_s]))))
+    assert np.linalg.norm(tips - points[[0, -1]], axis=1).max() <= 1e-9
+    assert max(answer.endpoint_errors_m) <= 1e-9
+
+
+def test_d_replaces_the_scenes_far_edge(paper) -> None:
+    """Coefficients over (L, W, d) with the d terms zero answer as (L, W) coefficients whose
+    scene has top_y_m = d, and the batch agrees."""
+    lwd = Variables(("L", "W", "d"))
+    lifted = {}
+    for name, b in paper.parameters.items():
+        row = np.zeros(lwd.basis_size)
+        row[[0, 1, 2, 4, 5, 7]] = b
+        lifted[name] = tuple(row.tolist())
+    over_d = replace(
+        paper, parameters=lifted, fitted_range_m={**paper.fitted_range_m, "d": (0.54, 0.58)}, variables=lwd
+    )
+    for d in (0.545, 0.56, 0.575):
+        reference = generate(replace(paper, scene=replace(paper.scene, top_y_m=d)), 0.25, 0.1)
+        answer = generate(over_d, 0.25, 0.1, d=d)
+        assert answer.scene.top_y_m == d and answer.obstacle.top_y_m == d
+        assert answer.duration_s == reference.duration_s
+        assert np.array_equal(answer.path.points_m, reference.path.points_m)
+        np.testing.assert_allclose(answer.trajectory.parameters, reference.trajectory.parameters, rtol=0, atol=1e-14)
+        batch = generate_batch(over_d, [0.25], [0.1], d=d)
+        assert batch.durations_s[0] == answer.duration_s
+        np.testing.assert_allclose(batch.parameters[0], answer.trajectory.parameters, rtol=0, atol=1e-15)
+    with pytest.raises(InvalidParameterError, match=r"^x = 0\.0 is invalid"):
+        generate(over_d, 0.25, 0.1, d=0.56, x=0.0)
+
+
+def test_certify_batch_certifies_the_moved_obstacles(paper_x, arm) -> None:
+    """The batch certificate places each obstacle at its own x: its bounds equal the scalar
+    certificate of the moved obstacle, and differ from the unmoved one's."""
+    from pipeline.geometry.sinusoid_certificate import certify_trajectory
+    from pipeline.online.batch import generate_batch
+    from pipeline.online.batch_certify import certify_batch
+
+    L, W, x = np.array([0.25, 0.27]), np.array([0.09, 0.10]), np.array([0.03, -0.03])
+    batch = generate_batch(paper_x, L, W, x=x)
+    result = certify_batch(paper_x, batch, arm)
+    for i in range(2):
+        answer = generate(paper_x, float(L[i]), float(W[i]), x=float(x[i]))
+        moved = certify_trajectory(answer.trajectory, arm, answer.obstacle).certified_clearance_m
+        unmoved = certify_trajectory(
+            answer.trajectory, arm, generate(paper_x, float(L[i]), float(W[i]), x=0.0).obstacle
+        ).certified_clearance_m
+        assert result.certified_clearance_m[i] == pytest.approx(moved, abs=1e-12)
+        assert abs(moved - unmoved) > 1e-4
