@@ -282,6 +282,25 @@ def _check_range(plan: QueryPlan, length_m: float, width_m: float, policy: str, 
     return outside
 
 
+def _checked_bottom(plan, L: float, W: float, top: float) -> float:
+    """d - W, the y of the obstacle's near edge [m], after refusing an obstacle smaller than its
+    rounded corners or one that covers the arm's base (ObstacleSizeError naming L and W)."""
+    smallest = plan.smallest
+    if L < smallest or W < smallest or plan.height < smallest:
+        raise ObstacleSizeError(
+            "L, W",
+            (L, W),
+            f"L and W at least twice the obstacle's corner radius, 2 x {plan.corner_radius!r} = {smallest!r} m",
+            (L, W),
+        )
+    bottom = top - W
+    if bottom <= 0.0 <= top:
+        raise ObstacleSizeError(
+            "W", W, f"W less than d = {top!r} m: at this width the obstacle covers the arm's base", (L, W)
+        )
+    return bottom
+
+
 def generate(
     coefficients: Coefficients,
     length_m: float,
@@ -339,19 +358,7 @@ def generate(
         W = _size(width_m, (length_m, width_m), "W")
     matrix_t, (l_lo, l_hi), (w_lo, w_hi), reach, top, y1 = plan[:6]
     start_dx, approach_dx, approach_dy, apex_dy, speed = plan[6:11]
-    smallest = plan.smallest
-    if L < smallest or W < smallest or plan.height < smallest:
-        raise ObstacleSizeError(
-            "L, W",
-            (L, W),
-            f"L and W at least twice the obstacle's corner radius, 2 x {plan.corner_radius!r} = {smallest!r} m",
-            (L, W),
-        )
-    bottom = top - W
-    if bottom <= 0.0 <= top:
-        raise ObstacleSizeError(
-            "W", W, f"W less than d = {top!r} m: at this width the obstacle covers the arm's base", (L, W)
-        )
+    bottom = _checked_bottom(plan, L, W, top)
     # P1, P2, P3 (P4, P5 mirror P2, P1: the same radii) and their distance from the base.
     x1, x2 = L / 2.0 + start_dx, L / 2.0 + approach_dx
     y2, y3 = bottom - approach_dy, bottom - apex_dy
@@ -451,19 +458,7 @@ def _generate_moved(
     W = _size(width_m, (length_m, width_m), "W")
     scene = plan.variables.scene_for(coefficients.scene, values)
     top, y1, c = float(scene.top_y_m), float(scene.y1_m), float(scene.centre_x_m)
-    smallest = plan.smallest
-    if L < smallest or W < smallest or plan.height < smallest:
-        raise ObstacleSizeError(
-            "L, W",
-            (L, W),
-            f"L and W at least twice the obstacle's corner radius, 2 x {plan.corner_radius!r} = {smallest!r} m",
-            (L, W),
-        )
-    bottom = top - W
-    if bottom <= 0.0 <= top:
-        raise ObstacleSizeError(
-            "W", W, f"W less than d = {top!r} m: at this width the obstacle covers the arm's base", (L, W)
-        )
+    bottom = _checked_bottom(plan, L, W, top)
     # P1..P5 as pipeline.motion.path.constraint_points: the x of the centred path plus c.
     x1, x2 = L / 2.0 + plan.start_dx, L / 2.0 + plan.approach_dx
     y2, y3 = bottom - plan.approach_dy, bottom - plan.apex_dy
