@@ -129,20 +129,10 @@ def generate_batch(
         c4, c2, _ = symmetric_quartic(x1, plan.y1, x2, y2, y3)
         durations = symmetric_quartic_lengths_m(x1, c4, c2) / plan.speed
     free = np.stack([np.ones_like(L), L, W, L * L, L * W, W * W], -1) @ plan.matrix_t
-    errors: list[str | None] = [None] * L.size
     if coefficients.family.uses_endpoint_context or not np.all(valid):
-        parameters = np.full((L.size, 8), np.nan)
-        for i in range(L.size):
-            try:
-                answer = generate(coefficients, float(L[i]), float(W[i]), out_of_range="ignore")
-            except PipelineError as exc:
-                errors[i] = f"{type(exc).__name__}: {exc}"
-                durations[i] = np.nan
-                continue
-            parameters[i] = answer.trajectory.parameters
-            durations[i] = answer.duration_s
+        parameters, errors = _one_by_one(coefficients, L, W, {}, durations)
     else:
-        parameters = coefficients.family.expand(free, None)
+        parameters, errors = coefficients.family.expand(free, None), [None] * L.size
     (l_lo, l_hi), (w_lo, w_hi) = plan.l_range, plan.w_range
     extrapolated = ~((L >= l_lo) & (L <= l_hi) & (W >= w_lo) & (W <= w_hi))
     bounds: tuple[np.ndarray | None, ...] = (None, None, None, None)
@@ -211,21 +201,10 @@ def _generate_moved_batch(
         c4, c2, _ = symmetric_quartic(x1, y1, x2, y2, y3)
         durations = symmetric_quartic_lengths_m(x1, c4, c2) / plan.speed
     free = quadratic_design(np.stack([L, W, *values.values()], -1)) @ plan.matrix_t
-    errors: list[str | None] = [None] * L.size
     if coefficients.family.uses_endpoint_context or not np.all(valid):
-        parameters = np.full((L.size, 8), np.nan)
-        for i in range(L.size):
-            extra = {name: float(v[i]) for name, v in values.items()}
-            try:
-                answer = generate(coefficients, float(L[i]), float(W[i]), out_of_range="ignore", **extra)
-            except PipelineError as exc:
-                errors[i] = f"{type(exc).__name__}: {exc}"
-                durations[i] = np.nan
-                continue
-            parameters[i] = answer.trajectory.parameters
-            durations[i] = answer.duration_s
+        parameters, errors = _one_by_one(coefficients, L, W, values, durations)
     else:
-        parameters = coefficients.family.expand(free, None)
+        parameters, errors = coefficients.family.expand(free, None), [None] * L.size
     (l_lo, l_hi), (w_lo, w_hi) = plan.l_range, plan.w_range
     inside = (L >= l_lo) & (L <= l_hi) & (W >= w_lo) & (W <= w_hi)
     for (b_lo, b_hi), v in zip(plan.extra_ranges, values.values(), strict=True):
@@ -233,3 +212,25 @@ def _generate_moved_batch(
     return GeneratedBatch(
         L, W, np.asarray(parameters, dtype=float), durations, ~inside, tuple(errors), variables=values
     )
+
+
+def _one_by_one(
+    coefficients: Coefficients, L: np.ndarray, W: np.ndarray, values: dict, durations: np.ndarray
+) -> tuple[np.ndarray, list[str | None]]:
+    """The scalar generator per obstacle (families that need each obstacle's inverse kinematics,
+    or a batch with sizes it refuses): parameters (n, 8) and the refusal of each obstacle (None:
+    answered); ``durations`` takes each answer's T, NaN where refused. ``values``: the extra
+    variables' arrays by name."""
+    parameters = np.full((L.size, 8), np.nan)
+    errors: list[str | None] = [None] * L.size
+    for i in range(L.size):
+        extra = {name: float(v[i]) for name, v in values.items()}
+        try:
+            answer = generate(coefficients, float(L[i]), float(W[i]), out_of_range="ignore", **extra)
+        except PipelineError as exc:
+            errors[i] = f"{type(exc).__name__}: {exc}"
+            durations[i] = np.nan
+            continue
+        parameters[i] = answer.trajectory.parameters
+        durations[i] = answer.duration_s
+    return parameters, errors
