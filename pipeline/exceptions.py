@@ -7,6 +7,8 @@ one clear line instead of a traceback.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 
 class PipelineError(Exception):
     """Base class of every error raised by this project on bad input or state.
@@ -68,6 +70,19 @@ class ObstacleSizeError(InvalidParameterError):
         ValueError.__init__(self, f"{shown}: invalid obstacle size: expected {expected}")
 
 
+def _variables_text(variables: Mapping[str, object] | None, spec: str) -> str:
+    """The text ``, x = 0.0200 m`` for each extra scene variable (name -> value [m]), formatted
+    with ``spec`` ("r": the repr of the plain float); "" for none."""
+    if not variables:
+        return ""
+    shown = []
+    for name, value in variables.items():
+        plain = _plain(value)
+        text = repr(plain) if spec == "r" or not isinstance(plain, float) else format(plain, spec)
+        shown.append(f", {name} = {text} m")
+    return "".join(shown)
+
+
 def _plain(value: object) -> object:
     """A number as a plain float (NumPy scalars print as np.float64(...) otherwise)."""
     if isinstance(value, bool):
@@ -122,6 +137,9 @@ class UnreachableObstacleError(PipelineError):
         point_name: Which constraint point is unreachable ("P1", ...).
         radius_m: Its distance from the base [m].
         reach_m: The annulus of reachable radii [m] as ``(min, max)``.
+        size_m: The obstacle's (L, W) [m], or None.
+        variables: The values of the scene variables beyond L and W (name -> value [m], e.g.
+            {"x": 0.02}); {} for none. The message names them after L and W.
     """
 
     def __init__(
@@ -130,12 +148,18 @@ class UnreachableObstacleError(PipelineError):
         radius_m: float,
         reach_m: tuple[float, float],
         size_m: tuple[float, float] | None = None,
+        variables: Mapping[str, float] | None = None,
     ) -> None:
         self.point_name = point_name
         self.radius_m = radius_m
         self.reach_m = reach_m
         self.size_m = size_m
-        prefix = "" if size_m is None else f"L = {size_m[0]!r} m, W = {size_m[1]!r} m: "
+        self.variables = dict(variables or {})
+        prefix = (
+            ""
+            if size_m is None
+            else f"L = {size_m[0]!r} m, W = {size_m[1]!r} m{_variables_text(self.variables, 'r')}: "
+        )
         super().__init__(
             f"{prefix}constraint point {point_name} is at {radius_m:.4f} m from the base, outside "
             f"the arm's reach [{reach_m[0]:.4f}, {reach_m[1]:.4f}] m: the arm cannot pass "
@@ -144,10 +168,10 @@ class UnreachableObstacleError(PipelineError):
 
 
 class OutOfFittedRangeError(PipelineError):
-    """(L, W) lies outside the range the regression was fitted on.
+    """(L, W), or the value of another scene variable, lies outside the range the regression was fitted on.
 
     Attributes:
-        name: "L" or "W".
+        name: The variable: "L", "W", or another one of the coefficients (e.g. "x").
         value_m: The requested size [m].
         fitted_range_m: The fitted ``(lo, hi)`` [m].
     """
@@ -199,18 +223,29 @@ class NoCertifiedTrajectoryError(PipelineError):
         length_m, width_m: The obstacle, L and W [m].
         certified_clearance_m: Best certified clearance reached [m].
         margin_m: Required margin [m].
+        reason: Why the repair stopped short.
+        variables: The values of the scene variables beyond L and W (name -> value [m], e.g.
+            {"x": 0.02}); {} for none. The message names them after L and W.
     """
 
     def __init__(
-        self, length_m: float, width_m: float, certified_clearance_m: float, margin_m: float, reason: str
+        self,
+        length_m: float,
+        width_m: float,
+        certified_clearance_m: float,
+        margin_m: float,
+        reason: str,
+        variables: Mapping[str, float] | None = None,
     ) -> None:
         self.length_m = length_m
         self.width_m = width_m
         self.certified_clearance_m = certified_clearance_m
         self.margin_m = margin_m
         self.reason = reason
+        self.variables = dict(variables or {})
+        where = f"L = {length_m:.4f} m, W = {width_m:.4f} m{_variables_text(self.variables, '.4f')}"
         super().__init__(
-            f"no certified trajectory for L = {length_m:.4f} m, W = {width_m:.4f} m: best certified "
+            f"no certified trajectory for {where}: best certified "
             f"clearance {certified_clearance_m * 1e3:.3f} mm < margin {margin_m * 1e3:.3f} mm "
             f"({reason})"
         )
@@ -345,15 +380,23 @@ class ExecutionRefusedError(PipelineError):
         timing_name: The timing that was certified ("paper" or "rest-to-rest"; None for an
             endpoint error, which no timing changes).
         reasons: One line per failed check, naming the joint, the bound, the limit and the excess.
+        variables: The values of the scene variables beyond L and W (name -> value [m], e.g.
+            {"x": 0.02}); {} for none. The message names them after L and W.
     """
 
-    def __init__(self, length_m: float, width_m: float, timing_name: str | None, reasons: tuple[str, ...]) -> None:
+    def __init__(
+        self,
+        length_m: float,
+        width_m: float,
+        timing_name: str | None,
+        reasons: tuple[str, ...],
+        variables: Mapping[str, float] | None = None,
+    ) -> None:
         self.length_m = length_m
         self.width_m = width_m
         self.timing_name = timing_name
         self.reasons = tuple(reasons)
+        self.variables = dict(variables or {})
         timing = "" if timing_name is None else f" with the {timing_name} timing"
-        super().__init__(
-            f"no executable trajectory for L = {length_m:.4f} m, W = {width_m:.4f} m{timing}: "
-            + "; ".join(self.reasons)
-        )
+        where = f"L = {length_m:.4f} m, W = {width_m:.4f} m{_variables_text(self.variables, '.4f')}"
+        super().__init__(f"no executable trajectory for {where}{timing}: " + "; ".join(self.reasons))

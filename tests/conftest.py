@@ -103,3 +103,38 @@ def table2() -> np.ndarray:
     table = np.array(_TABLE2)
     table.setflags(write=False)
     return table
+
+
+@pytest.fixture(scope="session")
+def over_x():
+    """The function lifting (L, W) coefficients to (L, W, x) (:func:`_coefficients_over_x`)."""
+    return _coefficients_over_x
+
+
+def _coefficients_over_x(
+    coefficients, x_range_m: tuple[float, float] = (-0.03, 0.03), seed: int = 1, scale: float = 0.1
+):
+    """``coefficients`` (over (L, W)) lifted to (L, W, x): the same (L, W) terms (at positions 0,
+    1, 2, 4, 5, 7 of the (L, W, x) basis) and random x terms of size ``scale`` (zero: the same
+    trajectories for every x, moved obstacle aside)."""
+    from dataclasses import replace
+
+    from pipeline.offline.variables import Variables
+
+    lwx = Variables(("L", "W", "x"))
+    rng = np.random.default_rng(seed)
+    parameters = {}
+    for name, b in coefficients.parameters.items():
+        lifted = np.zeros(lwx.basis_size)
+        lifted[[0, 1, 2, 4, 5, 7]] = b
+        lifted[[3, 6, 8, 9]] = rng.normal(0.0, scale, 4)
+        parameters[name] = tuple(float(v) for v in lifted)
+    return replace(
+        coefficients,
+        parameters=parameters,
+        fitted_range_m={**coefficients.fitted_range_m, "x": tuple(x_range_m)},
+        variables=lwx,
+        source="",
+        source_sha256="",
+        region_map=None,
+    )

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS
+from pipeline.certify.range_model import CERTIFIABLE_AXES
 from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool, check_scheduler_address
 from pipeline.model.arm import DEFAULT_URDF
@@ -106,8 +107,8 @@ class BuildConfig:
         vary: The scene variables varied beside L and W (:mod:`pipeline.offline.variables`: x,
             the obstacle's centre x, or d, its far edge y), as
             :class:`pipeline.offline.designs.Factor` objects or (name, min, max) [m]; () for the
-            paper's (L, W). With any, the coefficients vary them too, and the build writes no
-            region map (the range certificate covers (L, W) only).
+            paper's (L, W). With any, the coefficients vary them too; the range certificate
+            covers (L, W, x) (with d, the build writes no region map).
         design_kind: The design: a :class:`pipeline.offline.designs.ScaledDesign` subclass
             (:class:`~pipeline.offline.designs.FullFactorial`, the default,
             :class:`~pipeline.offline.designs.BoxBehnken`,
@@ -273,6 +274,11 @@ class BuildConfig:
     def variables(self) -> Variables:
         """The scene variables the DOE and the coefficients vary: (L, W) and ``vary``'s."""
         return Variables((*SIZE, *(f.name for f in self.vary)))
+
+    @property
+    def certifiable_axes(self) -> bool:
+        """True if the range certificate covers the coefficients' variables (L, W and x)."""
+        return all(name in CERTIFIABLE_AXES for name in self.variables.names)
 
     @property
     def certifiable_refit(self) -> bool:

@@ -93,9 +93,9 @@ class BuildResult:
         """Why the build wrote no region map though ``range_map`` asked for one, or None."""
         if not self.config.range_map or self.region_map is not None:
             return None
-        if not self.config.variables.is_size_only:
+        if not self.config.certifiable_axes:
             names = ", ".join(self.config.variables.names)
-            return f"the range certificate covers (L, W) only and these coefficients vary {names}"
+            return f"the range certificate covers L, W and x only and these coefficients vary {names}"
         return "the build did not converge"
 
 
@@ -137,7 +137,7 @@ def run_build(config: BuildConfig, progress: ProgressCallback | None = None) -> 
 
     coefficients, text = as_written(fit.coefficients, str(config.out_folder / COEFFICIENTS_NAME))
     certified = None
-    if config.range_map and not fit.problems and config.variables.is_size_only:
+    if config.range_map and not fit.problems and config.certifiable_axes:
         certified = certify_coefficients(config, fit.doe, coefficients, text, arm, progress)
         coefficients, text = certified.coefficients, certified.text
         timing.update(certified.timing)

@@ -1,9 +1,11 @@
-"""Rigorous lower bounds on the clearance of both links over boxes of (L, W) x s, s = t / T(L, W).
+"""Rigorous lower bounds on the clearance of both links over boxes of (v, s), v the coefficients'
+axes ((L, W), or (L, W, x) with the obstacle's centre x) and s = t / T(L, W).
 
 Geometry (``pipeline.obstacle``, ``pipeline.robot``): link k is a capsule, the segment
 S_k = [a_k, b_k] (link 1: base -> elbow, link 2: elbow -> tip) inflated by its radius r_k; the
-obstacle is the core rectangle R(L, W) = [-(L/2 - r), L/2 - r] x [d - W + r, d - r] inflated by
-the corner radius r, i.e. footprint x in [-L/2, L/2], y in [d - W, d]. Because the arm and the
+obstacle is the core rectangle R(L, W, x) = [x - (L/2 - r), x + L/2 - r] x [d - W + r, d - r]
+inflated by the corner radius r, i.e. footprint [x - L/2, x + L/2] x [d - W, d] (x = 0 without an
+x axis: the paper's scene). Because the arm and the
 box are straight prisms over the same plane (the box is taller than the capsules), the 3-D
 distance Coal computes is the planar one, and for positive clearance
 
@@ -13,7 +15,7 @@ Where the capsule and the box meet, dist(S_k, R) - r_k - r <= 0 and Coal's value
 depth) is <= 0 too: every bound below is a lower bound on c_k, so a positive bound certifies
 both the analytic and the Coal clearance (up to Coal's error, :data:`COAL_DISTANCE_ERROR_M`).
 
-Every point x = (L, W, s) of a box X with centre c and half widths r (``radius``) has
+Every point p = (v, s) of a box X with centre c and half widths r (``radius``) has
 joint angles theta(x) from :class:`pipeline.certify.range_model.RangeModel` (the regression's
 parameters, T(L, W), the family's expansion); interval jets give enclosures of theta and of
 d theta / d(L, W, s) over X. Three lower bounds are computed per link and box, and the largest
@@ -24,11 +26,11 @@ is kept (each is valid everywhere, so their maximum is):
     (v_j the four vertices of R; linear functionals take their extremes at vertices). n is
     fixed per box as the direction of the closest pair at the centre c. Each of the eight
     n.(e(x) - v_j(x)) is a smooth function of x, bounded over X by the mean-value form
-    f(x) >= f(c) - sum_i max_X |df/dx_i| r_i (arm and obstacle in one function, so that their
-    common dependence on L and W is not counted twice). At the centre the bound equals the
+    f(p) >= f(c) - sum_i max_X |df/dp_i| r_i (arm and obstacle in one function, so that their
+    common dependence on the axes is not counted twice). At the centre the bound equals the
     distance when the witness is a vertex of S (an endpoint) and by the envelope theorem its
     first-order change equals the distance's, so the gap shrinks quadratically with the box.
-(b) **Supporting line of the link.** With m(x) = (-sin phi, cos phi) the unit normal of link k
+(b) **Supporting line of the link.** With m(p) = (-sin phi, cos phi) the unit normal of link k
     (phi = theta1, resp. theta1 + theta2) and sigma = +-1, if sigma m.(v_j - a) > 0 for all j,
     R lies on one side of the line through S and dist(S, R) >= dist(line, R) =
     min_j sigma m.(v_j - a); otherwise this is <= 0 <= dist. The bound is exact when the
@@ -38,10 +40,11 @@ is kept (each is valid everywhere, so their maximum is):
     motion of either body. Over X, the segment of link 1 moves by at most l1 |d theta1|
     (|e(x) - e(c)| = 2 l1 |sin(d theta1 / 2)|), link 2 by at most l1 |d theta1| + l2 |d(theta1 +
     theta2)| (the Hausdorff distance of two segments is at most the larger endpoint
-    displacement), with |d theta| <= sum_i max_X |d theta / dx_i| r_i. The obstacle's core
-    rectangle moves by at most sqrt((r_L / 2)^2 + r_W^2) in Hausdorff distance (its bottom
-    corners move by (dL / 2, dW); note this is the Euclidean, not the max, of the two) and
-    the inflation by r does not increase that. So c_k(x) >= c_k(c) - motion - obstacle motion
+    displacement), with |d theta| <= sum_i max_X |d theta / dp_i| r_i. The obstacle's core
+    rectangle moves by at most sqrt((r_L / 2 + r_x)^2 + r_W^2) in Hausdorff distance (its
+    bottom corners move by (dx +- dL / 2, dW); note this is the Euclidean, not the max, of the
+    two; r_x = 0 without an x axis) and the inflation by r does not increase that. So
+    c_k(p) >= c_k(c) - motion - obstacle motion
     - distance error, with c_k(c) from the analytic route (``distance_error_m`` its bound) or
     from Coal (:data:`COAL_DISTANCE_ERROR_M`). This bound is first order; it guards the
     degenerate centres where (a) and (b) have no good direction.
@@ -80,9 +83,13 @@ class BoxBounds:
     split_s: np.ndarray
 
 
-def obstacle_motion_m(radius_l_m: np.ndarray, radius_w_m: np.ndarray) -> np.ndarray:
-    """Hausdorff distance [m] by which the obstacle can move within L +- radius_l, W +- radius_w."""
-    return np.hypot(0.5 * np.asarray(radius_l_m), np.asarray(radius_w_m))
+def obstacle_motion_m(
+    radius_l_m: np.ndarray, radius_w_m: np.ndarray, radius_x_m: np.ndarray | None = None
+) -> np.ndarray:
+    """Hausdorff distance [m] by which the obstacle can move within L +- radius_l, W +- radius_w
+    (and its centre within x +- radius_x)."""
+    half_l = 0.5 * np.asarray(radius_l_m)
+    return np.hypot(half_l if radius_x_m is None else half_l + np.asarray(radius_x_m), np.asarray(radius_w_m))
 
 
 def _geometry(model: RangeModel, center: np.ndarray, radius: np.ndarray) -> dict:
@@ -93,13 +100,19 @@ def _geometry(model: RangeModel, center: np.ndarray, radius: np.ndarray) -> dict
     c1, s1, c2, s2 = theta1.cos(), theta1.sin(), phi2.cos(), phi2.sin()
     elbow = (c1 * l1, s1 * l1)
     tip = (elbow[0] + c2 * l2, elbow[1] + s2 * l2)
-    L, W, _ = model.variables(center, radius)
+    jets = model.variables(center, radius)
+    L, W, n = jets[0], jets[1], len(jets)
     r, d = model.scene.corner_radius_m, model.scene.top_y_m
     half_x = L * 0.5 - r
     bottom = W * (-1.0) + (d + r)
-    top = Jet.constant(np.full(center.shape[0], d - r), 3)
-    vertices = [(half_x, bottom), (half_x, top), (-half_x, top), (-half_x, bottom)]
-    zero = Jet.constant(np.zeros(center.shape[0]), 3)
+    top = Jet.constant(np.full(center.shape[0], d - r), n)
+    if "x" in model.axes.names:  # the moved obstacle: [x - half_x, x + half_x]
+        x = model.centre_x(jets)
+        right, left = x + half_x, x - half_x
+    else:  # the paper's scene, centred on x = 0
+        right, left = half_x, -half_x
+    vertices = [(right, bottom), (right, top), (left, top), (left, bottom)]
+    zero = Jet.constant(np.zeros(center.shape[0]), n)
     return {
         "theta": (theta1, phi2),
         "normals": ((-s1, c1), (-s2, c2)),
@@ -145,8 +158,8 @@ def box_clearance_bounds(
 
     Args:
         model: The coefficients' range model.
-        center: Box centres (N, 3): L [m], W [m], s [-].
-        radius: Half widths (N, 3), same units; boxes must lie in the fitted range and s in [0, 1].
+        center: Box centres (N, k + 1): the axes [m] (L, W[, x]), then s [-].
+        radius: Half widths (N, k + 1), same units; boxes must lie in the fitted range and s in [0, 1].
         center_clearance_m: Per-link clearance (N, 2) [m] at each box centre's configuration
             and obstacle from another route (e.g. Coal through Pinocchio); default the analytic route.
         distance_error_m: Error bound of ``center_clearance_m`` [m] (Coal: COAL_DISTANCE_ERROR_M).
@@ -160,10 +173,13 @@ def box_clearance_bounds(
     box = _geometry(model, center, radius)
     r_corner = model.scene.corner_radius_m
     d = model.scene.top_y_m
-    rect_center = np.stack([np.zeros(center.shape[0]), d - center[:, 1] / 2], -1)
+    names = model.axes.names
+    x_col = names.index("x") if "x" in names else None
+    rect_x = np.zeros(center.shape[0]) if x_col is None else center[:, x_col]
+    rect_center = np.stack([rect_x, d - center[:, 1] / 2], -1)
     rect_half = np.stack([center[:, 0] / 2 - r_corner, center[:, 1] / 2 - r_corner], -1)
     l1, l2 = model.link_lengths_m
-    hausdorff = obstacle_motion_m(radius[:, 0], radius[:, 1])
+    hausdorff = obstacle_motion_m(radius[:, 0], radius[:, 1], None if x_col is None else radius[:, x_col])
 
     link_lower = np.empty((center.shape[0], 2))
     centre_values = np.empty((center.shape[0], 2))
@@ -207,8 +223,11 @@ def box_clearance_bounds(
         if k == 1:
             g1, g2 = box["theta"][0].grad.mag(), box["theta"][1].grad.mag()
             motion = l1 * g1 * radius + l2 * g2 * radius
-    lw_term = motion[:, 0] + motion[:, 1] + hausdorff
-    split_s = motion[:, 2] > lw_term
+    k = model.k
+    axes_term = motion[:, 0]
+    for i in range(1, k):
+        axes_term = axes_term + motion[:, i]
+    split_s = motion[:, k] > axes_term + hausdorff
     lower = np.where(np.isnan(link_lower), -np.inf, link_lower)
     return BoxBounds(
         lower_m=np.min(lower, axis=1),

@@ -1,5 +1,7 @@
 """Range certificates at the ends of the motion: an upper bound on the endpoint errors over
-(L, W) cells, and an infeasibility certificate for the margin at the endpoints.
+cells of the coefficients' axes ((L, W), or (L, W, x) with the obstacle's centre x), and an
+infeasibility certificate for the margin at the endpoints. The sections below derive both over
+(L, W); the last one extends them to x.
 
 Endpoint errors
 ===============
@@ -65,6 +67,48 @@ and bounds each; splitting W would not help (every sub-cell's bound is taken at 
 W, and the sub-cells at the cell's W0 have the cell's). The leaf is infeasible when every
 sub-cell has one end (P1 or P5) with U < margin, and its bound is then the largest over the
 sub-cells of the smaller of the two ends, a valid upper bound because the sub-cells cover the cell.
+
+With the obstacle's centre x
+============================
+
+With an x axis the obstacle's footprint is [x - L/2, x + L/2] x [d - W, d] and P1..P5 keep their
+offsets from it: P1 = (x + L/2 + dx1, y1), P5 = (x - (L/2 + dx1), y1). A cell is
+[L0, L1] x [W0, W1] x [x0, x1] with centre (L_c, W_c, x_c) and half widths (h_L, h_W, h_x).
+
+* Endpoint errors: P1 and P5 gain the term x in their x coordinate (a jet of the cell), and the
+  mean-value form runs over the three axes; the joint angles' jets carry x through the
+  regression's parameters (T does not depend on x).
+* The disc: P(L, x) - P(L_c, x_c) = (+-(L - L_c) / 2 + (x - x_c), 0), of length at most
+  h_L / 2 + h_x, so the tips form a subset of the disc of radius rho = tol + h_L / 2 + h_x about
+  P(L_c, x_c); the polar boxes follow as above.
+* The obstacle: the obstacles of a cell are no longer nested (x moves them sideways), but they
+  share a common part. The core rectangle of O(L, W, x) is
+  [x - L/2 + r, x + L/2 - r] x [d - W + r, d - r]; for L >= L0, W >= W0 and x0 <= x <= x1,
+  x - L/2 + r <= x1 - L0/2 + r and x + L/2 - r >= x0 + L0/2 - r, so every core of the cell contains
+  R* = [x1 - L0/2 + r, x0 + L0/2 - r] x [d - W0 + r, d - r], which is the core of the obstacle O* of
+  length L* = L0 - 2 h_x, width W0 and centre x_c (x0 + x1 = 2 x_c, x1 - x0 = 2 h_x). Each obstacle
+  is its core inflated by the same r, and inflating by a common radius keeps inclusion, so every
+  obstacle of the cell contains O*; in terms of the clearance, c = dist(S, R) - r_k - r only
+  decreases as R grows, so c(q, O(L, W, x)) <= c(q, O*) for every obstacle of the cell, and the
+  bound is taken against O* alone. R* is empty once L* < 2 r; for L* <= 2 r the cell gets no
+  bound (+inf: not infeasible). O* is formed from the cell's centre and half widths in floating
+  point, a few ulps from the exact rectangle; the float slack covers it, as for O0.
+* The witness must be a pose feasible for an actual obstacle of the cell, not for O* (which
+  every obstacle contains, so a pose clearing it may hit all of them): it is taken at the corner
+  (L0, W0, x0), a pose with its tip within tol of P(L0, x0) that clears the margin against
+  O(L0, W0, x0). As before it only stops the proof early.
+* A pose found with its tip in the disc that clears the margin against O* also ends the branch
+  and bound of that end: every cover of the disc by sub-boxes has one holding that pose, whose
+  bound is at least its clearance, so the end cannot be proven; the end's value is then the
+  largest such clearance or bound found (>= margin: "not infeasible"). Cells whose bound cannot
+  reach below the margin because of x then cost a few sub-boxes instead of the full depth.
+* Sub-cells: the bound exceeds U by about h_L through the length (a tip near P5(L1) against the
+  side of O0 at L0; the same at P1) and by about 2 h_x through x (the disc grows by h_x and the
+  side of O* lies h_x inside the nearest obstacle's). Splitting W would not help, as above.
+  :func:`infeasibility_upper_bounds` therefore halves, in each sub-cell, the length where
+  h_L >= 2 h_x and x otherwise, and counts a sub-cell as beyond help above
+  margin + 4 (h_L + 2 h_x) (without x: margin + 4 h_L); a sub-cell without a bound (L* <= 2 r)
+  is split further.
 """
 
 from __future__ import annotations
@@ -76,6 +120,7 @@ import numpy as np
 from pipeline.certify.clearance_bound import FLOAT_SLACK_M
 from pipeline.certify.interval import lower_bound, upper_bound
 from pipeline.certify.range_model import RangeModel
+from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, link_segments, segment_rectangle_distance
 
 #: Cap on the polar sub-boxes alive at once in :func:`endpoint_clearance_upper_bounds`.
@@ -89,19 +134,35 @@ _POLAR_RESOLUTION_M = 1e-6
 __all__ = ["endpoint_clearance_upper_bounds", "endpoint_error_bounds", "infeasibility_upper_bounds"]
 
 
+def _cells(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cell centres and half widths as float arrays (N, k), k = the model's axes."""
+    center = np.asarray(center_m, dtype=float)
+    radius = np.asarray(radius_m, dtype=float)
+    if center.ndim != 2 or center.shape[1] != model.k or radius.shape != center.shape:
+        raise InvalidParameterError(
+            "center_m, radius_m", (center.shape, radius.shape), f"two arrays (N, {model.k}): {model.axes.names}"
+        )
+    return center, radius
+
+
+def _x_column(model: RangeModel) -> int | None:
+    """Column of the obstacle's centre x among the model's axes (None without an x axis)."""
+    return model.axes.names.index("x") if "x" in model.axes.names else None
+
+
 def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
-    """Upper bounds [m] on |tip(0) - P1| and |tip(T) - P5| over (L, W) cells, shape (N, 2).
+    """Upper bounds [m] on |tip(0) - P1| and |tip(T) - P5| over cells of the model's axes, shape (N, 2).
 
     Args:
         model: The coefficients' range model.
-        center_m: Cell centres (N, 2): L, W [m].
-        radius_m: Half widths (N, 2) [m].
+        center_m: Cell centres (N, k): the axes (L, W[, x]) [m].
+        radius_m: Half widths (N, k) [m].
     """
-    center2 = np.asarray(center_m, dtype=float)
-    radius2 = np.asarray(radius_m, dtype=float)
+    center2, radius2 = _cells(model, center_m, radius_m)
     n = center2.shape[0]
     out = np.empty((n, 2))
     l1, l2 = model.link_lengths_m
+    moved = _x_column(model) is not None
     for column, (s, side) in enumerate(((0.0, 1.0), (1.0, -1.0))):
         center = np.column_stack([center2, np.full(n, s)])
         radius = np.column_stack([radius2, np.zeros(n)])
@@ -109,8 +170,10 @@ def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.
         for r in (np.zeros_like(radius), radius):
             theta1, theta2 = model.joint_jets(center, r)
             phi2 = theta1 + theta2
-            L, _, _ = model.variables(center, r)
-            px = (L * 0.5 + model.scene.start_dx_m) * side
+            jets = model.variables(center, r)
+            px = (jets[0] * 0.5 + model.scene.start_dx_m) * side
+            if moved:  # P1 and P5 move with the obstacle's centre x (module docstring)
+                px = px + model.centre_x(jets)
             ex = theta1.cos() * l1 + phi2.cos() * l2 - px
             ey = theta1.sin() * l1 + phi2.sin() * l2 - model.scene.y1_m
             comps.append((ex, ey))
@@ -145,9 +208,16 @@ def _pose_box_upper_bounds(
     psi_lo: np.ndarray,
     psi_hi: np.ndarray,
     obstacle_lw: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Upper bound on the clearance against the obstacles ``obstacle_lw`` (n, 2: L, W [m]) over
-    polar tip boxes, and the clearance and tip of each box's centre pose."""
+    witness_lw: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Upper bound on the clearance against the obstacles ``obstacle_lw`` over polar tip boxes,
+    the clearance and tip of each box's centre pose, and that pose's clearance against
+    ``obstacle_lw``.
+
+    The obstacles are rows (n, 2) of L, W [m] (centred on x = 0) or (n, 3) of L, W and centre x
+    [m]. The centre pose's clearance (second value) is taken against ``witness_lw`` (same layout)
+    if given, else against ``obstacle_lw`` (the fourth value then is the same array).
+    """
     l1, l2 = model.link_lengths_m
     cos2 = lambda r: np.clip((r * r - l1 * l1 - l2 * l2) / (2 * l1 * l2), -1.0, 1.0)  # noqa: E731
     t2a, t2b = model.elbow * np.arccos(cos2(r_lo)), model.elbow * np.arccos(cos2(r_hi))
@@ -158,11 +228,18 @@ def _pose_box_upper_bounds(
     d1, d2 = (t1_hi - t1_lo) / 2, (t2_hi - t2_lo) / 2
     elbow, tip = link_segments(q_mid, model.link_lengths_m)
     r_corner, d = model.scene.corner_radius_m, model.scene.top_y_m
-    rect_center = np.stack([np.zeros(len(r_lo)), d - obstacle_lw[:, 1] / 2], -1)
-    rect_half = np.stack([obstacle_lw[:, 0] / 2 - r_corner, obstacle_lw[:, 1] / 2 - r_corner], -1)
-    c1 = segment_rectangle_distance(np.zeros_like(elbow), elbow, rect_center, rect_half) - model.link_radii_m[0]
-    c2 = segment_rectangle_distance(elbow, tip, rect_center, rect_half) - model.link_radii_m[1]
-    centre_clearance = np.minimum(c1, c2) - r_corner
+
+    def link_distances(obstacle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        centre_x = np.zeros(len(r_lo)) if obstacle.shape[1] == 2 else obstacle[:, 2]
+        rect_center = np.stack([centre_x, d - obstacle[:, 1] / 2], -1)
+        rect_half = np.stack([obstacle[:, 0] / 2 - r_corner, obstacle[:, 1] / 2 - r_corner], -1)
+        c1 = segment_rectangle_distance(np.zeros_like(elbow), elbow, rect_center, rect_half) - model.link_radii_m[0]
+        c2 = segment_rectangle_distance(elbow, tip, rect_center, rect_half) - model.link_radii_m[1]
+        return c1, c2
+
+    c1, c2 = link_distances(obstacle_lw)
+    bound_centre = np.minimum(c1, c2) - r_corner
+    centre_clearance = bound_centre if witness_lw is None else np.minimum(*link_distances(witness_lw)) - r_corner
     move1 = l1 * d1
     r_mid, p_mid = (r_lo + r_hi) / 2, (psi_lo + psi_hi) / 2
     sector_center = np.stack([r_mid * np.cos(p_mid), r_mid * np.sin(p_mid)], -1)
@@ -170,7 +247,7 @@ def _pose_box_upper_bounds(
     move2 = np.minimum(np.maximum(move1, tip_move), l1 * d1 + l2 * (d1 + d2))
     upper = np.minimum(c1 + move1, c2 + move2) - r_corner
     upper = upper + ANALYTIC_DISTANCE_ERROR_M + FLOAT_SLACK_M
-    return upper, centre_clearance, tip
+    return upper, centre_clearance, tip, bound_centre
 
 
 def _sector_distance(
@@ -196,7 +273,8 @@ def endpoint_clearance_upper_bounds(
     max_depth: int = 9,
 ) -> np.ndarray:
     """Upper bounds [m] on the clearance of every pose with its tip within ``tolerance_m`` of P1
-    (column 0) or P5 (column 1), on the family's elbow branch, over (L, W) cells: shape (N, 2).
+    (column 0) or P5 (column 1), on the family's elbow branch, over cells of the model's axes
+    (centres and half widths (N, k): L, W[, x] [m]): shape (N, 2).
 
     The branch and bound stops proving once a bound is below ``margin_m`` or a pose is found
     that clears it, so values at or above the margin only mean "not infeasible" (module docstring).
@@ -208,34 +286,56 @@ def _upper_bounds_and_witnesses(
     model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray, tolerance_m: float, margin_m: float, max_depth: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`endpoint_clearance_upper_bounds` (n, 2), and per cell and end whether a pose was
-    found at the cell's smallest corner (L0, W0) with its tip within the tolerance of that end
-    and clearing the margin (a witness: the end does not make the corner infeasible), (n, 2)."""
-    center2 = np.asarray(center_m, dtype=float)
-    radius2 = np.asarray(radius_m, dtype=float)
+    found at the cell's smallest corner (L0, W0[, x0]) with its tip within the tolerance of that
+    end and clearing the margin against that corner's obstacle (a witness: the end does not make
+    the corner infeasible), (n, 2)."""
+    center2, radius2 = _cells(model, center_m, radius_m)
     n = center2.shape[0]
     out = np.empty((n, 2))
     found = np.zeros((n, 2), dtype=bool)
+    xi = _x_column(model)
+    corner = center2 - radius2
+    if xi is None:
+        # Every obstacle of the cell contains that of its smallest corner (L0, W0) (module docstring).
+        bound_lw, witness_lw = corner, None
+        degenerate = np.zeros(n, dtype=bool)
+    else:
+        # Every obstacle of the cell contains O* (length L0 - 2 h_x, width W0, centre x_c); a
+        # witness must clear an actual obstacle of the cell: the corner's (module docstring).
+        bound_lw = np.column_stack([corner[:, 0] - 2.0 * radius2[:, xi], corner[:, 1], center2[:, xi]])
+        witness_lw = np.column_stack([corner[:, 0], corner[:, 1], corner[:, xi]])
+        degenerate = ~(bound_lw[:, 0] > 2.0 * model.scene.corner_radius_m)
     for column, side in enumerate((1.0, -1.0)):
         px = side * (center2[:, 0] / 2 + model.scene.start_dx_m)
+        if xi is not None:  # P1, P5 move with the obstacle's centre x
+            px = px + center2[:, xi]
         py = np.full(n, model.scene.y1_m)
         dist = np.hypot(px, py)
         rho = tolerance_m + radius2[:, 0] / 2
+        if xi is not None:  # P(L, x) lies within h_L / 2 + h_x of P(centre)
+            rho = rho + radius2[:, xi]
         spread = np.arcsin(np.minimum(rho / dist, 1.0))
         psi = np.arctan2(py, px)
         # Active sub-boxes: owner cell, r and psi ranges.
         owner = np.arange(n)
         r_lo, r_hi = dist - rho, dist + rho
         p_lo, p_hi = psi - spread, psi + spread
+        if np.any(degenerate):  # no O*: no bound (+inf below), no sub-boxes
+            owner, r_lo, r_hi, p_lo, p_hi = (a[~degenerate] for a in (owner, r_lo, r_hi, p_lo, p_hi))
         best = np.full(n, -np.inf)
-        # Every obstacle of the cell contains that of its smallest corner (L0, W0) (module docstring).
-        corner = center2 - radius2
         px0 = side * (corner[:, 0] / 2 + model.scene.start_dx_m)
-        # A witness: the pose with its tip exactly at P(L0) clears the margin against O(L0, W0).
+        if xi is not None:
+            px0 = px0 + corner[:, xi]
+        # A witness: the pose with its tip exactly at P(L0[, x0]) clears the margin against
+        # O(L0, W0[, x0]).
         dist0, psi0 = np.hypot(px0, py), np.arctan2(py, px0)
-        _, exact_c, _ = _pose_box_upper_bounds(model, dist0, dist0, psi0, psi0, corner)
+        _, exact_c, _, _ = _pose_box_upper_bounds(model, dist0, dist0, psi0, psi0, bound_lw, witness_lw)
         witnessed = exact_c >= margin_m
+        floor = np.full(n, -np.inf)  # with x: the clearance against O* of a pose of the disc
         for depth in range(max_depth + 1):
-            upper, centre_c, tip = _pose_box_upper_bounds(model, r_lo, r_hi, p_lo, p_hi, corner[owner])
+            upper, centre_c, tip, bound_c = _pose_box_upper_bounds(
+                model, r_lo, r_hi, p_lo, p_hi, bound_lw[owner], None if witness_lw is None else witness_lw[owner]
+            )
             # A witness needs its tip within the tolerance of P(L0), the corner's own end point.
             in_set = np.hypot(tip[:, 0] - px0[owner], tip[:, 1] - py[owner]) <= tolerance_m
             hit = in_set & (centre_c >= margin_m)
@@ -244,6 +344,15 @@ def _upper_bounds_and_witnesses(
             meets = _sector_distance(dist[owner], psi[owner], r_lo, r_hi, p_lo, p_hi) <= rho[owner] * (1 + 1e-12)
             upper = np.where(meets, upper, -np.inf)
             open_ = (upper >= margin_m) & ~witnessed[owner]
+            if xi is not None:
+                # A pose with its tip in the disc that clears the margin against O* keeps the
+                # bound at or above the margin however far the sub-boxes are cut (module
+                # docstring): the end is not proven, and its sub-boxes are closed.
+                stuck = (np.hypot(tip[:, 0] - px[owner], tip[:, 1] - py[owner]) <= rho[owner]) & (bound_c >= margin_m)
+                np.maximum.at(floor, owner[stuck], bound_c[stuck])
+                blocked = floor[owner] >= margin_m
+                upper = np.where(blocked, -np.inf, upper)  # the end's value is its floor
+                open_ &= ~blocked
             closed = ~open_ | (depth == max_depth)
             np.maximum.at(best, owner[closed], upper[closed])
             fine = (r_hi - r_lo < _POLAR_RESOLUTION_M) & (r_hi * (p_hi - p_lo) < _POLAR_RESOLUTION_M)
@@ -266,6 +375,9 @@ def _upper_bounds_and_witnesses(
                 np.stack([p_mid, p_hi, p_mid, p_hi], 1).ravel(),
             )
         out[:, column] = np.where(witnessed, np.maximum(best, margin_m), best)
+        if xi is not None:
+            out[:, column] = np.maximum(out[:, column], floor)
+            out[degenerate, column] = np.inf
         found[:, column] = witnessed
     return out, found
 
@@ -280,22 +392,25 @@ def infeasibility_upper_bounds(
     levels: int = 5,
     polar_depth: int = 9,
 ) -> np.ndarray:
-    """Upper bounds [m] on min(U(P1), U(P5)) over (L, W) cells by sub-cells of their length
-    (module docstring), shape (N,); +inf where the cell is not proven infeasible (a sub-cell at
-    or above the margin after ``levels`` halvings, or one that clears the margin by more than
-    its own length could explain: splitting it further would not help).
+    """Upper bounds [m] on min(U(P1), U(P5)) over cells by sub-cells of their length (and, with
+    an x axis, of their x extent) (module docstring), shape (N,); +inf where the cell is not
+    proven infeasible (a sub-cell at or above the margin after ``levels`` halvings, or one that
+    clears the margin by more than its own length (and x extent) could explain: splitting it
+    further would not help).
 
     Args:
         model: The coefficients' range model.
-        center_m, radius_m: Cell centres and half widths (N, 2): L, W [m].
+        center_m, radius_m: Cell centres and half widths (N, k): L, W[, x] [m] (one cell may be
+            given as a vector of k).
         tolerance_m: Endpoint tolerance [m].
         margin_m: Clearance margin [m].
-        levels: Halvings of the sub-cells' length (1: two sub-cells per cell) [count].
+        levels: Halvings of the sub-cells (1: two sub-cells per cell) [count].
         polar_depth: Depth of the polar branch and bound of each sub-cell
             (:func:`endpoint_clearance_upper_bounds`' ``max_depth``) [count].
     """
-    center2 = np.asarray(center_m, dtype=float).reshape(-1, 2)
-    radius2 = np.asarray(radius_m, dtype=float).reshape(-1, 2)
+    k = model.k
+    center2, radius2 = _cells(model, np.atleast_2d(center_m), np.atleast_2d(radius_m))
+    xi = _x_column(model)
     n = center2.shape[0]
     worst = np.full(n, -np.inf)
     alive = np.ones(n, dtype=bool)
@@ -303,8 +418,16 @@ def infeasibility_upper_bounds(
     halves = np.array([[-0.5, 0.0], [0.5, 0.0]])
     for _ in range(levels):
         owner = np.repeat(owner, 2)
-        centre = (centre[:, None, :] + halves[None] * radius[:, None, :]).reshape(-1, 2)
-        radius = np.repeat(radius * np.array([0.5, 1.0]), 2, axis=0)
+        if xi is None:
+            centre = (centre[:, None, :] + halves[None] * radius[:, None, :]).reshape(-1, 2)
+            radius = np.repeat(radius * np.array([0.5, 1.0]), 2, axis=0)
+        else:  # halve the length where h_L >= 2 h_x, else x (module docstring)
+            rows = np.arange(centre.shape[0])
+            axis = np.where(radius[:, 0] >= 2.0 * radius[:, xi], 0, xi)
+            step = np.zeros_like(radius)
+            step[rows, axis] = radius[rows, axis] / 2
+            centre = np.stack([centre - step, centre + step], 1).reshape(-1, k)
+            radius = np.repeat(radius - step, 2, axis=0)
         bounds, witnessed = _upper_bounds_and_witnesses(model, centre, radius, tolerance_m, margin_m, polar_depth)
         upper = np.min(bounds, axis=1)
         proven = upper < margin_m
@@ -313,7 +436,11 @@ def infeasibility_upper_bounds(
         # the end point's motion h_L, module docstring, with room to spare) has feasible poses
         # within reach, and one with a witness at both ends has a point (its corner) where both
         # end poses clear the margin: the cell is not infeasible, and no cut can prove it so.
-        hopeless = ~proven & ((upper >= margin_m + 4.0 * radius[:, 0]) | np.all(witnessed, axis=1))
+        if xi is None:
+            beyond = upper >= margin_m + 4.0 * radius[:, 0]
+        else:  # the x terms too; a sub-cell without a bound (no O*) is split further
+            beyond = np.isfinite(upper) & (upper >= margin_m + 4.0 * (radius[:, 0] + 2.0 * radius[:, xi]))
+        hopeless = ~proven & (beyond | np.all(witnessed, axis=1))
         alive[owner[hopeless]] = False
         keep = ~proven & alive[owner]
         owner, centre, radius = owner[keep], centre[keep], radius[keep]

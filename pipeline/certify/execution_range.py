@@ -72,16 +72,16 @@ def _widen(interval: Interval) -> Interval:
 
 
 def _leaf_parameters(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray) -> tuple[list[Interval], Interval]:
-    """Enclosures of the 8 sinusoid parameters and of T over each (L, W) box: mean-value form at
-    the centre intersected with the natural enclosure."""
+    """Enclosures of the 8 sinusoid parameters and of T over each box of the axes (centres and
+    half widths (n, k)): mean-value form at the centre intersected with the natural enclosure."""
     n = centre_m.shape[0]
     c3 = np.column_stack([centre_m, np.zeros(n)])
     r3 = np.column_stack([half_m, np.zeros(n)])
     zero = np.zeros_like(r3)
-    T_box = model.duration.jet(c3, r3)
-    T_point = model.duration.jet(c3, zero)
-    box = model.parameter_jets(*model.variables(c3, r3)[:2], T_box)
-    point = model.parameter_jets(*model.variables(c3, zero)[:2], T_point)
+    T_box = model.duration.jet(c3, r3, k=model.k + 1)
+    T_point = model.duration.jet(c3, zero, k=model.k + 1)
+    box = model.parameter_jets(model.variables(c3, r3), T_box)
+    point = model.parameter_jets(model.variables(c3, zero), T_point)
     out = []
     for p_box, p_point in zip(box, point, strict=True):
         spread = np.sum(p_box.grad.mag() * r3, axis=-1)

@@ -9,12 +9,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from pipeline.certify.execution_range import execution_bounds
-from pipeline.certify.range_certificate import (
-    DEFAULT_BOUNDARY_CELL,
-    DEFAULT_ENDPOINT_TOLERANCE_M,
-    DEFAULT_MIN_CELL,
-    RangeCertificateConfig,
-)
+from pipeline.certify.range_certificate import DEFAULT_CELLS, DEFAULT_ENDPOINT_TOLERANCE_M, RangeCertificateConfig
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, RegionMap
 from pipeline.io.executor import Executor
@@ -36,15 +31,17 @@ def default_config(
     executor: Executor | None = None,
 ) -> RangeCertificateConfig:
     """The certificate's settings for these coefficients; None takes the default (endpoint
-    tolerance 0 for a family that pins the endpoints). The tasks run on ``executor``, or on
-    ``jobs`` local processes (:mod:`pipeline.io.executor`)."""
+    tolerance 0 for a family that pins the endpoints; cells by the number of axes,
+    ``range_certificate.DEFAULT_CELLS``). The tasks run on ``executor``, or on ``jobs`` local
+    processes (:mod:`pipeline.io.executor`)."""
     pinned = coefficients.family.pins_endpoints
     if endpoint_tolerance_m is None:
         endpoint_tolerance_m = 0.0 if pinned else DEFAULT_ENDPOINT_TOLERANCE_M
+    default_min, default_boundary = DEFAULT_CELLS.get(coefficients.variables.k, DEFAULT_CELLS[3])
     if min_cell is None:
-        min_cell = DEFAULT_MIN_CELL
+        min_cell = default_min
     if boundary_cell is None:
-        boundary_cell = DEFAULT_BOUNDARY_CELL
+        boundary_cell = default_boundary
     return RangeCertificateConfig(
         margin_m=margin_m,
         endpoint_tolerance_m=endpoint_tolerance_m,

@@ -1,11 +1,13 @@
-"""The range certificate of one coefficients file: branch and bound over (L, W) x s for the
-clearance, then per leaf of the (L, W) quadtree the endpoint-error bound and the
-infeasibility certificate, assembled into a :class:`pipeline.certify.region_map.RegionMap`.
+"""The range certificate of one coefficients file: branch and bound over its axes x s for the
+clearance (the axes are the coefficients' scene variables: (L, W), or (L, W, x) with the
+obstacle's centre x), then per leaf of the axes' 2^k-tree (a quadtree for (L, W)) the
+endpoint-error bound and the infeasibility certificate, assembled into a
+:class:`pipeline.certify.region_map.RegionMap`.
 
 Soundness rests on the three bound modules (``clearance_bound``, ``endpoints``, ``duration``),
 whose docstrings carry the derivations; this module only combines them:
 
-* a leaf's clearance bound is the minimum of the bounds of every closed box whose (L, W) node
+* a leaf's clearance bound is the minimum of the bounds of every closed box whose node
   contains the leaf (the node itself or an ancestor, ``pipeline.certify.search``): those boxes
   cover the leaf times all of s in [0, 1];
 * a leaf is cut further (its children inherit that clearance bound, still valid on them) while
@@ -18,9 +20,9 @@ whose docstrings carry the derivations; this module only combines them:
   ``endpoints.infeasibility_upper_bounds`` (the lower of the two valid upper bounds is kept);
 * smallest cells certified collision-free that still miss the margin without being proven
   infeasible are cut into 2^``strip_split`` strips along W, each proven on its own
-  (``pipeline.certify.strip_split``, which derives why W and why that is sound); the strips
-  replace their cell in the map (the online lookup grid keeps its size: a split cell points
-  into a small table of strips).
+  (``pipeline.certify.strip_split``, which derives why W and why that is sound; over (L, W)
+  only); the strips replace their cell in the map (the online lookup grid keeps its size: a
+  split cell points into a small table of strips).
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ from pipeline.certify.endpoints import (
 )
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
-from pipeline.certify.search import ClosedBoxes, SearchSettings, node_boxes, search
+from pipeline.certify.search import ClosedBoxes, SearchSettings, child_offsets, initial_roots, node_boxes, search
 from pipeline.certify.strip_split import strip_bounds
 from pipeline.exceptions import InvalidParameterError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool, as_executor, map_tasks
@@ -60,6 +62,10 @@ DEFAULT_ENDPOINT_TOLERANCE_M = 0.002
 DEFAULT_MIN_CELL = 1.0 / 1024
 #: Default cell size to which regions below the margin are resolved, fraction of the side.
 DEFAULT_BOUNDARY_CELL = 1.0 / 64
+#: Default (smallest cell, boundary cell) per number of axes: over (L, W, x) a cell of 1/2^d has
+#: 8^d of them in the box, so the cells stop coarser (the default (L, W, x) build's search:
+#: 1/32: 0.65 M boxes, margin kept on 81 % of the box; 1/64: 1.5 M boxes, 91 %).
+DEFAULT_CELLS: dict[int, tuple[float, float]] = {2: (DEFAULT_MIN_CELL, DEFAULT_BOUNDARY_CELL), 3: (1.0 / 64, 1.0 / 16)}
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
 #: within this of the margin [m].
 _INFEASIBILITY_REFINE_M = 1e-3
@@ -215,67 +221,85 @@ def run_search(
     """The branch and bound from the initial grid, in :data:`_SEARCH_GROUPS` tasks spread over
     ``jobs`` (processes, or an executor); ``progress`` gets "range map: search" over the tasks.
 
-    The roots go to the tasks by diagonal stripes ((i_L + i_W) mod groups), so that a strip along
-    either axis, where the work concentrates (near the margin's contour), is shared out (by rows
+    The roots go to the tasks by diagonal stripes ((sum of the node's indices) mod groups), so that
+    a strip along any axis, where the work concentrates (near the margin's contour), is shared out (by rows
     of the grid, the default build's strip along W = 0.12 m fell to one worker and two jobs took
     as long as one). The tasks are fixed, not one per worker, so the result (the box budget is
     per task) does not depend on ``jobs``.
     """
-    n = 2**settings.initial_depth_lw
-    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    roots = np.column_stack([np.full(n * n, settings.initial_depth_lw), i.ravel(), j.ravel()])
-    stripe = (roots[:, 1] + roots[:, 2]) % _SEARCH_GROUPS
+    roots = initial_roots(model.k, settings.initial_depth_lw)
+    stripe = np.sum(roots[:, 1:], axis=1) % _SEARCH_GROUPS
     groups = [roots[stripe == k] for k in range(_SEARCH_GROUPS) if np.any(stripe == k)]
     on_done = _counted(progress, PROGRESS_STAGES[0], [1] * len(groups))
     parts = _run_tasks(search, [(model, settings, group) for group in groups], jobs, on_done)
-    fields = ("depth_lw", "index_l", "index_w", "depth_s", "index_s", "bound_m", "center_clearance_m")
+    fields = ("depth_lw", "index", "depth_s", "index_s", "bound_m", "center_clearance_m")
     merged = {f: np.concatenate([getattr(p, f) for p in parts]) for f in fields}
     return ClosedBoxes(**merged, evaluations=sum(p.evaluations for p in parts))
 
 
-def _keys(depth: np.ndarray, i_l: np.ndarray, i_w: np.ndarray) -> np.ndarray:
-    return (depth.astype(np.int64) << (2 * _KEY_BITS)) | (i_l.astype(np.int64) << _KEY_BITS) | i_w.astype(np.int64)
+def _key_bits(k: int) -> int:
+    """Bits per axis of a node's key (depth above them): 21 for (L, W), fewer for more axes."""
+    return min(_KEY_BITS, 58 // k)
 
 
-def leaves_from_boxes(boxes: ClosedBoxes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Leaves (depth, i_L, i_W) of the closed boxes' quadtree, each with the minimum clearance bound
-    and the minimum centre clearance over the boxes of the leaf and of its ancestors."""
-    keys = _keys(boxes.depth_lw, boxes.index_l, boxes.index_w)
+def _keys(depth: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """One int64 per node (depth, index (n, k)), ordered as (depth, i_1, ..., i_k)."""
+    k = index.shape[1]
+    bits = _key_bits(k)
+    key = depth.astype(np.int64) << (k * bits)
+    for a in range(k):
+        key |= index[:, a].astype(np.int64) << ((k - 1 - a) * bits)
+    return key
+
+
+def _unkey(keys: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(depth, index (n, k)) of node keys."""
+    bits = _key_bits(k)
+    mask = (1 << bits) - 1
+    index = np.stack([(keys >> ((k - 1 - a) * bits)) & mask for a in range(k)], -1)
+    return keys >> (k * bits), index
+
+
+def leaves_from_boxes(boxes: ClosedBoxes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Leaves (depth, index (n, k)) of the closed boxes' 2^k-tree, each with the minimum clearance
+    bound and the minimum centre clearance over the boxes of the leaf and of its ancestors."""
+    k = boxes.index.shape[1]
+    keys = _keys(boxes.depth_lw, boxes.index)
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
     unique, starts = np.unique(sorted_keys, return_index=True)
     node_bound = np.minimum.reduceat(boxes.bound_m[order], starts)
     node_centre = np.minimum.reduceat(boxes.center_clearance_m[order], starts)
-    depth = unique >> (2 * _KEY_BITS)
-    i_l = (unique >> _KEY_BITS) & ((1 << _KEY_BITS) - 1)
-    i_w = unique & ((1 << _KEY_BITS) - 1)
+    depth, index = _unkey(unique, k)
     ancestors = []
     for up in range(1, int(depth.max()) + 1):
         ok = depth >= up
-        ancestors.append(_keys(depth[ok] - up, i_l[ok] >> up, i_w[ok] >> up))
+        ancestors.append(_keys(depth[ok] - up, index[ok] >> up))
     is_parent = np.isin(unique, np.concatenate(ancestors)) if ancestors else np.zeros(unique.size, dtype=bool)
     leaf = ~is_parent
-    d, il, iw = depth[leaf], i_l[leaf], i_w[leaf]
+    d, ix = depth[leaf], index[leaf]
     bound, centre = node_bound[leaf].copy(), node_centre[leaf].copy()
     for up in range(1, int(d.max()) + 1):
         ok = d >= up
-        k = _keys(d[ok] - up, il[ok] >> up, iw[ok] >> up)
-        pos = np.clip(np.searchsorted(unique, k), 0, unique.size - 1)
-        present = unique[pos] == k
+        key = _keys(d[ok] - up, ix[ok] >> up)
+        pos = np.clip(np.searchsorted(unique, key), 0, unique.size - 1)
+        present = unique[pos] == key
         rows = np.flatnonzero(ok)[present]
         bound[rows] = np.minimum(bound[rows], node_bound[pos[present]])
         centre[rows] = np.minimum(centre[rows], node_centre[pos[present]])
-    return d, il, iw, bound, centre
+    return d, ix, bound, centre
 
 
 def _split(arrays: list[np.ndarray], rows: np.ndarray) -> list[np.ndarray]:
-    """Replace the leaves ``rows`` (mask) by their four children; other columns are inherited."""
-    depth, i_l, i_w, *rest = arrays
+    """Replace the leaves ``rows`` (mask) by their 2^k children; other columns are inherited."""
+    depth, index, *rest = arrays
+    k = index.shape[1]
+    offsets = child_offsets(k)
+    fan = offsets.shape[0]
     kids = (
-        np.repeat(depth[rows] + 1, 4),
-        (2 * i_l[rows][:, None] + np.array([0, 0, 1, 1])).ravel(),
-        (2 * i_w[rows][:, None] + np.array([0, 1, 0, 1])).ravel(),
-        *(np.repeat(column[rows], 4) for column in rest),
+        np.repeat(depth[rows] + 1, fan),
+        (2 * index[rows][:, None, :] + offsets[None]).reshape(-1, k),
+        *(np.repeat(column[rows], fan) for column in rest),
     )
     return [np.concatenate([column[~rows], kid]) for column, kid in zip(arrays, kids, strict=True)]
 
@@ -356,8 +380,8 @@ def refine_leaves(
     progress: ProgressCallback | None = None,
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Endpoint bounds and infeasibility upper bounds per leaf, cutting leaves as the module
-    docstring says. ``leaves`` = [depth, i_L, i_W, clearance bound, *further columns the children
-    inherit]; returns the final leaves (the same columns),
+    docstring says. ``leaves`` = [depth, index (n, k), clearance bound, *further columns the
+    children inherit]; returns the final leaves (the same columns),
     their endpoint bounds (n,) and their endpoint clearance upper bounds (n,) (inf where not needed).
     The bounds run on ``jobs`` (processes, or an executor) over fixed chunks of leaves (the result
     does not depend on it). ``progress`` gets "range map: refine" in leaves bounded, whose total grows by
@@ -368,10 +392,10 @@ def refine_leaves(
     upper = np.full(leaves[0].size, np.nan)
     arrays = [*leaves, endpoint, centre_error, upper]
     while True:
-        (depth, i_l, i_w, bound), (endpoint, centre_error, upper) = arrays[:4], arrays[-3:]
+        (depth, index, bound), (endpoint, centre_error, upper) = arrays[:3], arrays[-3:]
         todo = np.isnan(endpoint)
         if np.any(todo):
-            c, r = node_boxes(model, depth[todo], i_l[todo], i_w[todo])
+            c, r = node_boxes(model, depth[todo], index[todo])
             need = bound[todo] < margin_m
             parts = _in_chunks(
                 _leaf_bounds,
@@ -399,13 +423,13 @@ def refine_leaves(
         rows = deep & (loose | close)
         if not np.any(rows):
             if np.any(close):  # smallest cells still close: try sub-cells (pipeline.certify.endpoints)
-                c, r = node_boxes(model, depth[close], i_l[close], i_w[close])
+                c, r = node_boxes(model, depth[close], index[close])
                 sub = sub_cell_bounds(model, c, r, tolerance_m, margin_m, jobs, progress)
                 upper[close] = np.minimum(upper[close], sub)
             return arrays[:-3], endpoint, upper
         arrays = _split(arrays, rows)
         for column in arrays[-3:]:  # children get their own endpoint bounds
-            column[-4 * np.count_nonzero(rows) :] = np.nan
+            column[-(2**model.k) * np.count_nonzero(rows) :] = np.nan
 
 
 def split_strips(
@@ -420,17 +444,18 @@ def split_strips(
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
     """Replace the smallest cells certified collision-free that miss the margin without being
     proven infeasible, and lie near a contour, by their 2^``config.strip_split`` strips along W
-    (module docstring). ``leaves`` = [depth, i_L, i_W, clearance bound, lowest clearance at a
-    box centre]; returns the leaves [depth, i_L, i_W, clearance bound], their ``split_W``,
-    endpoint and infeasibility bounds. ``progress`` gets "range map: strips" in strips."""
-    depth, i_l, i_w, bound, centre = leaves
-    leaves = leaves[:4]
+    (module docstring; (L, W) maps only). ``leaves`` = [depth, index (n, k), clearance bound,
+    lowest clearance at a box centre]; returns the leaves [depth, index, clearance bound], their
+    ``split_W``, endpoint and infeasibility bounds. ``progress`` gets "range map: strips" in strips."""
+    depth, index, bound, centre = leaves
+    leaves = leaves[:3]
     split = np.zeros(depth.size, dtype=np.int64)
-    e = config.strip_split
+    e = config.strip_split if model.k == 2 else 0
     # Collision-free cells only: a cell not certified collision-free stays "undecided" whole.
     rows = (depth == config.max_depth_lw) & (bound > 0.0) & (bound < margin_m) & (upper >= margin_m)
     if e == 0 or not np.any(rows):
         return leaves, split, endpoint, upper
+    i_l, i_w = index[:, 0], index[:, 1]
     rows &= _near_a_contour(i_l, i_w, bound, centre, rows, margin_m)
     k = 2**e
     order = np.lexsort((i_w[rows], i_l[rows]))  # by column (i_L), then W
@@ -438,7 +463,7 @@ def split_strips(
     s_l = np.repeat(i_l[rows][order], k)
     s_w = (i_w[rows][order][:, None] * k + np.arange(k)).ravel()
     floor = np.repeat(bound[rows][order], k)
-    c, r = node_boxes(model, s_depth, s_l, s_w, split_w=e)
+    c, r = node_boxes(model, s_depth, np.column_stack([s_l, s_w]), split_w=e)
     # Tasks of whole columns (the infeasibility's monotonicity works along a column), fixed in size.
     column_starts = np.concatenate([[0], np.flatnonzero(np.diff(s_l)) + 1])
     cuts = [*column_starts[::_STRIP_COLUMNS].tolist(), s_l.size]
@@ -460,12 +485,19 @@ def split_strips(
     joined = [
         np.concatenate([a[keep], b])
         for a, b in zip(
-            (depth, i_l, i_w, bound, split, endpoint, upper),
-            (s_depth, s_l, s_w, s_bound, np.full(s_depth.size, e, dtype=np.int64), s_endpoint, s_upper),
+            (depth, index, bound, split, endpoint, upper),
+            (
+                s_depth,
+                np.column_stack([s_l, s_w]),
+                s_bound,
+                np.full(s_depth.size, e, dtype=np.int64),
+                s_endpoint,
+                s_upper,
+            ),
             strict=True,
         )
     ]
-    return joined[:4], joined[4], joined[5], joined[6]
+    return joined[:3], joined[3], joined[4], joined[5]
 
 
 def _near_a_contour(
@@ -502,7 +534,8 @@ def certify_range(
 
     Args:
         coefficients: Loaded coefficients (any family with jets; the paper's Eq. 9 too).
-        config: Settings; default :class:`RangeCertificateConfig`.
+        config: Settings; default :class:`RangeCertificateConfig` with the cells of
+            :data:`DEFAULT_CELLS` for the coefficients' number of axes.
         progress: Called as work finishes, ``progress(stage, done, total)`` for the stages of
             :data:`PROGRESS_STAGES` that have work (e.g. :class:`pipeline.io.progress.ProgressBars`);
             the map does not depend on it.
@@ -510,10 +543,18 @@ def certify_range(
     Returns:
         The :class:`RegionMap`, linked to the coefficients by their sha256.
     """
-    config = config or RangeCertificateConfig()
+    if config is None:
+        min_cell, boundary_cell = DEFAULT_CELLS[coefficients.variables.k]
+        config = RangeCertificateConfig(min_cell=min_cell, boundary_cell=boundary_cell)
     start = time.perf_counter()
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     model = RangeModel.from_coefficients(coefficients)
+    if config.max_depth_lw > _key_bits(model.k):
+        raise InvalidParameterError(
+            "min_cell",
+            config.min_cell,
+            f">= 2^-{_key_bits(model.k)} for {model.k} axes ({', '.join(model.axes.names)})",
+        )
     settings = config.search_settings(margin)
     boxes = run_search(model, settings, config.run_on, progress)
     leaves, endpoint, upper = refine_leaves(
@@ -525,7 +566,7 @@ def certify_range(
         config.run_on,
         progress,
     )
-    (d, il, iw, bound), split, endpoint, upper = split_strips(
+    (d, index, bound), split, endpoint, upper = split_strips(
         model, leaves, endpoint, upper, margin, config.endpoint_tolerance_m, config, progress
     )
     seconds = time.perf_counter() - start
@@ -538,8 +579,11 @@ def certify_range(
         margin_m=float(margin),
         endpoint_tolerance_m=float(config.endpoint_tolerance_m),
         depth=d,
-        index_l=il,
-        index_w=iw,
+        index_l=index[:, 0],
+        index_w=index[:, 1],
+        axes=model.axes.names,
+        extra_ranges_m=model.extra_ranges_m,
+        extra_index=index[:, 2:] if model.k > 2 else None,
         clearance_bound_m=bound,
         endpoint_bound_m=endpoint,
         endpoint_clearance_upper_m=upper,

@@ -1,18 +1,25 @@
 """What the range certificate knows about one coefficients file: the family's parameter map
-(L, W) -> the 8 sinusoid parameters, the duration T(L, W), the arm and the scene, and the
-interval jets of the joint angles over boxes of (L, W, s), s = t / T(L, W) in [0, 1].
+v -> the 8 sinusoid parameters over the coefficients' axes v (their scene variables: (L, W),
+or (L, W, x) with the obstacle's centre x, ``pipeline.offline.variables``), the duration T, the
+arm and the scene, and the interval jets of the joint angles over boxes of (v, s),
+s = t / T in [0, 1].
 
-theta_i(L, W, s) = A_i(L, W) sin(w_i(L, W) s T(L, W) + phi_i(L, W)) + gamma_i(L, W).
+theta_i(v, s) = A_i(v) sin(w_i(v) s T(L, W) + phi_i(v)) + gamma_i(v).
 
-* ``paper`` family: all 8 parameters are the regression's quadratics
-  p(L, W) = b0 + b1 L + b2 W + b3 L^2 + b4 L W + b5 W^2.
+* ``paper`` family: all 8 parameters are the regression's quadratics in v, for (L, W)
+  p(L, W) = b0 + b1 L + b2 W + b3 L^2 + b4 L W + b5 W^2 (the basis of
+  :class:`pipeline.offline.variables.Variables`).
+* T does not depend on x: P1..P5 keep their offsets from the obstacle, so moving the obstacle
+  by x translates the five points and their quartic by (x, 0), which keeps its arc length.
+  The jets of T carry a zero derivative along x.
 * ``exact-endpoints`` family: (w1, phi1, A2, w2) are quadratics; A1, gamma1, phi2, gamma2
   follow from the inverse kinematics of P1, P5 and from T (``pipeline.motion.families.exact_endpoints``):
   A1 = (th1_e - th1_s) / (sin(w1 T + phi1) - sin(phi1)), gamma1 = th1_s - A1 sin(phi1),
   phi2 = (pi - w2 T) / 2, gamma2 = th2_s - A2 sin(phi2), with th2 = elbow * acos(c),
   c = (|P|^2 - l1^2 - l2^2) / (2 l1 l2), th1 = atan2(P) - atan2(l2 sin th2, l1 + l2 cos th2).
   The jets follow the same formulas; a box whose A1 denominator interval reaches below the
-  family's clamp (1e-3 in absolute value) is not certified (its jets are unbounded).
+  family's clamp (1e-3 in absolute value) is not certified (its jets are unbounded). This
+  family has jets over (L, W) only.
 """
 
 from __future__ import annotations
@@ -30,9 +37,11 @@ from pipeline.motion.families import TrajectoryFamily
 from pipeline.motion.families.exact_endpoints import MIN_DENOMINATOR, ExactEndpointsFamily
 from pipeline.motion.families.paper import PaperFamily
 from pipeline.offline.coefficients import Coefficients
+from pipeline.offline.variables import DEFAULT_VARIABLES, Variables
 
-#: Names of the jet variables, in order.
-VARIABLES = ("L", "W", "s")
+#: Axes the range certificate covers (the scene variables whose effect on the path, the obstacle
+#: and T the jets follow); d is not among them.
+CERTIFIABLE_AXES = ("L", "W", "x")
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,6 +58,9 @@ class RangeModel:
         elbow: Elbow branch (+1 / -1).
         length_range_m, width_range_m: The fitted range [m].
         source_sha256: sha256 of the coefficients file.
+        axes: The scene variables of the coefficients: the box's axes, in order; the jets'
+            variables are these, then s.
+        extra_ranges_m: The fitted range of each axis beyond L and W [m], in ``axes`` order.
         duration: Enclosures of T over the range.
     """
 
@@ -61,14 +73,31 @@ class RangeModel:
     length_range_m: tuple[float, float]
     width_range_m: tuple[float, float]
     source_sha256: str = ""
+    axes: Variables = DEFAULT_VARIABLES
+    extra_ranges_m: tuple[tuple[float, float], ...] = ()
     duration: DurationModel = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if type(self.family) not in JET_EXPANSIONS:
             raise InvalidParameterError("family", self.family, f"a family with jets, one of {list(JET_EXPANSIONS)}")
+        axes = Variables.of(self.axes)
+        object.__setattr__(self, "axes", axes)
+        for name in axes.names:
+            if name not in CERTIFIABLE_AXES:
+                raise InvalidParameterError("axes", axes.names, f"axes among {', '.join(CERTIFIABLE_AXES)}")
+        if axes.extra and type(self.family) is not PaperFamily:
+            raise InvalidParameterError(
+                "family", self.family.name, f"the paper family for axes {', '.join(axes.names)}"
+            )
+        extra = tuple(tuple(float(v) for v in pair) for pair in self.extra_ranges_m)
+        if len(extra) != len(axes.extra) or any(not (lo < hi) for lo, hi in extra):
+            raise InvalidParameterError("extra_ranges_m", self.extra_ranges_m, f"(lo < hi) per axis of {axes.extra}")
+        object.__setattr__(self, "extra_ranges_m", extra)
         coefficients = np.array(self.coefficients, dtype=float)
-        if coefficients.shape != (self.family.free_count, 6) or not np.all(np.isfinite(coefficients)):
-            raise InvalidParameterError("coefficients", coefficients.shape, "finite, one row of 6 per free parameter")
+        if coefficients.shape != (self.family.free_count, axes.basis_size) or not np.all(np.isfinite(coefficients)):
+            raise InvalidParameterError(
+                "coefficients", coefficients.shape, f"finite, one row of {axes.basis_size} per free parameter"
+            )
         coefficients.setflags(write=False)
         object.__setattr__(self, "coefficients", coefficients)
         if self.elbow not in (1, -1):
@@ -83,6 +112,7 @@ class RangeModel:
     def from_coefficients(cls, coefficients: Coefficients) -> RangeModel:
         """The model of a loaded coefficients file."""
         names = coefficients.family.free_parameter_names
+        axes = coefficients.variables
         return cls(
             family=coefficients.family,
             coefficients=np.array([coefficients.parameters[n] for n in names]),
@@ -93,25 +123,42 @@ class RangeModel:
             length_range_m=tuple(coefficients.fitted_range_m["L"]),
             width_range_m=tuple(coefficients.fitted_range_m["W"]),
             source_sha256=coefficients.source_sha256,
+            axes=axes,
+            extra_ranges_m=tuple(tuple(coefficients.fitted_range_m[name]) for name in axes.extra),
         )
 
     @property
+    def k(self) -> int:
+        """Number of axes (2 for (L, W)); the jets have k + 1 variables (the axes, then s)."""
+        return self.axes.k
+
+    @property
     def range_lo(self) -> np.ndarray:
-        """(L_lo, W_lo) [m]."""
-        return np.array([self.length_range_m[0], self.width_range_m[0]])
+        """Lower corner of the fitted box, one entry per axis [m]."""
+        return np.array([self.length_range_m[0], self.width_range_m[0], *(lo for lo, _ in self.extra_ranges_m)])
 
     @property
     def range_size(self) -> np.ndarray:
-        """(L_hi - L_lo, W_hi - W_lo) [m]."""
-        return np.array([self.length_range_m[1], self.width_range_m[1]]) - self.range_lo
+        """Side of the fitted box per axis [m]."""
+        hi = np.array([self.length_range_m[1], self.width_range_m[1], *(hi for _, hi in self.extra_ranges_m)])
+        return hi - self.range_lo
 
-    def variables(self, center: np.ndarray, radius: np.ndarray) -> tuple[Jet, Jet, Jet]:
-        """Jets of L, W, s over boxes (centres and half widths (N, 3))."""
-        return tuple(Jet.variable(center[:, i], radius[:, i], i, 3) for i in range(3))  # type: ignore[return-value]
+    def variables(self, center: np.ndarray, radius: np.ndarray) -> tuple[Jet, ...]:
+        """Jets of the axes, then s, over boxes (centres and half widths (N, k + 1))."""
+        n = self.k + 1
+        return tuple(Jet.variable(center[:, i], radius[:, i], i, n) for i in range(n))
 
-    def free_jets(self, L: Jet, W: Jet) -> list[Jet]:
-        """Jets of the family's free parameters (quadratics in L, W)."""
-        basis = (L, W, L.square(), L * W, W.square())
+    def centre_x(self, jets: tuple[Jet, ...]) -> Jet | float:
+        """The obstacle's centre x [m] as a jet of the axes (the scene's constant without an x axis)."""
+        if "x" in self.axes.names:
+            return jets[self.axes.names.index("x")]
+        return self.scene.centre_x_m
+
+    def free_jets(self, *axes: Jet) -> list[Jet]:
+        """Jets of the family's free parameters (quadratics in the axes, the basis of
+        :class:`pipeline.offline.variables.Variables`; for (L, W): 1, L, W, L^2, L W, W^2)."""
+        squares = [axes[i].square() if i == j else axes[i] * axes[j] for i, j in self.axes.pairs]
+        basis = (*axes, *squares)
         out = []
         for row in self.coefficients:
             jet = basis[0] * row[1] + row[0]
@@ -120,9 +167,11 @@ class RangeModel:
             out.append(jet)
         return out
 
-    def parameter_jets(self, L: Jet, W: Jet, T: Jet) -> list[Jet]:
-        """Jets of the 8 parameters (A1, w1, phi1, gamma1, A2, w2, phi2, gamma2)."""
-        return JET_EXPANSIONS[type(self.family)](self, self.free_jets(L, W), L, W, T)
+    def parameter_jets(self, axes: tuple[Jet, ...], T: Jet) -> list[Jet]:
+        """Jets of the 8 parameters (A1, w1, phi1, gamma1, A2, w2, phi2, gamma2) from the jets of
+        the k axes and of T."""
+        axes = tuple(axes[: self.k])
+        return JET_EXPANSIONS[type(self.family)](self, self.free_jets(*axes), axes[0], axes[1], T)
 
     def _exact_endpoints_jets(self, free: list[Jet], L: Jet, W: Jet, T: Jet) -> list[Jet]:
         """Jets of ``ExactEndpointsFamily.expand`` (module docstring)."""
@@ -170,10 +219,11 @@ class RangeModel:
         return th1, th2
 
     def joint_jets(self, center: np.ndarray, radius: np.ndarray) -> tuple[Jet, Jet]:
-        """Jets of (theta1, theta2) [rad] over boxes of (L, W, s) with centres/half widths (N, 3)."""
-        L, W, s = self.variables(center, radius)
-        T = self.duration.jet(center, radius)
-        p = self.parameter_jets(L, W, T)
+        """Jets of (theta1, theta2) [rad] over boxes of (axes, s) with centres/half widths (N, k + 1)."""
+        jets = self.variables(center, radius)
+        s = jets[-1]
+        T = self.duration.jet(center, radius, k=self.k + 1)
+        p = self.parameter_jets(jets, T)
         sT = s * T
         theta1 = (p[1] * sT + p[2]).sin() * p[0] + p[3]
         theta2 = (p[5] * sT + p[6]).sin() * p[4] + p[7]

@@ -1,12 +1,16 @@
-"""The region map: a quadtree over the fitted (L, W) range whose leaves carry the range
-certificate's bounds and a status, stored as JSON beside the coefficients it certifies.
+"""The region map: a 2^k-tree over the fitted box of the coefficients' scene variables (a
+quadtree over (L, W), an octree over (L, W, x), ...) whose leaves carry the range certificate's
+bounds and a status, stored as JSON beside the coefficients it certifies.
 
-A leaf is the node (depth, i_L, i_W), possibly cut further along W only: with ``split_W`` = e,
-L in L_lo + [i_L, i_L + 1] (L_hi - L_lo) / 2^depth and W in W_lo + [i_W, i_W + 1] (W_hi - W_lo) /
-2^(depth + e) (e = 0 for a plain quadtree leaf; e > 0 only at the deepest level, where the range
-certificate cuts the smallest cells that straddle the margin's or the infeasibility's contour,
-both of which run along L near W = 0.12 m on the default build). Its area fraction is
-2^-(2 depth + e). Statuses:
+The map's ``axes`` are the coefficients' variables in their canonical order
+(:mod:`pipeline.offline.variables`): always L and W first, then any of x, d. A leaf is the node
+(depth, i_1, ..., i_k): along every axis a it spans a_lo + [i_a, i_a + 1] (a_hi - a_lo) / 2^depth,
+so its volume fraction of the box is 2^-(k depth). Over (L, W) alone a leaf may be cut further
+along W only: with ``split_W`` = e, W in W_lo + [i_W, i_W + 1] (W_hi - W_lo) / 2^(depth + e)
+(e = 0 for a plain quadtree leaf; e > 0 only at the deepest level, where the range certificate
+cuts the smallest cells that straddle the margin's or the infeasibility's contour, both of which
+run along L near W = 0.12 m on the default build); its area fraction is then 2^-(2 depth + e).
+Maps over more axes have no such strips (``split_W`` = 0 throughout). Statuses:
 
 * ``margin``: clearance certified >= the margin over the whole cell and all of [0, T];
 * ``collision_free``: clearance certified > 0, not >= the margin, and not proven infeasible;
@@ -15,14 +19,32 @@ both of which run along L near W = 0.12 m on the default build). Its area fracti
   (and is > 0 where the coefficients are collision-free there);
 * ``undecided``: not even collision-free was certified at the smallest cell.
 
-Lookups (:meth:`RegionMap.cell_at`, :meth:`RegionMap.cells_at`) go through a dense index of the
-deepest level, so they cost one multiplication and one array read per query (int32: 4 MiB for
-cells of 1/1024; the scalar lookup reads a flat ``array.array`` copy, 4 MiB more, where a
-Python list of lists would take about 40 MB). A deepest cell that is split along W holds
--(1 + slot) there, and row ``slot`` of a second table holds its 2^E sub-leaves (E the largest
-``split_W``): one more read. The sub-cell is found from the same scaled coordinate v = (W -
-W_lo) / (W_hi - W_lo) 2^depth as the cell, as floor(v 2^E) - 2^E floor(v): scaling by 2^E is
-exact in floating point, so a point is never placed in a sub-cell of a neighbouring cell.
+Every lookup takes the values in the order of ``axes``: ``cell_at(L, W)`` for a map over (L, W),
+``cell_at(L, W, x)`` for one over (L, W, x). A point is placed by its scaled coordinates
+u_a = (v_a - a_lo) / (a_hi - a_lo) 2^D along every axis (D the deepest depth): the cell of depth
+d holding it has index floor(u_a) >> (D - d) along a (the last cell for v_a = a_hi). Scaling by a
+power of two is exact in floating point, so the cells found at different depths are nested.
+
+Over (L, W) the lookups (:meth:`RegionMap.cell_at`, :meth:`RegionMap.cells_at`) go through a
+dense index of the deepest level, so they cost one multiplication and one array read per query
+(int32: 4 MiB for cells of 1/1024; the scalar lookup reads a flat ``array.array`` copy, 4 MiB
+more, where a Python list of lists would take about 40 MB). A deepest cell that is split along W
+holds -(1 + slot) there, and row ``slot`` of a second table holds its 2^E sub-leaves (E the
+largest ``split_W``): one more read. The sub-cell is found from the same scaled coordinate v =
+(W - W_lo) / (W_hi - W_lo) 2^depth as the cell, as floor(v 2^E) - 2^E floor(v): scaling by 2^E
+is exact in floating point, so a point is never placed in a sub-cell of a neighbouring cell.
+
+Over k > 2 axes a dense index of the deepest level would hold 2^(k D) entries (2^24 for an
+octree of depth 8), so the dense index covers the coarse level C = min(D, floor(22 / k)) (at
+most 2^22 entries: 8 MiB of int32 for k = 3, C = 7), and the tree below it is stored as a table
+of 2^k-child rows. A coarse entry holds the leaf covering that coarse cell, or -(1 + row) when
+the cell is cut further; row ``row`` holds, for each of the node's 2^k children (child number
+sum_a b_a 2^(k - 1 - a), b_a the child's half along axis a), again a leaf or -(1 + row') of a
+deeper node. A lookup reads the coarse entry, then one row per level below C down to its leaf
+(none for a tree no deeper than C). The rows take 4 2^k bytes per cut node of depth C or more,
+about 4 bytes per leaf deeper than C: a map of a million such leaves needs about 5 MB beside the
+coarse index. The scalar lookups read both tables through ``memoryview``s of the NumPy arrays
+(no copy); the batch lookups descend all points level by level, vectorised.
 """
 
 from __future__ import annotations
@@ -41,11 +63,18 @@ from pipeline.certify.execution_bounds import ExecutionBounds
 from pipeline.certify.interval import FLOAT_SLACK_M
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
 from pipeline.io.jsonio import json_safe, read_json, write_text_atomic
+from pipeline.offline.variables import NAMES, SIZE
 from pipeline.validation import check_non_negative
 
+#: Format of a map over (L, W).
 FORMAT = "twolink-region-map/2"
+#: Format of a map over more axes than (L, W): ``axes``, a fitted range and an ``index_<name>``
+#: column per axis, no ``split_W`` column.
+FORMAT_KD = "twolink-region-map/3"
 #: Formats read: /1 has no ``split_W`` column (every leaf a quadtree node).
-READABLE_FORMATS = ("twolink-region-map/1", FORMAT)
+READABLE_FORMATS = ("twolink-region-map/1", FORMAT, FORMAT_KD)
+#: Most entries of the dense index of a map over more than (L, W) (module docstring).
+DENSE_INDEX_ENTRIES = 2**22
 STATUSES: tuple[str, ...] = ("margin", "collision_free", "infeasible", "undecided")
 #: File name of the map written beside a coefficients file.
 DEFAULT_MAP_NAME = "region_map.json"
@@ -71,8 +100,10 @@ class RegionCell:
         endpoint_clearance_upper_m: Upper bound on the clearance of poses within the endpoint
             tolerance of P1 or P5 (the smaller of the two) [m]; below the margin: infeasible.
         status: One of :data:`STATUSES`.
-        depth: Quadtree depth (the cell spans 1 / 2^depth of the range in L).
+        depth: Tree depth (the cell spans 1 / 2^depth of the range in L and in every extra axis).
         split_w: Further halvings along W (the cell spans 1 / 2^(depth + split_w) of the range in W).
+        extra_ranges_m: The cell's (lo, hi) along each axis beyond L and W, in the map's ``axes``
+            order [m]; () for a map over (L, W).
     """
 
     length_range_m: tuple[float, float]
@@ -83,6 +114,7 @@ class RegionCell:
     status: str
     depth: int
     split_w: int = 0
+    extra_ranges_m: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
@@ -91,7 +123,7 @@ class RegionCell:
 
 @dataclass(frozen=True, eq=False)
 class RegionMap:
-    """The certified map of one coefficients file.
+    """The certified map of one coefficients file, over the box of its ``axes`` (module docstring).
 
     Attributes:
         family: Trajectory family of the coefficients.
@@ -99,11 +131,11 @@ class RegionMap:
             (:func:`source_name`), so that the map's bytes do not depend on where the build ran;
             the link itself is the sha256.
         coefficients_sha256: sha256 of the coefficients file: the link between map and coefficients.
-        length_range_m, width_range_m: The fitted range [m].
+        length_range_m, width_range_m: The fitted range of L and W [m].
         margin_m: The margin the statuses refer to [m].
         endpoint_tolerance_m: The endpoint tolerance of the infeasibility certificate [m].
         depth, index_l, index_w: Leaf nodes, int arrays (n,) (index_w counts cells of W at depth
-            + split_w).
+            + split_w); the indices along the extra axes are in ``extra_index``.
         clearance_bound_m, endpoint_bound_m, endpoint_clearance_upper_m: Per leaf [m], (n,).
         status: Per leaf, index into :data:`STATUSES`, (n,).
         seconds: Wall time of the certificate [s]; NaN for a map read from a file (not stored, so
@@ -114,6 +146,11 @@ class RegionMap:
             angle ranges, the paper timing's speed, acceleration and torque bounds, the
             rest-to-rest timing within the arm's limits; :mod:`pipeline.certify.execution_bounds`),
             or None.
+        axes: The map's axes, the coefficients' variables in canonical order: ("L", "W"), or L, W
+            and names of :data:`pipeline.offline.variables.NAMES` (e.g. ("L", "W", "x")).
+        extra_ranges_m: The fitted range (lo, hi) of each axis beyond L and W, in ``axes`` order [m].
+        extra_index: Per leaf, its node index along each axis beyond L and W, int array (n, k - 2)
+            (counting cells at the leaf's depth); None for a map over (L, W).
     """
 
     family: str
@@ -134,8 +171,12 @@ class RegionMap:
     details: dict = field(default_factory=dict)
     split_w: np.ndarray | None = None
     execution: ExecutionBounds | None = None
+    axes: tuple[str, ...] = SIZE
+    extra_ranges_m: tuple[tuple[float, float], ...] = ()
+    extra_index: np.ndarray | None = None
     _index: np.ndarray = field(init=False, repr=False)
     _sub_index: np.ndarray = field(init=False, repr=False)
+    _coarse_depth: int = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         check_non_negative("margin_m", self.margin_m)
@@ -144,6 +185,9 @@ class RegionMap:
             lo, hi = getattr(self, name)
             if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
                 raise InvalidParameterError(name, getattr(self, name), "finite lo < hi")
+        axes = _checked_axes(self.axes)
+        k = len(axes)
+        extra_ranges = _checked_extra_ranges(self.extra_ranges_m, axes)
         arrays = {
             "depth": np.asarray(self.depth, dtype=np.int64),
             "index_l": np.asarray(self.index_l, dtype=np.int64),
@@ -162,31 +206,52 @@ class RegionMap:
         if np.any(arrays["status"] < 0) or np.any(arrays["status"] >= len(STATUSES)):
             raise InvalidParameterError("status", "out of range", f"indices into {STATUSES}")
         depth, split = arrays["depth"], arrays["split_w"]
-        if np.any(depth < 0) or np.any(depth > 20):
-            raise InvalidParameterError("depth", int(depth.max()), "0..20")
+        deepest = 20 if k == 2 else min(20, 60 // k)
+        if np.any(depth < 0) or np.any(depth > deepest):
+            raise InvalidParameterError("depth", int(depth.max()), f"0..{deepest} for {k} axes")
         top = int(depth.max())
+        if k > 2 and np.any(split != 0):
+            raise InvalidParameterError("split_w", int(np.abs(split).max()), f"0 for a map over {', '.join(axes)}")
         if np.any(split < 0) or np.any(split > 10) or np.any((split > 0) & (depth < top)):
             raise InvalidParameterError("split_w", int(split.max()), "0..10, non-zero only at the deepest level")
         if np.any(arrays["index_l"] < 0) or np.any(arrays["index_l"] >= 2**depth):
             raise InvalidParameterError("index_l", "out of range", "0 <= index < 2^depth")
         if np.any(arrays["index_w"] < 0) or np.any(arrays["index_w"] >= 2 ** (depth + split)):
             raise InvalidParameterError("index_w", "out of range", "0 <= index < 2^(depth + split_w)")
-        area = float(np.sum(2.0 ** (-(2 * depth + split).astype(float))))
-        if not math.isclose(area, 1.0, rel_tol=1e-9):
-            raise InvalidParameterError("cells", area, "leaves tiling the range")
+        extra_index = _checked_extra_index(self.extra_index, axes, depth)
+        volume = float(np.sum(2.0 ** (-(k * depth + split).astype(float))))
+        if not math.isclose(volume, 1.0, rel_tol=1e-9):
+            raise InvalidParameterError("cells", volume, "leaves tiling the range")
         if self.execution is not None and (not isinstance(self.execution, ExecutionBounds) or self.execution.size != n):
             raise InvalidParameterError("execution", type(self.execution).__name__, f"ExecutionBounds of {n} leaves")
         for key, value in arrays.items():
             value.setflags(write=False)
             object.__setattr__(self, key, value)
-        index, sub_index = _dense_index(depth, arrays["index_l"], arrays["index_w"], split)
+        object.__setattr__(self, "axes", axes)
+        object.__setattr__(self, "extra_ranges_m", extra_ranges)
+        object.__setattr__(self, "extra_index", extra_index)
+        if extra_index is None:
+            index, sub_index = _dense_index(depth, arrays["index_l"], arrays["index_w"], split)
+            coarse = top
+        else:
+            columns = np.column_stack([arrays["index_l"], arrays["index_w"], extra_index])
+            index, sub_index, coarse = _tree_index(depth, columns)
         object.__setattr__(self, "_index", index)
         object.__setattr__(self, "_sub_index", sub_index)
+        object.__setattr__(self, "_coarse_depth", coarse)
 
     # ------------------------------------------------------------------ lookup
 
-    def leaf_indices(self, length_m, width_m) -> np.ndarray:
-        """Leaf index of each (L, W) [m] (vectorised); -1 outside the fitted range."""
+    def leaf_indices(self, length_m, width_m, *extra) -> np.ndarray:
+        """Leaf index of each point (vectorised): L, W [m] and the values of the extra axes in
+        ``axes`` order (arrays or scalars, broadcast together); -1 outside the fitted box.
+
+        Raises:
+            InvalidParameterError: not one value (array) per axis (the message names the axis
+                missing, or the values beyond the map's axes).
+        """
+        if extra or self.extra_index is not None:
+            return self._leaf_indices_kd(length_m, width_m, self._extra_values(extra))
         L, W = np.broadcast_arrays(np.asarray(length_m, dtype=float), np.asarray(width_m, dtype=float))
         shape = L.shape
         L, W = L.ravel(), W.ravel()
@@ -205,10 +270,10 @@ class RegionMap:
             leaf[split] = self._sub_index[-leaf[split] - 1, sub]
         return np.where(inside, leaf, -1).reshape(shape)
 
-    def cells_at(self, length_m, width_m) -> dict[str, np.ndarray]:
-        """Batch lookup: per (L, W), the leaf's clearance bound, endpoint bound and status index
-        (NaN / -1 outside the fitted range)."""
-        leaf = self.leaf_indices(length_m, width_m)
+    def cells_at(self, length_m, width_m, *extra) -> dict[str, np.ndarray]:
+        """Batch lookup: per point (L, W [m] and the extra axes' values in ``axes`` order), the
+        leaf, its clearance bound, endpoint bound and status index (-1 / NaN outside the fitted box)."""
+        leaf = self.leaf_indices(length_m, width_m, *extra)
         inside = leaf >= 0
         safe = np.where(inside, leaf, 0)
         return {
@@ -224,6 +289,12 @@ class RegionMap:
         (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
         dl, dw = (l_hi - l_lo) / 2**d, (w_hi - w_lo) / 2 ** (d + e)
         il, iw = int(self.index_l[leaf]), int(self.index_w[leaf])
+        extra = ()
+        if self.extra_index is not None:
+            extra = tuple(
+                (lo + int(i) * ((hi - lo) / 2**d), lo + (int(i) + 1) * ((hi - lo) / 2**d))
+                for (lo, hi), i in zip(self.extra_ranges_m, self.extra_index[leaf], strict=True)
+            )
         return RegionCell(
             length_range_m=(l_lo + il * dl, l_lo + (il + 1) * dl),
             width_range_m=(w_lo + iw * dw, w_lo + (iw + 1) * dw),
@@ -233,31 +304,49 @@ class RegionMap:
             status=STATUSES[int(self.status[leaf])],
             depth=d,
             split_w=e,
+            extra_ranges_m=extra,
         )
 
-    def cell_at(self, length_m: float, width_m: float) -> RegionCell:
-        """The leaf containing (L, W) [m].
+    def cell_at(self, length_m: float, width_m: float, *extra: float) -> RegionCell:
+        """The leaf containing the point (L, W [m] and the extra axes' values in ``axes`` order).
 
         Raises:
-            OutOfFittedRangeError: (L, W) outside the fitted range.
+            OutOfFittedRangeError: the point lies outside the fitted box (the message names the axis).
+            InvalidParameterError: not one value per axis.
         """
-        (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
-        if not l_lo <= length_m <= l_hi:
-            raise OutOfFittedRangeError("L", length_m, self.length_range_m)
-        if not w_lo <= width_m <= w_hi:
-            raise OutOfFittedRangeError("W", width_m, self.width_range_m)
-        return self.cell(self._leaf_at(length_m, width_m))
+        values = (length_m, width_m, *self._extra_values(extra))
+        for name, value, (lo, hi) in zip(self.axes, values, self._ranges, strict=True):
+            if not lo <= value <= hi:
+                raise OutOfFittedRangeError(name, value, (lo, hi))
+        if self.extra_index is None:
+            return self.cell(self._leaf_at(length_m, width_m))
+        return self.cell(self._leaf_at_kd(values))
 
-    def bounds_at(self, length_m: float, width_m: float) -> tuple[float, float, str] | None:
-        """(clearance bound [m], endpoint-error bound [m], status) of the leaf holding (L, W), or
-        None outside the fitted range: the online generator's lookup (no cell object built)."""
+    def bounds_at(self, length_m: float, width_m: float, *extra: float) -> tuple[float, float, str] | None:
+        """(clearance bound [m], endpoint-error bound [m], status) of the leaf holding the point
+        (L, W [m] and the extra axes' values in ``axes`` order), or None outside the fitted box:
+        the online generator's lookup (no cell object built).
+
+        Raises:
+            InvalidParameterError: not one value per axis.
+        """
+        if extra or self.extra_index is not None:
+            leaf = self._leaf_at_kd((length_m, width_m, *extra))
+            return None if leaf is None else self._leaf_bounds[leaf]
         (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
         if not (l_lo <= length_m <= l_hi and w_lo <= width_m <= w_hi):
             return None
         return self._leaf_bounds[self._leaf_at(length_m, width_m)]
 
-    def leaf_at(self, length_m: float, width_m: float) -> int | None:
-        """Leaf number of (L, W) [m], or None outside the fitted range (scalar lookup)."""
+    def leaf_at(self, length_m: float, width_m: float, *extra: float) -> int | None:
+        """Leaf number of the point (L, W [m] and the extra axes' values in ``axes`` order), or
+        None outside the fitted box (scalar lookup).
+
+        Raises:
+            InvalidParameterError: not one value per axis.
+        """
+        if extra or self.extra_index is not None:
+            return self._leaf_at_kd((length_m, width_m, *extra))
         (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
         if not (l_lo <= length_m <= l_hi and w_lo <= width_m <= w_hi):
             return None
@@ -276,6 +365,87 @@ class RegionMap:
         s = self._sub_index.shape[1]
         return self._sub_lookup[(-leaf - 1) * s + min(max(int(v * s) - j * s, 0), s - 1)]
 
+    def _extra_values(self, extra: tuple) -> tuple:
+        """``extra`` if it holds one value per axis beyond L and W.
+
+        Raises:
+            InvalidParameterError: a value missing (named by its axis) or values beyond the axes.
+        """
+        wanted = len(self.axes) - 2
+        if len(extra) == wanted:
+            return extra
+        axes = ", ".join(self.axes)
+        if len(extra) < wanted:
+            missing = self.axes[2 + len(extra)]
+            raise InvalidParameterError(missing, None, f"a value: the map's axes are {axes} ({missing} is missing)")
+        raise InvalidParameterError(
+            "values beyond the map's axes", extra[wanted:], f"one value per axis, the map's axes are {axes} only"
+        )
+
+    def _leaf_at_kd(self, values: tuple) -> int | None:
+        """Leaf of the point ``values`` (L, W, then the extra axes) of a map over k > 2 axes, or
+        None outside the fitted box (scalar; the same cells as :meth:`leaf_indices`; module
+        docstring).
+
+        Raises:
+            InvalidParameterError: not one value per axis (also for a map over (L, W)).
+        """
+        if self.extra_index is None or len(values) != len(self.axes):
+            self._extra_values(values[2:])  # raises
+        ranges, n, shift, coarse, lookup, children, width = self._kd_plan
+        cells = []
+        key = 0
+        for value, (lo, hi) in zip(values, ranges, strict=True):
+            if not lo <= value <= hi:
+                return None
+            t = int((value - lo) / (hi - lo) * n)
+            if t >= n:
+                t = n - 1
+            cells.append(t)
+            key = (key << coarse) | (t >> shift)
+        leaf = lookup[key]
+        while leaf < 0:
+            shift -= 1
+            slot = 0
+            for t in cells:
+                slot = (slot << 1) | ((t >> shift) & 1)
+            leaf = children[(-leaf - 1) * width + slot]
+        return leaf
+
+    def _leaf_indices_kd(self, length_m, width_m, extra: tuple) -> np.ndarray:
+        """:meth:`leaf_indices` over all the map's axes, vectorised level by level (module docstring)."""
+        points = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (length_m, width_m, *extra)))
+        shape = points[0].shape
+        top, coarse = int(self.depth.max()), self._coarse_depth
+        n = 1 << top
+        inside = np.ones(points[0].size, dtype=bool)
+        for value, (lo, hi) in zip(points, self._ranges, strict=True):
+            value = value.ravel()
+            inside &= (value >= lo) & (value <= hi)
+        cells = []
+        key = np.zeros(inside.size, dtype=np.int64)
+        for value, (lo, hi) in zip(points, self._ranges, strict=True):
+            u = np.where(inside, (value.ravel() - lo) / (hi - lo) * n, 0.0)
+            t = np.clip(np.floor(u).astype(np.int64), 0, n - 1)
+            cells.append(t)
+            key = (key << coarse) | (t >> (top - coarse))
+        leaf = self._index[key].astype(np.int64)
+        pending = np.flatnonzero(leaf < 0)
+        shift = top - coarse
+        while pending.size:
+            shift -= 1
+            slot = np.zeros(pending.size, dtype=np.int64)
+            for t in cells:
+                slot = (slot << 1) | ((t[pending] >> shift) & 1)
+            leaf[pending] = self._sub_index[-leaf[pending] - 1, slot]
+            pending = pending[leaf[pending] < 0]
+        return np.where(inside, leaf, -1).reshape(shape)
+
+    @cached_property
+    def _ranges(self) -> tuple[tuple[float, float], ...]:
+        """The fitted range of every axis, in ``axes`` order [m]."""
+        return (tuple(self.length_range_m), tuple(self.width_range_m), *self.extra_ranges_m)
+
     @cached_property
     def _lookup(self) -> array.array:
         """The dense index, row-major, as a flat ``array.array`` (fast scalar reads)."""
@@ -291,6 +461,22 @@ class RegionMap:
         return flat
 
     @cached_property
+    def _kd_plan(self) -> tuple:
+        """What the scalar lookup over k > 2 axes reads: the axes' ranges, 2^D, D - C, C, the
+        coarse index and the rows of children (flat ``memoryview``s of the NumPy tables, no copy,
+        read as Python ints) and 2^k."""
+        top = int(self.depth.max())
+        return (
+            self._ranges,
+            1 << top,
+            top - self._coarse_depth,
+            self._coarse_depth,
+            memoryview(self._index).cast("B").cast("i"),
+            memoryview(self._sub_index.reshape(-1)).cast("B").cast("i"),
+            self._sub_index.shape[1],
+        )
+
+    @cached_property
     def _leaf_bounds(self) -> list[tuple[float, float, str]]:
         return [
             (float(c), float(e), STATUSES[int(k)])
@@ -301,49 +487,68 @@ class RegionMap:
 
     @property
     def area(self) -> np.ndarray:
-        """Area fraction of each leaf, (n,)."""
-        return 2.0 ** (-(2 * self.depth + self.split_w).astype(float))
+        """Volume fraction of each leaf in the fitted box (the area fraction over (L, W)), (n,)."""
+        return 2.0 ** (-(len(self.axes) * self.depth + self.split_w).astype(float))
 
     def leaf_sizes_m(self) -> np.ndarray:
-        """Side lengths (L, W) [m] of each leaf, (n, 2)."""
+        """Side lengths of each leaf [m] along every axis, (n, k): (L, W) over (L, W), (n, 2)."""
         lo = np.array([self.length_range_m[0], self.width_range_m[0]])
         size = np.array([self.length_range_m[1], self.width_range_m[1]]) - lo
-        return size / 2.0 ** np.stack([self.depth, self.depth + self.split_w], -1)
+        if self.extra_index is None:
+            return size / 2.0 ** np.stack([self.depth, self.depth + self.split_w], -1)
+        ranges = np.array(self._ranges)
+        return (ranges[:, 1] - ranges[:, 0]) / 2.0 ** self.depth[:, None]
 
     def leaf_centres_m(self) -> np.ndarray:
-        """Centre (L, W) [m] of each leaf, (n, 2)."""
-        lo = np.array([self.length_range_m[0], self.width_range_m[0]])
-        return lo + (np.stack([self.index_l, self.index_w], -1) + 0.5) * self.leaf_sizes_m()
+        """Centre of each leaf [m] along every axis, (n, k): (L, W) over (L, W), (n, 2)."""
+        if self.extra_index is None:
+            lo = np.array([self.length_range_m[0], self.width_range_m[0]])
+            return lo + (np.stack([self.index_l, self.index_w], -1) + 0.5) * self.leaf_sizes_m()
+        lo = np.array(self._ranges)[:, 0]
+        index = np.column_stack([self.index_l, self.index_w, self.extra_index])
+        return lo + (index + 0.5) * self.leaf_sizes_m()
 
     def summary(self) -> dict:
-        """Area fractions per status, extreme bounds and time (plain JSON)."""
+        """Volume fractions of the fitted box per status (area fractions over (L, W)), extreme
+        bounds and time (plain JSON); over more axes than (L, W) also the ``axes``."""
         area = self.area
         fractions = {name: float(np.sum(area[self.status == k])) for k, name in enumerate(STATUSES)}
         feasible = 1.0 - fractions["infeasible"]
         worst = int(np.argmin(self.clearance_bound_m))
         worst_cell = self.cell(worst)
-        return {
-            "area_fraction": fractions,
-            "certified_collision_free_fraction": float(np.sum(area[self.clearance_bound_m > 0.0])),
-            "margin_fraction_of_feasible": fractions["margin"] / feasible if feasible > 0 else None,
-            # Bounds carry the rounding slack, so a tolerance of 0 (pinned endpoints) is met up to it.
-            "endpoint_within_tolerance_fraction": float(
-                np.sum(area[self.endpoint_bound_m <= self.endpoint_tolerance_m + FLOAT_SLACK_M])
-            ),
-            "clearance_bound_min_m": float(self.clearance_bound_m[worst]),
-            "worst_cell": {"L_m": list(worst_cell.length_range_m), "W_m": list(worst_cell.width_range_m)},
-            "endpoint_bound_max_m": float(np.max(self.endpoint_bound_m)),
-            "margin_m": self.margin_m,
-            "endpoint_tolerance_m": self.endpoint_tolerance_m,
-            "cells": int(self.depth.size),
-            "seconds": self.seconds,
-        } | ({} if self.execution is None else {"execution": self.execution_summary()})
+        extra_worst = {
+            f"{name}_m": list(bounds) for name, bounds in zip(self.axes[2:], worst_cell.extra_ranges_m, strict=True)
+        }
+        return (
+            ({} if self.extra_index is None else {"axes": list(self.axes)})
+            | {
+                "area_fraction": fractions,
+                "certified_collision_free_fraction": float(np.sum(area[self.clearance_bound_m > 0.0])),
+                "margin_fraction_of_feasible": fractions["margin"] / feasible if feasible > 0 else None,
+                # Bounds carry the rounding slack, so a tolerance of 0 (pinned endpoints) is met up to it.
+                "endpoint_within_tolerance_fraction": float(
+                    np.sum(area[self.endpoint_bound_m <= self.endpoint_tolerance_m + FLOAT_SLACK_M])
+                ),
+                "clearance_bound_min_m": float(self.clearance_bound_m[worst]),
+                "worst_cell": {
+                    "L_m": list(worst_cell.length_range_m),
+                    "W_m": list(worst_cell.width_range_m),
+                    **extra_worst,
+                },
+                "endpoint_bound_max_m": float(np.max(self.endpoint_bound_m)),
+                "margin_m": self.margin_m,
+                "endpoint_tolerance_m": self.endpoint_tolerance_m,
+                "cells": int(self.depth.size),
+                "seconds": self.seconds,
+            }
+            | ({} if self.execution is None else {"execution": self.execution_summary()})
+        )
 
     def execution_summary(self) -> dict | None:
-        """Area fractions of the range where the paper timing's bounds break each limit of the map's
-        arm (a leaf counts if its bound exceeds the limit: not proven to keep it), where a
-        rest-to-rest timing keeps them all, and the longest rest-to-rest duration; None without
-        execution bounds."""
+        """Volume fractions of the fitted box (area fractions over (L, W)) where the paper
+        timing's bounds break each limit of the map's arm (a leaf counts if its bound exceeds the
+        limit: not proven to keep it), where a rest-to-rest timing keeps them all, and the longest
+        rest-to-rest duration; None without execution bounds."""
         bounds = self.execution
         if bounds is None:
             return None
@@ -362,13 +567,21 @@ class RegionMap:
         }
 
     def belongs_to(self, coefficients) -> bool:
-        """True if this map was made from exactly these coefficients (same sha256)."""
-        return bool(self.coefficients_sha256) and self.coefficients_sha256 == coefficients.source_sha256
+        """True if this map was made from exactly these coefficients (same sha256) and its axes
+        are their variables."""
+        variables = getattr(getattr(coefficients, "variables", None), "names", SIZE)
+        return (
+            bool(self.coefficients_sha256)
+            and self.coefficients_sha256 == coefficients.source_sha256
+            and self.axes == tuple(variables)
+        )
 
     # ------------------------------------------------------------------ JSON
 
     def to_json(self) -> dict:
-        """The plain-JSON document (columnar cells)."""
+        """The plain-JSON document (columnar cells): format /2 over (L, W), /3 over more axes."""
+        if self.extra_index is not None:
+            return self._to_json_kd()
         return {
             "format": FORMAT,
             "coefficients": {
@@ -396,6 +609,40 @@ class RegionMap:
             },
         } | ({} if self.execution is None else {"execution": self.execution.to_json()})
 
+    def _to_json_kd(self) -> dict:
+        """The document of a map over more axes than (L, W): format /3, with ``axes``, the fitted
+        range of every axis and an ``index_<axis>`` column per axis, no ``split_W`` column."""
+        extra = zip(self.axes[2:], self.extra_ranges_m, self.extra_index.T, strict=True)
+        columns: dict[str, list] = {"depth": self.depth.tolist()}
+        columns["index_L"] = self.index_l.tolist()
+        columns["index_W"] = self.index_w.tolist()
+        fitted = {"L": list(self.length_range_m), "W": list(self.width_range_m)}
+        for name, bounds, index in extra:
+            fitted[name] = list(bounds)
+            columns[f"index_{name}"] = index.tolist()
+        return {
+            "format": FORMAT_KD,
+            "coefficients": {
+                "source": self.coefficients_source,
+                "sha256": self.coefficients_sha256,
+                "family": self.family,
+            },
+            "axes": list(self.axes),
+            "fitted_range": fitted,
+            "margin_m": self.margin_m,
+            "endpoint_tolerance_m": self.endpoint_tolerance_m,
+            "summary": {k: v for k, v in self.summary().items() if k != "seconds"},
+            "details": self.details,
+            "statuses": list(STATUSES),
+            "cells": columns
+            | {
+                "clearance_bound_m": self.clearance_bound_m.tolist(),
+                "endpoint_bound_m": self.endpoint_bound_m.tolist(),
+                "endpoint_clearance_upper_m": self.endpoint_clearance_upper_m.tolist(),
+                "status": [STATUSES[k] for k in self.status],
+            },
+        } | ({} if self.execution is None else {"execution": self.execution.to_json()})
+
     @classmethod
     def from_json(cls, document: dict, source: object = "<memory>") -> RegionMap:
         """Validate a parsed map document.
@@ -404,12 +651,18 @@ class RegionMap:
             DataFileError: a field is missing or malformed.
         """
         if document.get("format") not in READABLE_FORMATS:
-            raise DataFileError(source, f"format is {document.get('format')!r}, expected {FORMAT!r}")
+            expected = f"one of {', '.join(repr(f) for f in READABLE_FORMATS)}"
+            raise DataFileError(source, f"format is {document.get('format')!r}, expected {expected}")
         try:
             link, fitted, cells = document["coefficients"], document["fitted_range"], document["cells"]
-            missing = [c for c in _COLUMNS if c not in cells]
+            axes = _checked_axes(tuple(document["axes"])) if document["format"] == FORMAT_KD else SIZE
+            extra = axes[2:]
+            missing = [c for c in (*_COLUMNS, *(f"index_{name}" for name in extra)) if c not in cells]
             if missing:
                 raise DataFileError(source, f"cells lack {missing}")
+            absent = [name for name in extra if name not in fitted]
+            if absent:
+                raise DataFileError(source, f"fitted_range lacks {absent}")
             status = [STATUSES.index(s) for s in cells["status"]]
             return cls(
                 family=str(link["family"]),
@@ -434,6 +687,11 @@ class RegionMap:
                 execution=None
                 if document.get("execution") is None
                 else ExecutionBounds.from_json(document["execution"], source),
+                axes=axes,
+                extra_ranges_m=tuple((float(fitted[name][0]), float(fitted[name][1])) for name in extra),
+                extra_index=np.column_stack([np.array(cells[f"index_{name}"], dtype=np.int64) for name in extra])
+                if extra
+                else None,
             )
         except DataFileError:
             raise
@@ -476,6 +734,154 @@ def _dense_index(
     index.setflags(write=False)
     sub_index.setflags(write=False)
     return index, sub_index
+
+
+def _checked_axes(axes: object) -> tuple[str, ...]:
+    """``axes`` as a tuple: L, W, then names of :data:`NAMES`, each once, in the canonical order.
+
+    Raises:
+        InvalidParameterError: anything else (the message names the axes).
+    """
+    given = (axes,) if isinstance(axes, str) else tuple(axes) if isinstance(axes, tuple | list) else None
+    if given is None or given[:2] != SIZE:
+        raise InvalidParameterError("axes", axes, "a tuple of names starting with 'L', 'W'")
+    for name in given[2:]:
+        if name not in NAMES[2:]:
+            raise InvalidParameterError("axes", axes, f"L, W, then names among {', '.join(NAMES[2:])}")
+    if sorted(given, key=NAMES.index) != list(given) or len(set(given)) != len(given):
+        raise InvalidParameterError("axes", axes, f"each name once, in the order {', '.join(NAMES)}")
+    return given
+
+
+def _checked_extra_ranges(ranges: object, axes: tuple[str, ...]) -> tuple[tuple[float, float], ...]:
+    """``ranges`` as floats: one finite (lo, hi), lo < hi, per axis beyond L and W.
+
+    Raises:
+        InvalidParameterError: a missing, surplus or invalid range (the message names its axis).
+    """
+    extra = axes[2:]
+    try:
+        pairs = tuple((float(lo), float(hi)) for lo, hi in ranges)
+    except (TypeError, ValueError):
+        raise InvalidParameterError("extra_ranges_m", ranges, f"one (lo, hi) [m] per axis of {extra}") from None
+    if len(pairs) != len(extra):
+        raise InvalidParameterError("extra_ranges_m", ranges, f"one (lo, hi) [m] per axis of {extra}")
+    for name, (lo, hi) in zip(extra, pairs, strict=True):
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise InvalidParameterError(f"extra_ranges_m of {name}", (lo, hi), "finite lo < hi")
+    return pairs
+
+
+def _checked_extra_index(extra_index: object, axes: tuple[str, ...], depth: np.ndarray) -> np.ndarray | None:
+    """``extra_index`` as a read-only int array (n, k - 2) of indices within 2^depth; None for (L, W).
+
+    Raises:
+        InvalidParameterError: a shape or an index out of range (the message names the axis).
+    """
+    k, n = len(axes), depth.size
+    if k == 2:
+        if extra_index is not None:
+            raise InvalidParameterError("extra_index", np.shape(extra_index), "None for a map over L, W")
+        return None
+    if extra_index is None:
+        raise InvalidParameterError("extra_index", None, f"an int array ({n}, {k - 2}) for the axes {axes[2:]}")
+    index = np.array(extra_index, dtype=np.int64)
+    if index.shape != (n, k - 2):
+        raise InvalidParameterError("extra_index", index.shape, f"an int array ({n}, {k - 2}) for the axes {axes[2:]}")
+    for a, name in enumerate(axes[2:]):
+        if np.any(index[:, a] < 0) or np.any(index[:, a] >= 2**depth):
+            raise InvalidParameterError(f"extra_index of {name}", "out of range", "0 <= index < 2^depth")
+    index.setflags(write=False)
+    return index
+
+
+def _tree_index(depth: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The lookup tables of a map over k > 2 axes (module docstring): the dense index of the
+    coarse level C (flat, row-major, axis L slowest: a leaf, or -(1 + row)), the rows of children
+    (rows x 2^k) and C; both tables read-only.
+
+    Raises:
+        InvalidParameterError: the leaves (depth (n,), node index (n, k)) leave a gap or overlap.
+    """
+    k = index.shape[1]
+    top = int(depth.max())
+    coarse = min(top, int(math.log2(DENSE_INDEX_ENTRIES)) // k)
+    gap = np.iinfo(np.int32).max
+    table = np.full(2 ** (k * coarse), gap, dtype=np.int32)
+    leaves = np.arange(depth.size, dtype=np.int32)
+    # Leaves no deeper than C: the block of coarse cells each covers (the volume check has bounded
+    # the blocks' total size by the table's).
+    for d in np.unique(depth[depth <= coarse]).tolist():
+        chosen = np.flatnonzero(depth == d)
+        scale = coarse - d
+        offsets = _flat(np.indices((2**scale,) * k).reshape(k, -1).T, coarse)
+        corners = _flat(index[chosen] << scale, coarse)
+        _claim(table, (corners[:, None] + offsets[None, :]).ravel(), np.repeat(leaves[chosen], offsets.size))
+    # The cut nodes of each level from C down: ancestors of the deeper leaves, one row each.
+    levels = []
+    rows = 0
+    for q in range(coarse, top):
+        chosen = depth > q
+        keys = np.unique(_flat(index[chosen] >> (depth[chosen] - q)[:, None], q))
+        levels.append((keys, rows))
+        rows += keys.size
+    children = np.full((rows, 2**k), gap, dtype=np.int32)
+    flat_children = children.reshape(-1)
+    for q, (keys, first) in enumerate(levels, start=coarse):
+        pointers = -1 - np.arange(first, first + keys.size, dtype=np.int32)
+        if q == coarse:
+            _claim(table, keys, pointers)
+        else:
+            nodes = _unflat(keys, q, k)
+            _claim(flat_children, _child_position(nodes, q, levels[q - 1 - coarse], k), pointers)
+    deep = np.flatnonzero(depth > coarse)
+    for d in np.unique(depth[deep]).tolist():
+        chosen = deep[depth[deep] == d]
+        _claim(flat_children, _child_position(index[chosen], d, levels[d - 1 - coarse], k), leaves[chosen])
+    if np.any(table == gap) or np.any(children == gap):
+        raise InvalidParameterError("cells", "gaps", "leaves tiling the range")
+    table.setflags(write=False)
+    children.setflags(write=False)
+    return table, children, coarse
+
+
+def _flat(nodes: np.ndarray, level: int) -> np.ndarray:
+    """Row-major flat index of nodes (m, k) of depth ``level`` (axis L slowest), int64."""
+    key = np.zeros(nodes.shape[0], dtype=np.int64)
+    for a in range(nodes.shape[1]):
+        key = (key << level) | nodes[:, a].astype(np.int64)
+    return key
+
+
+def _unflat(keys: np.ndarray, level: int, k: int) -> np.ndarray:
+    """The nodes (m, k) of depth ``level`` with flat indices ``keys`` (inverse of :func:`_flat`)."""
+    mask = (1 << level) - 1
+    return np.stack([(keys >> (level * (k - 1 - a))) & mask for a in range(k)], -1)
+
+
+def _child_position(nodes: np.ndarray, level: int, parents: tuple[np.ndarray, int], k: int) -> np.ndarray:
+    """Flat position in the rows of children of each node (m, k) of depth ``level`` (> C): its
+    parent's row times 2^k plus its child number (module docstring)."""
+    keys, first = parents
+    row = first + np.searchsorted(keys, _flat(nodes >> 1, level - 1))
+    slot = np.zeros(nodes.shape[0], dtype=np.int64)
+    for a in range(k):
+        slot = (slot << 1) | (nodes[:, a].astype(np.int64) & 1)
+    return row * 2**k + slot
+
+
+def _claim(table: np.ndarray, positions: np.ndarray, values: np.ndarray) -> None:
+    """Write ``values`` at ``positions`` of the flat ``table``, which must all be empty (int32 max).
+
+    Raises:
+        InvalidParameterError: a position already taken, or taken twice here (overlapping leaves).
+    """
+    gap = np.iinfo(np.int32).max
+    if np.any(table[positions] != gap):
+        raise InvalidParameterError("cells", "overlaps", "leaves tiling the range")
+    table[positions] = values
+    if not np.array_equal(table[positions], values):  # two of ``positions`` alike
+        raise InvalidParameterError("cells", "overlaps", "leaves tiling the range")
 
 
 def source_name(source: object) -> str:

@@ -1,12 +1,13 @@
-"""Branch and bound over dyadic boxes of (L, W) x s for the clearance range certificate.
+"""Branch and bound over dyadic boxes of the coefficients' axes x s for the clearance range certificate.
 
-The fitted range [L_lo, L_hi] x [W_lo, W_hi] is the root of a quadtree (node = (depth, i_L,
-i_W), side 1 / 2^depth of the range); s in [0, 1] is cut dyadically as well (depth_s, j).
-A box is one (L, W) node times one s interval. Each round bounds every open box
+The fitted box of the k axes ((L, W), or (L, W, x): ``RangeModel.axes``) is the root of a
+2^k-tree (node = (depth, i_1..i_k), side 1 / 2^depth of the range on every axis; a quadtree for
+(L, W)); s in [0, 1] is cut dyadically as well (depth_s, j).
+A box is one node times one s interval. Each round bounds every open box
 (:func:`pipeline.certify.clearance_bound.box_clearance_bounds`) and closes it when
 
 * its bound reaches the margin; or
-* the margin is out of reach in its (L, W) node (the clearance at the box centre, a value the
+* the margin is out of reach in its node (the clearance at the box centre, a value the
   clearance takes there, is below the margin), its bound is positive and within
   ``resolution_m`` of that centre value, or the centre itself is in collision, its node is
   at the boundary depth (so the region map resolves where the margin or the clearance is
@@ -19,14 +20,15 @@ A box is one (L, W) node times one s interval. Each round bounds every open box
   inherited bounds 0.23 mm (median) below their own clearance); or
 * it cannot be cut further (both depths at their limits) or the box budget is spent.
 
-Otherwise it is cut in two along s or in four along (L, W), whichever dominates its gap
+Otherwise it is cut in two along s or in 2^k along the axes, whichever dominates its gap
 (``BoxBounds.split_s``), and closed if that one is at its depth limit. Boxes of a node's
-children always come in complete sets of four, so the (L, W) nodes of the closed boxes form a
-quadtree whose leaves tile the range, and every point (L, W, s) lies in exactly one closed box.
+children always come in complete sets of 2^k, so the nodes of the closed boxes form a
+2^k-tree whose leaves tile the box, and every point (v, s) lies in exactly one closed box.
 """
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,7 +88,8 @@ class ClosedBoxes:
     """The closed boxes of one search, as arrays of length n.
 
     Attributes:
-        depth_lw, index_l, index_w: (L, W) node of each box.
+        depth_lw: Depth of the node of each box (the same on every axis).
+        index: Node index of each box along each axis, (n, k) (columns in the axes' order).
         depth_s, index_s: s interval of each box.
         bound_m: Lower bound on the clearance over the box [m].
         center_clearance_m: Clearance at the box centre [m].
@@ -94,8 +97,7 @@ class ClosedBoxes:
     """
 
     depth_lw: np.ndarray
-    index_l: np.ndarray
-    index_w: np.ndarray
+    index: np.ndarray
     depth_s: np.ndarray
     index_s: np.ndarray
     bound_m: np.ndarray
@@ -103,38 +105,54 @@ class ClosedBoxes:
     evaluations: int
 
 
+def child_offsets(k: int) -> np.ndarray:
+    """The 2^k children of a node as index offsets (2^k, k), in lexicographic order (for (L, W):
+    (0, 0), (0, 1), (1, 0), (1, 1))."""
+    return np.array(list(itertools.product((0, 1), repeat=k)), dtype=np.int64).reshape(2**k, k)
+
+
 def node_boxes(
-    model: RangeModel, depth: np.ndarray, i_l: np.ndarray, i_w: np.ndarray, split_w: int = 0
+    model: RangeModel, depth: np.ndarray, index: np.ndarray, split_w: int = 0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Centres and half widths (n, 2) [m] of (L, W) nodes; with ``split_w`` = e, of their strips
-    along W (1 / 2^depth of the range in L, 1 / 2^(depth + e) in W, ``i_w`` counting the latter:
+    """Centres and half widths (n, k) [m] of nodes (depth, index (n, k)); with ``split_w`` = e, of
+    their strips along W (1 / 2^(depth + e) of the range in W, index[:, 1] counting the latter:
     ``pipeline.certify.strip_split``)."""
     depth = np.asarray(depth, dtype=float)
-    size = model.range_size / 2.0 ** np.stack([depth, depth + split_w], -1)
-    center = model.range_lo + (np.stack([i_l, i_w], -1) + 0.5) * size
+    index = np.asarray(index).reshape(depth.size, model.k)
+    depths = np.repeat(depth[:, None], model.k, axis=1)
+    depths[:, 1] += split_w
+    size = model.range_size / 2.0**depths
+    center = model.range_lo + (index + 0.5) * size
     return center, size / 2
 
 
-def _boxes(model: RangeModel, dl, il, iw, ds, js) -> tuple[np.ndarray, np.ndarray]:
-    c2, r2 = node_boxes(model, dl, il, iw)
+def _boxes(model: RangeModel, dl, index, ds, js) -> tuple[np.ndarray, np.ndarray]:
+    c, r = node_boxes(model, dl, index)
     hs = 0.5 / 2.0 ** ds.astype(float)
-    return np.column_stack([c2, (js + 0.5) * 2 * hs]), np.column_stack([r2, hs])
+    return np.column_stack([c, (js + 0.5) * 2 * hs]), np.column_stack([r, hs])
+
+
+def initial_roots(k: int, depth: int) -> np.ndarray:
+    """Every node of the grid at ``depth``, rows (depth, i_1..i_k), lexicographic."""
+    n = 2**depth
+    grid = np.stack(np.meshgrid(*[np.arange(n)] * k, indexing="ij"), -1).reshape(-1, k)
+    return np.column_stack([np.full(grid.shape[0], depth), grid]).astype(np.int64)
 
 
 def search(model: RangeModel, settings: SearchSettings, roots: np.ndarray | None = None) -> ClosedBoxes:
-    """Run the branch and bound from the given (L, W) nodes (rows depth, i_L, i_W), default the whole
+    """Run the branch and bound from the given nodes (rows depth, i_1..i_k), default the whole
     initial grid, each with the initial s grid."""
+    k = model.k
     if roots is None:
-        n = 2**settings.initial_depth_lw
-        i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-        roots = np.column_stack([np.full(n * n, settings.initial_depth_lw), i.ravel(), j.ravel()])
-    roots = np.asarray(roots, dtype=np.int64).reshape(-1, 3)
+        roots = initial_roots(k, settings.initial_depth_lw)
+    roots = np.asarray(roots, dtype=np.int64).reshape(-1, k + 1)
     m = 2**settings.initial_depth_s
     dl = np.repeat(roots[:, 0], m)
-    il = np.repeat(roots[:, 1], m)
-    iw = np.repeat(roots[:, 2], m)
+    ix = np.repeat(roots[:, 1:], m, axis=0)
     ds = np.full(dl.size, settings.initial_depth_s, dtype=np.int64)
     js = np.tile(np.arange(m, dtype=np.int64), roots.shape[0])
+    offsets = child_offsets(k)
+    fan = offsets.shape[0]
     closed: list[tuple[np.ndarray, ...]] = []
     evaluations = 0
     while dl.size:
@@ -143,7 +161,7 @@ def search(model: RangeModel, settings: SearchSettings, roots: np.ndarray | None
         split_s = np.empty(dl.size, dtype=bool)
         for start in range(0, dl.size, _CHUNK):
             part = slice(start, start + _CHUNK)
-            c, r = _boxes(model, dl[part], il[part], iw[part], ds[part], js[part])
+            c, r = _boxes(model, dl[part], ix[part], ds[part], js[part])
             b = box_clearance_bounds(model, c, r)
             bound[part], centre[part], split_s[part] = b.lower_m, b.center_m, b.split_s
         evaluations += dl.size
@@ -154,34 +172,32 @@ def search(model: RangeModel, settings: SearchSettings, roots: np.ndarray | None
         far = 2.0 * centre - bound < settings.margin_m  # not near the margin's contour (module docstring)
         done |= out_of_reach & resolved & far & (dl >= settings.boundary_depth_lw)
         can_s, can_lw = ds < settings.max_depth_s, dl < settings.max_depth_lw
-        # Resolve the boundary of the margin in (L, W) before anything else.
+        # Resolve the boundary of the margin over the axes before anything else.
         want_s = np.where(out_of_reach & resolved, False, split_s)
-        # A box whose gap is dominated by (L, W) at the deepest node is closed: cutting s cannot help.
+        # A box whose gap is dominated by the axes at the deepest node is closed: cutting s cannot help.
         cut_s = ~done & want_s & can_s
         cut_lw = ~done & ~want_s & can_lw
         cut_lw |= ~done & want_s & ~can_s & can_lw
         done |= ~(cut_s | cut_lw)
-        if evaluations + 2 * np.count_nonzero(cut_s) + 4 * np.count_nonzero(cut_lw) > settings.max_boxes:
+        if evaluations + 2 * np.count_nonzero(cut_s) + fan * np.count_nonzero(cut_lw) > settings.max_boxes:
             done[:] = True
             cut_s[:] = cut_lw[:] = False
-        closed.append((dl[done], il[done], iw[done], ds[done], js[done], bound[done], centre[done]))
+        closed.append((dl[done], ix[done], ds[done], js[done], bound[done], centre[done]))
         # Children along s.
         s_rows = np.flatnonzero(cut_s)
         s_children = (
             np.repeat(dl[s_rows], 2),
-            np.repeat(il[s_rows], 2),
-            np.repeat(iw[s_rows], 2),
+            np.repeat(ix[s_rows], 2, axis=0),
             np.repeat(ds[s_rows] + 1, 2),
             (2 * js[s_rows][:, None] + np.array([0, 1])).ravel(),
         )
         lw_rows = np.flatnonzero(cut_lw)
         lw_children = (
-            np.repeat(dl[lw_rows] + 1, 4),
-            (2 * il[lw_rows][:, None] + np.array([0, 0, 1, 1])).ravel(),
-            (2 * iw[lw_rows][:, None] + np.array([0, 1, 0, 1])).ravel(),
-            np.repeat(ds[lw_rows], 4),
-            np.repeat(js[lw_rows], 4),
+            np.repeat(dl[lw_rows] + 1, fan),
+            (2 * ix[lw_rows][:, None, :] + offsets[None]).reshape(-1, k),
+            np.repeat(ds[lw_rows], fan),
+            np.repeat(js[lw_rows], fan),
         )
-        dl, il, iw, ds, js = (np.concatenate([a, b]) for a, b in zip(s_children, lw_children, strict=True))
+        dl, ix, ds, js = (np.concatenate([a, b]) for a, b in zip(s_children, lw_children, strict=True))
     parts = [np.concatenate(column) for column in zip(*closed, strict=True)]
     return ClosedBoxes(*parts, evaluations=evaluations)

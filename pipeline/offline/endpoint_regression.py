@@ -69,6 +69,10 @@ class EndpointConstraint:
         check_points: Points per axis of the denser check grid (module docstring); 0: none.
         check_rounds: Rounds of constraint generation from the check grid.
         points_per_round: Cap on check points added per round.
+        ftol: SLSQP's precision goal on the objective (sum of squared residuals [rad^2]). Over
+            three variables the default's 1e-12 is not reached in 1,000 iterations on the
+            default (L, W, x) DOE (the iterates cycle with the grid's constraints active), 1e-9
+            is, in 574 (python -m pipeline.build --vary x -0.03 0.03).
     """
 
     tolerance_m: float = 0.002
@@ -78,9 +82,11 @@ class EndpointConstraint:
     check_points: int = 101
     check_rounds: int = 6
     points_per_round: int = 64
+    ftol: float = 1e-12
 
     def __post_init__(self) -> None:
         check_positive("tolerance_m", self.tolerance_m)
+        check_positive("ftol", self.ftol)
         check_positive_int("grid_points", self.grid_points, minimum=2)
         check_positive_int("max_iterations", self.max_iterations)
         if not (isinstance(self.headroom, int | float) and 0.0 <= self.headroom < 0.5):
@@ -294,9 +300,10 @@ _TARGET_ARRAYS = ("lengths_m", "widths_m", "start_m", "end_m", "duration_s")
 
 
 def _solve(
-    objective, start: np.ndarray, targets: EndpointTargets, tolerance_m: float, max_iterations: int
+    objective, start: np.ndarray, targets: EndpointTargets, constraint: EndpointConstraint
 ) -> tuple[np.ndarray, bool, str]:
-    """One SLSQP solve: least squares subject to the endpoint slack >= 0 at ``targets``."""
+    """One SLSQP solve: least squares subject to the endpoint slack >= 0 at ``targets`` (with
+    ``constraint``'s fit tolerance, iteration budget and precision goal)."""
     X_grid = targets.design()
     from scipy.optimize import minimize  # SciPy only where a fit runs: loading coefficients needs NumPy alone
 
@@ -310,10 +317,10 @@ def _solve(
                 "type": "ineq",
                 "fun": endpoint_slack,
                 "jac": endpoint_slack_jacobian,
-                "args": (X_grid, targets, tolerance_m),
+                "args": (X_grid, targets, constraint.fit_tolerance_m),
             }
         ],
-        options={"maxiter": max_iterations, "ftol": 1e-12},
+        options={"maxiter": constraint.max_iterations, "ftol": constraint.ftol},
     )
     return result.x, bool(result.success), str(result.message)
 
@@ -339,7 +346,7 @@ def _generate_constraints(
         worst = over[np.argsort(-errors[over], kind="stable")][: constraint.points_per_round]
         targets = merge_targets(targets, select_targets(check, np.sort(worst)))
         added += worst.size
-        b, converged, message = _solve(objective, b, targets, constraint.fit_tolerance_m, constraint.max_iterations)
+        b, converged, message = _solve(objective, b, targets, constraint)
         if not converged:
             break
     return b, converged, message, added, rounds
@@ -425,7 +432,7 @@ def _fit_with_endpoints(
         return float(np.sum(residual * residual)), (2.0 * X_data.T @ residual).ravel()
 
     start = np.stack([plain.coefficients[name] for name in PARAMETER_NAMES], -1).ravel()  # (m, 8) row-major
-    b, converged, message = _solve(objective, start, targets, constraint.fit_tolerance_m, constraint.max_iterations)
+    b, converged, message = _solve(objective, start, targets, constraint)
     added, rounds = 0, 0
     if converged and check is not None:
         b, converged, message, added, rounds = _generate_constraints(objective, b, targets, check, constraint)

@@ -8,7 +8,8 @@ For sweeps (``verify.sweep`` and the like), where per-query Python overhead woul
   (tests compare them); sizes :func:`generate` would refuse are reported per obstacle in
   ``error`` instead of raising, so one bad case does not stop a sweep. Coefficients over more
   scene variables than (L, W) take their values by keyword, one per obstacle
-  (``generate_batch(coefficients, L, W, x=xs)``), as :func:`generate` does, and carry no map bounds.
+  (``generate_batch(coefficients, L, W, x=xs)``), as :func:`generate` does, and carry the bounds
+  of a map over the same variables, looked up at (L, W, x, ...).
 
 :func:`pipeline.online.batch_certify.certify_batch` certifies such a batch with Coal. NumPy only here.
 """
@@ -108,7 +109,7 @@ def generate_batch(
     if L.shape != W.shape:
         raise InvalidParameterError("lengths_m / widths_m", (L.shape, W.shape), "arrays of equal length")
     if plan.extra or x is not None or d is not None:
-        return _generate_moved_batch(coefficients, plan, L, W, {"x": x, "d": d})
+        return _generate_moved_batch(coefficients, plan, L, W, {"x": x, "d": d}, region_map)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         x1, x2 = L / 2.0 + plan.start_dx, L / 2.0 + plan.approach_dx
         bottom = plan.top - W
@@ -135,17 +136,26 @@ def generate_batch(
         parameters, errors = coefficients.family.expand(free, None), [None] * L.size
     (l_lo, l_hi), (w_lo, w_hi) = plan.l_range, plan.w_range
     extrapolated = ~((L >= l_lo) & (L <= l_hi) & (W >= w_lo) & (W <= w_hi))
-    bounds: tuple[np.ndarray | None, ...] = (None, None, None, None)
-    if region_map is not None:
-        cells = region_map.cells_at(L, W)
-        bad = np.array([e is not None for e in errors], dtype=bool) | extrapolated
-        bounds = (
-            np.where(bad, np.nan, cells["clearance_bound_m"]),
-            np.where(bad, np.nan, cells["endpoint_bound_m"]),
-            np.where(bad, -1, cells["status"]),
-            np.where(bad, -1, cells["leaf"]),
-        )
+    bounds = _map_bounds(region_map, errors, extrapolated, L, W)
     return GeneratedBatch(L, W, np.asarray(parameters, dtype=float), durations, extrapolated, tuple(errors), *bounds)
+
+
+def _map_bounds(
+    region_map: RegionMap | None, errors: list[str | None], extrapolated: np.ndarray, *points: np.ndarray
+) -> tuple[np.ndarray | None, ...]:
+    """The map's clearance bound, endpoint bound, status and leaf per obstacle at ``points`` (L,
+    W, then the extra variables' values in the map's axes order), masked where the obstacle was
+    refused or lies outside the fitted range; four Nones without a map."""
+    if region_map is None:
+        return (None, None, None, None)
+    cells = region_map.cells_at(*points)
+    bad = np.array([e is not None for e in errors], dtype=bool) | extrapolated
+    return (
+        np.where(bad, np.nan, cells["clearance_bound_m"]),
+        np.where(bad, np.nan, cells["endpoint_bound_m"]),
+        np.where(bad, -1, cells["status"]),
+        np.where(bad, -1, cells["leaf"]),
+    )
 
 
 def _variable_array(value: object, name: str, n: int) -> np.ndarray:
@@ -162,10 +172,16 @@ def _variable_array(value: object, name: str, n: int) -> np.ndarray:
 
 
 def _generate_moved_batch(
-    coefficients: Coefficients, plan: QueryPlan, L: np.ndarray, W: np.ndarray, given: dict
+    coefficients: Coefficients,
+    plan: QueryPlan,
+    L: np.ndarray,
+    W: np.ndarray,
+    given: dict,
+    region_map: RegionMap | None,
 ) -> GeneratedBatch:
     """:func:`generate_batch` for coefficients over more variables than (L, W): the same numbers
-    as :func:`pipeline.online.generator.generate` with the variables' values, no map bounds."""
+    as :func:`pipeline.online.generator.generate` with the variables' values, and the bounds of
+    ``region_map`` (a map over the same variables) at them."""
     values = {name: _variable_array(v, name, L.size) for name, v in plan.variables.take(given).items()}
     scene = coefficients.scene
     top = values.get("d", np.full(L.size, plan.top))
@@ -209,8 +225,11 @@ def _generate_moved_batch(
     inside = (L >= l_lo) & (L <= l_hi) & (W >= w_lo) & (W <= w_hi)
     for (b_lo, b_hi), v in zip(plan.extra_ranges, values.values(), strict=True):
         inside &= (v >= b_lo) & (v <= b_hi)
+    if region_map is not None and region_map.axes != plan.variables.names:
+        region_map = None
+    bounds = _map_bounds(region_map, errors, ~inside, L, W, *values.values())
     return GeneratedBatch(
-        L, W, np.asarray(parameters, dtype=float), durations, ~inside, tuple(errors), variables=values
+        L, W, np.asarray(parameters, dtype=float), durations, ~inside, tuple(errors), *bounds, variables=values
     )
 
 

@@ -108,6 +108,7 @@ def certify_answer_execution(
             the excess (for the paper timing, also the rest-to-rest duration that would keep them).
     """
     size = (generated.length_m, generated.width_m)
+    where = {"variables": dict(generated.variables)}  # the message names x (etc.) after L and W
     if map_endpoint_bound_m is not None and map_endpoint_bound_m <= endpoint_tolerance_m:
         errors = (map_endpoint_bound_m, map_endpoint_bound_m)
     else:
@@ -118,7 +119,7 @@ def certify_answer_execution(
         if error > endpoint_tolerance_m
     ]
     if missed:
-        raise ExecutionRefusedError(*size, None, tuple(missed))
+        raise ExecutionRefusedError(*size, None, tuple(missed), **where)
     dynamics = dynamics_of(arm)
     decide = None if tight else limits
     if isinstance(timing, PaperTiming):
@@ -129,14 +130,14 @@ def certify_answer_execution(
             reasons = [str(v) for v in violations]
             if not any(v.quantity == "angle" for v in violations):
                 reasons.append(_rest_to_rest_hint(trajectory, dynamics, limits))
-            raise ExecutionRefusedError(*size, "paper", tuple(reasons))
+            raise ExecutionRefusedError(*size, "paper", tuple(reasons), **where)
         return Execution(paper_timed, paper, limits, errors, endpoint_tolerance_m)
     if not isinstance(timing, ShortestRestToRest):
         raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
     try:
         retimed = shortest_rest_to_rest(trajectory, dynamics, limits)
     except InvalidParameterError as exc:  # a limit binds at rest
-        raise ExecutionRefusedError(*size, timing.name, (str(exc),)) from None
+        raise ExecutionRefusedError(*size, timing.name, (str(exc),), **where) from None
     for _ in range(RETIMING_TRIES):
         executed = TimedTrajectory(trajectory, retimed)
         certificate = certify_execution(executed, dynamics, decide)
@@ -144,9 +145,10 @@ def certify_answer_execution(
         if not found:
             return Execution(executed, certificate, limits, errors, endpoint_tolerance_m)
         if any(v.quantity == "angle" for v in found):  # the same configurations under every timing
-            raise ExecutionRefusedError(*size, timing.name, tuple(str(v) for v in found if v.quantity == "angle"))
+            angles = tuple(str(v) for v in found if v.quantity == "angle")
+            raise ExecutionRefusedError(*size, timing.name, angles, **where)
         retimed = _slower(retimed)
-    raise ExecutionRefusedError(*size, timing.name, tuple(str(v) for v in found))
+    raise ExecutionRefusedError(*size, timing.name, tuple(str(v) for v in found), **where)
 
 
 def execution_from_map(
@@ -169,7 +171,13 @@ def execution_from_map(
     error = generated.endpoint_error_bound_m
     if error > endpoint_tolerance_m:
         return None
-    leaf = region_map.leaf_at(generated.length_m, generated.width_m)
+    if generated.variables or region_map.extra_index is not None:  # a map over (L, W, x, ...)
+        names = tuple(name for name, _ in generated.variables)
+        if names != region_map.axes[2:]:
+            return None
+        leaf = region_map.leaf_at(generated.length_m, generated.width_m, *(v for _, v in generated.variables))
+    else:
+        leaf = region_map.leaf_at(generated.length_m, generated.width_m)
     if leaf is None:
         return None
     speed_scale, ramp, angles, rest, paper = bounds.leaf(leaf)
@@ -216,4 +224,4 @@ def retime(generated: GeneratedTrajectory, arm: PlanarArm, limits: ArmLimits, ti
         return TimedTrajectory(trajectory, shortest_rest_to_rest(trajectory, dynamics_of(arm), limits))
     except InvalidParameterError as exc:  # a limit binds at rest
         size = (generated.length_m, generated.width_m)
-        raise ExecutionRefusedError(*size, "rest-to-rest", (str(exc),)) from None
+        raise ExecutionRefusedError(*size, "rest-to-rest", (str(exc),), variables=dict(generated.variables)) from None

@@ -22,8 +22,10 @@ rigidly: P1..P5 shift by x, T is the x = 0 path's (the even quartic's closed for
 the regression is evaluated at (L, W, x), the exact-endpoints family's inverse kinematics takes
 the shifted P1 and P5, and the answer's ``scene`` is the moved scene (its ``obstacle`` and
 ``path`` follow it; that path's T, the general quartic's, agrees with the answer's to rounding).
-The region map covers (L, W) only: such answers carry no map bounds. Coefficients over (L, W)
-alone take the unchanged route.
+Their region map is one over the same variables (:mod:`pipeline.certify.region_map`, axes e.g.
+(L, W, x)): inside its box the answer carries the bounds of the leaf holding (L, W, x). The
+answer's ``variables`` keeps the values, for the messages of later refusals. Coefficients over
+(L, W) alone take the unchanged route.
 """
 
 from __future__ import annotations
@@ -77,6 +79,8 @@ class GeneratedTrajectory:
         certificate_source: "range" if the two bounds come from the range certificate, else None.
         range_status: The map cell's status ("margin", "collision_free", "infeasible",
             "undecided"), or None.
+        variables: The values of the coefficients' variables beyond L and W as (name, value [m])
+            pairs in canonical order (e.g. (("x", 0.02),)); () for coefficients over (L, W).
         obstacle: The obstacle (built on first access).
         path: The desired path (P1..P5, T; built on first access).
     """
@@ -92,6 +96,7 @@ class GeneratedTrajectory:
     endpoint_error_bound_m: float | None = None
     certificate_source: str | None = None
     range_status: str | None = None
+    variables: tuple[tuple[str, float], ...] = ()
 
     @classmethod
     def trusted(
@@ -104,6 +109,7 @@ class GeneratedTrajectory:
         extrapolated: bool,
         reach_m: tuple[float, float] | None,
         bounds: tuple[float, float, str] | None = None,
+        variables: tuple[tuple[str, float], ...] = (),
     ) -> GeneratedTrajectory:
         """Build without the dataclass machinery, for :func:`generate`, which has checked everything."""
         answer = object.__new__(cls)
@@ -120,6 +126,8 @@ class GeneratedTrajectory:
             certificate_source=None if bounds is None else RANGE_SOURCE,
             range_status=None if bounds is None else bounds[2],
         )
+        if variables:  # else the class default, ()
+            answer.__dict__["variables"] = variables
         return answer
 
     @property
@@ -451,7 +459,8 @@ def _generate_moved(
     """:func:`generate` for coefficients over more variables than (L, W) (module docstring).
 
     The same steps as the (L, W) route, with the scene's fields replaced by the variables'
-    values, every constraint point shifted by the obstacle's centre x, and no map bounds.
+    values, every constraint point shifted by the obstacle's centre x, and the bounds of a map
+    over the same variables looked up at (L, W and the variables' values).
     """
     values = {name: _variable(value, name) for name, value in plan.variables.take(given).items()}
     L = _size(length_m, (length_m, width_m), "L")
@@ -467,7 +476,7 @@ def _generate_moved(
     for name, px, py in points:
         radius = math.hypot(px, py)
         if not lo <= radius <= hi:
-            raise UnreachableObstacleError(name, radius, plan.reach, size_m=(L, W))
+            raise UnreachableObstacleError(name, radius, plan.reach, size_m=(L, W), variables=values)
     extra = tuple((name, values[name], bounds) for name, bounds in zip(plan.extra, plan.extra_ranges, strict=True))
     (l_lo, l_hi), (w_lo, w_hi) = plan.l_range, plan.w_range
     extrapolated = not (l_lo <= L <= l_hi and w_lo <= W <= w_hi) or any(
@@ -494,8 +503,19 @@ def _generate_moved(
     parameters = tuple(full.tolist())
     if not all(map(math.isfinite, parameters)):
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
+    bounds = None
+    if region_map is not None and not extrapolated and region_map.axes == plan.variables.names:
+        bounds = region_map.bounds_at(L, W, *values.values())
     return GeneratedTrajectory.trusted(
-        L, W, family, scene, JointTrajectory.trusted(parameters, duration), extrapolated, plan.reach, None
+        L,
+        W,
+        family,
+        scene,
+        JointTrajectory.trusted(parameters, duration),
+        extrapolated,
+        plan.reach,
+        bounds,
+        tuple(values.items()),
     )
 
 

@@ -377,9 +377,15 @@ def _certify_clearance(
     first = certify(generated.trajectory)
     if first.certified_clearance_m >= margin:
         return CertifiedTrajectory(generated, first, margin, False, first, 0.0)
+    variables = dict(generated.variables)  # the message names x (etc.) after L and W
     if not config.repair:
         raise NoCertifiedTrajectoryError(
-            generated.length_m, generated.width_m, _tight(first, generated, arm, config), margin, "repair disabled"
+            generated.length_m,
+            generated.width_m,
+            _tight(first, generated, arm, config),
+            margin,
+            "repair disabled",
+            variables,
         )
     started = time.perf_counter()
     repaired = _repair(generated, arm, coefficients, config)
@@ -393,7 +399,12 @@ def _certify_clearance(
         _tight(second, replace(generated, trajectory=repaired), arm, config),
     )
     raise NoCertifiedTrajectoryError(
-        generated.length_m, generated.width_m, best, margin, _refusal_reason(generated, arm, coefficients, margin)
+        generated.length_m,
+        generated.width_m,
+        best,
+        margin,
+        _refusal_reason(generated, arm, coefficients, margin),
+        variables,
     )
 
 

@@ -163,8 +163,7 @@ def test_exact_endpoints_parameter_jets_contain_the_family_expansion(eq9: Coeffi
     radius = np.array([[2e-3, 1e-3, 0.0]] * 30)
     points = random_points(coefficients, 30, seed=5)
     points[:, :2] = np.clip(points[:, :2], [0.2 + 2e-3, 0.08 + 1e-3], [0.3 - 2e-3, 0.12 - 1e-3])
-    L, W, _ = model.variables(points, radius)
-    jets = model.parameter_jets(L, W, model.duration.jet(points, radius))
+    jets = model.parameter_jets(model.variables(points, radius), model.duration.jet(points, radius))
     rng = np.random.default_rng(6)
     for k in range(30):
         for u, v in points[k, :2] + radius[k, :2] * rng.uniform(-1, 1, (5, 2)):
@@ -241,12 +240,12 @@ def test_cells_that_miss_the_tolerance_all_over_are_refined_only_to_the_resoluti
     meets at some centres, the leaves that can still come within it are cut to the bottom."""
     model = RangeModel.from_coefficients(eq9)
     i, j = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
-    grid = [np.full(16, 2), i.ravel(), j.ravel(), np.full(16, np.inf)]
+    grid = [np.full(16, 2), np.column_stack([i.ravel(), j.ravel()]), np.full(16, np.inf)]
     max_depth = 8
     for tolerance_m in (0.002, 0.008):
-        (depth, i_l, i_w, _), endpoint, _ = refine_leaves(model, grid, 0.01, tolerance_m, max_depth)
+        (depth, index, _), endpoint, _ = refine_leaves(model, grid, 0.01, tolerance_m, max_depth)
         assert math.isclose(float(np.sum(4.0 ** -depth.astype(float))), 1.0)
-        center, radius = node_boxes(model, depth, i_l, i_w)
+        center, radius = node_boxes(model, depth, index)
         assert np.array_equal(endpoint, np.max(endpoint_error_bounds(model, center, radius), axis=1))
         at_centre = np.max(endpoint_error_bounds(model, center, np.zeros_like(radius)), axis=1)
         missed = (2 * at_centre - endpoint > tolerance_m) & (endpoint - at_centre <= 5e-4)
@@ -284,8 +283,9 @@ def test_endpoint_regression_is_proven_within_tolerance_over_the_whole_range(arm
     model = RangeModel.from_coefficients(fitted)
     n = 8
     i, j = (k.ravel() for k in np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
-    leaves = [np.full(n * n, 3), i, j, np.full(n * n, np.inf)]  # clearance not asked: bound +inf
-    (depth, i_l, i_w, _), endpoint, _ = refine_leaves(model, leaves, 0.01, 0.002, max_depth=8)
+    leaves = [np.full(n * n, 3), np.column_stack([i, j]), np.full(n * n, np.inf)]  # clearance not asked: bound +inf
+    (depth, index, _), endpoint, _ = refine_leaves(model, leaves, 0.01, 0.002, max_depth=8)
+    i_l, i_w = index.T
     assert np.all(endpoint <= 0.002)
     assert math.isclose(float(np.sum(4.0 ** -depth.astype(float))), 1.0)
     rng = np.random.default_rng(11)
@@ -418,14 +418,14 @@ def test_the_search_resolves_the_margins_contour_at_its_smallest_cell(eq9: Coeff
     model = RangeModel.from_coefficients(strip)
     settings = SearchSettings(margin_m=0.01, max_depth_lw=5, boundary_depth_lw=2, resolution_m=5e-3)
     boxes = search(model, settings)
-    keys = boxes.depth_lw * 10**6 + boxes.index_l * 10**3 + boxes.index_w
+    keys = boxes.depth_lw * 10**6 + boxes.index[:, 0] * 10**3 + boxes.index[:, 1]
     nodes, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     node_bound = np.full(nodes.size, np.inf)
     np.minimum.at(node_bound, inverse, boxes.bound_m)
     coarse = np.flatnonzero((node_bound < settings.margin_m) & (boxes.depth_lw[first] < settings.max_depth_lw))
     assert coarse.size >= 3 and np.any(node_bound >= settings.margin_m)
     rows = first[coarse]
-    centre, half = node_boxes(model, boxes.depth_lw[rows], boxes.index_l[rows], boxes.index_w[rows])
+    centre, half = node_boxes(model, boxes.depth_lw[rows], boxes.index[rows])
     offsets = np.array([[u, v] for u in np.linspace(-1, 1, 5) for v in np.linspace(-1, 1, 5)])
     sizes = (centre[:, None, :] + offsets[None] * half[:, None, :]).reshape(-1, 2)
     s = np.linspace(0.0, 1.0, 401)
@@ -520,7 +520,7 @@ def test_chunked_bounds_in_a_pool_are_the_serial_ones_and_count_leaves(eq9: Coef
     of each chunk reported as it finishes."""
     model = RangeModel.from_coefficients(eq9)
     index = np.arange(300)
-    c, r = node_boxes(model, np.full(300, 5), index // 32, index % 32)
+    c, r = node_boxes(model, np.full(300, 5), np.column_stack([index // 32, index % 32]))
     calls: list[tuple[str, int, int]] = []
     pooled = sub_cell_bounds(model, c, r, 0.002, 0.01, jobs=2, progress=lambda *call: calls.append(call))
     np.testing.assert_array_equal(pooled, sub_cell_bounds(model, c, r, 0.002, 0.01))

@@ -90,7 +90,7 @@ def test_strip_clearance_bound_is_the_floor_or_better_and_tightens(top: Coeffici
     the s search proves it (a bound within 0.05 mm of the truth) and never exceeds the sampled
     minimum; a floor above what the search proves is returned as it is."""
     model = RangeModel.from_coefficients(top)
-    c, r = node_boxes(model, np.full(4, 4), np.array([1, 5, 9, 13]), np.array([10, 41, 72, 103]), split_w=3)
+    c, r = node_boxes(model, np.full(4, 4), np.array([[1, 10], [5, 41], [9, 72], [13, 103]]), split_w=3)
     lowest = np.empty(4)
     for k in range(4):
         answer = generate(top, *c[k], out_of_range="ignore")
@@ -147,7 +147,8 @@ def test_a_wrong_choice_of_strips_costs_proofs_not_soundness(top: Coefficients, 
     order = np.lexsort((region_map.index_w[strips], region_map.index_l[strips]))
     strips = strips[order]
     e = int(region_map.split_w.max())
-    c, r = node_boxes(model, region_map.depth[strips], region_map.index_l[strips], region_map.index_w[strips], e)
+    index = np.column_stack([region_map.index_l[strips], region_map.index_w[strips]])
+    c, r = node_boxes(model, region_map.depth[strips], index, e)
     tolerance, margin = region_map.endpoint_tolerance_m, region_map.margin_m
     right = strip_infeasibility_bounds(model, c, r, region_map.index_l[strips], margin, tolerance)
     monkeypatch.setattr(strip_split, "ROOM_SLACK_M", -1e-4)

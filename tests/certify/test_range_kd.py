@@ -1,0 +1,149 @@
+"""The range certificate over (L, W, x) (pipeline.certify.range_model, clearance_bound, search,
+range_certificate): bounds over boxes that move the obstacle are below the clearance sampled
+inside them (analytic route, and Coal), the search's leaves tile the box, and with the x terms
+set to zero the bounds at x = 0 are those of the (L, W) certificate."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.certify.clearance_bound import box_clearance_bounds
+from pipeline.certify.range_certificate import leaves_from_boxes
+from pipeline.certify.range_model import RangeModel
+from pipeline.certify.search import SearchSettings, node_boxes, search
+from pipeline.exceptions import InvalidParameterError
+from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
+from pipeline.model.arm import PlanarArm
+from pipeline.offline.coefficients import Coefficients
+from pipeline.online.generator import generate
+from pipeline.online.loading import load_coefficients
+
+
+@pytest.fixture(scope="module")
+def eq9() -> Coefficients:
+    return load_coefficients("paper")
+
+
+@pytest.fixture(scope="module")
+def eq9_x(eq9: Coefficients, over_x) -> Coefficients:
+    return over_x(eq9, scale=0.2)
+
+
+def clearance_at(coefficients: Coefficients, arm: PlanarArm, point: np.ndarray, coal: bool = False) -> float:
+    """Clearance of both links at (L, W, x, s), the obstacle moved to x (online generator)."""
+    L, W, x, s = point
+    answer = generate(coefficients, L, W, x=x, out_of_range="ignore")
+    q = answer.q(s * answer.duration_s)
+    if coal:
+        return float(CoalClearance(arm, answer.obstacle).link_clearance(q).min())
+    return float(analytic_link_clearance(q, arm, answer.obstacle).min())
+
+
+def random_boxes(model: RangeModel, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """n random boxes of (L, W, x, s) inside the fitted box, half widths up to 1/16 of each side."""
+    rng = np.random.default_rng(seed)
+    lo = np.append(model.range_lo, 0.0)
+    size = np.append(model.range_size, 1.0)
+    radius = rng.uniform(0.0, 1.0 / 32, (n, 4)) * size
+    center = lo + radius + rng.uniform(0.0, 1.0, (n, 4)) * (size - 2 * radius)
+    return center, radius
+
+
+def test_model_has_the_axes_and_box(eq9_x: Coefficients) -> None:
+    model = RangeModel.from_coefficients(eq9_x)
+    assert model.axes.names == ("L", "W", "x") and model.k == 3
+    np.testing.assert_allclose(model.range_lo, [0.2, 0.08, -0.03], atol=1e-15)
+    np.testing.assert_allclose(model.range_size, [0.1, 0.04, 0.06], atol=1e-15)
+
+
+@pytest.mark.parametrize("seed", [11, 12])
+def test_box_bounds_are_below_the_sampled_clearance(eq9_x: Coefficients, arm: PlanarArm, seed: int) -> None:
+    model = RangeModel.from_coefficients(eq9_x)
+    center, radius = random_boxes(model, 60, seed)
+    bounds = box_clearance_bounds(model, center, radius)
+    rng = np.random.default_rng(seed + 100)
+    lowest = np.full(center.shape[0], np.inf)
+    for k in range(center.shape[0]):
+        corners = np.array([[-1, -1, -1, -1], [1, 1, 1, 1], [1, -1, 1, -1], [-1, 1, -1, 1]], dtype=float)
+        inside = np.vstack([corners, rng.uniform(-1.0, 1.0, (12, 4)), np.zeros((1, 4))])
+        for u in inside:
+            lowest[k] = min(lowest[k], clearance_at(eq9_x, arm, center[k] + u * radius[k]))
+    assert np.all(lowest >= bounds.lower_m - 1e-12)
+    # The centre value is a clearance the box takes.
+    np.testing.assert_allclose(bounds.center_m, [clearance_at(eq9_x, arm, c) for c in center], atol=1e-9)
+    # Not vacuous: most of these boxes are proven collision-free.
+    assert np.mean(bounds.lower_m > 0.0) > 0.5
+
+
+def test_box_bounds_hold_against_coal(eq9_x: Coefficients, arm: PlanarArm) -> None:
+    model = RangeModel.from_coefficients(eq9_x)
+    center, radius = random_boxes(model, 40, 21)
+    bounds = box_clearance_bounds(model, center, radius).lower_m
+    rng = np.random.default_rng(22)
+    for k in range(center.shape[0]):
+        for u in rng.uniform(-1.0, 1.0, (4, 4)):
+            assert clearance_at(eq9_x, arm, center[k] + u * radius[k], coal=True) >= bounds[k] - COAL_DISTANCE_ERROR_M
+
+
+def test_bounds_at_x_zero_match_the_size_only_certificate(eq9: Coefficients, over_x) -> None:
+    """Without x terms and at x = 0 with no x extent, the (L, W, x) bounds are the (L, W) ones."""
+    flat = over_x(eq9, scale=0.0)
+    model2, model3 = RangeModel.from_coefficients(eq9), RangeModel.from_coefficients(flat)
+    rng = np.random.default_rng(31)
+    c2 = np.column_stack([rng.uniform(0.21, 0.29, 200), rng.uniform(0.085, 0.115, 200), rng.uniform(0.05, 0.95, 200)])
+    r2 = np.column_stack([np.full(200, 0.004), np.full(200, 0.002), np.full(200, 0.02)])
+    c3 = np.column_stack([c2[:, :2], np.zeros(200), c2[:, 2]])
+    r3 = np.column_stack([r2[:, :2], np.zeros(200), r2[:, 2]])
+    b2, b3 = box_clearance_bounds(model2, c2, r2), box_clearance_bounds(model3, c3, r3)
+    np.testing.assert_allclose(b3.lower_m, b2.lower_m, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b3.center_m, b2.center_m, rtol=0, atol=1e-12)
+
+
+def test_moving_the_obstacle_under_the_same_motion_costs_clearance(eq9: Coefficients, over_x, arm: PlanarArm) -> None:
+    """Without x terms the arm's motion ignores x: the bound over a box with an x extent is below
+    the clearance of every obstacle position sampled in it, and below the bound without it."""
+    flat = over_x(eq9, scale=0.0)
+    model = RangeModel.from_coefficients(flat)
+    s = np.linspace(0.0, 1.0, 11)
+    c = np.column_stack([np.full(11, 0.25), np.full(11, 0.1), np.zeros(11), s])
+    r0 = np.tile([0.002, 0.001, 0.0, 0.01], (11, 1))
+    r1 = np.tile([0.002, 0.001, 0.01, 0.01], (11, 1))
+    b0, b1 = box_clearance_bounds(model, c, r0).lower_m, box_clearance_bounds(model, c, r1).lower_m
+    assert np.all(b1 <= b0) and np.any(b1 < b0 - 1e-3)
+    for k in range(11):
+        for x in np.linspace(-0.01, 0.01, 5):
+            assert clearance_at(flat, arm, np.array([0.25, 0.1, x, s[k]])) >= b1[k] - 1e-12
+
+
+def test_search_leaves_tile_the_box_and_bound_the_clearance(eq9_x: Coefficients, arm: PlanarArm) -> None:
+    model = RangeModel.from_coefficients(eq9_x)
+    settings = SearchSettings(
+        margin_m=0.01, max_depth_lw=3, boundary_depth_lw=2, initial_depth_lw=1, max_depth_s=10, resolution_m=2e-3
+    )
+    depth, index, bound, _ = leaves_from_boxes(search(model, settings))
+    assert index.shape == (depth.size, 3)
+    assert np.sum(2.0 ** (-3.0 * depth)) == pytest.approx(1.0, abs=1e-12)
+    centre, half = node_boxes(model, depth, index)
+    rng = np.random.default_rng(41)
+    points = model.range_lo + rng.uniform(0.0, 1.0, (150, 3)) * model.range_size
+    inside = np.all(np.abs(points[:, None, :] - centre[None]) <= half[None] * (1 + 1e-12), axis=2)
+    assert np.all(inside.sum(axis=1) >= 1)  # every point in a leaf (boundaries in two)
+    for p, row in zip(points, inside, strict=True):
+        leaf = np.flatnonzero(row)[0]
+        lowest = min(clearance_at(eq9_x, arm, np.append(p, s)) for s in np.linspace(0.0, 1.0, 41))
+        assert lowest >= bound[leaf] - 1e-12
+
+
+def test_unsupported_axes_and_families_are_refused(eq9: Coefficients, over_x) -> None:
+    from dataclasses import replace
+
+    from pipeline.motion.families import family_from_name
+    from pipeline.offline.variables import Variables
+
+    lifted = over_x(eq9)
+    with pytest.raises(InvalidParameterError, match="paper family"):
+        RangeModel.from_coefficients(replace(lifted, family=family_from_name("exact-endpoints")))
+    model = RangeModel.from_coefficients(lifted)
+    with pytest.raises(InvalidParameterError, match="axes"):
+        replace(model, axes=Variables(("L", "W", "d")), extra_ranges_m=((0.5, 0.6),))
