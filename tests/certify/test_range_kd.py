@@ -147,3 +147,57 @@ def test_unsupported_axes_and_families_are_refused(eq9: Coefficients, over_x) ->
     model = RangeModel.from_coefficients(lifted)
     with pytest.raises(InvalidParameterError, match="axes"):
         replace(model, axes=Variables(("L", "W", "d")), extra_ranges_m=((0.5, 0.6),))
+
+
+@pytest.fixture(scope="module")
+def eq9_x_map(eq9_x: Coefficients):
+    from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+
+    return certify_range(eq9_x, RangeCertificateConfig(min_cell=1 / 8, boundary_cell=1 / 4, max_depth_s=12))
+
+
+def test_map_over_x_names_its_axes_and_tiles_the_box(eq9_x: Coefficients, eq9_x_map) -> None:
+    from pipeline.certify.region_map import RegionMap
+
+    assert eq9_x_map.axes == ("L", "W", "x")
+    assert eq9_x_map.extra_ranges_m == ((-0.03, 0.03),)
+    assert eq9_x_map.belongs_to(eq9_x) or eq9_x.source_sha256 == ""
+    summary = eq9_x_map.summary()
+    assert sum(summary["area_fraction"].values()) == pytest.approx(1.0, abs=1e-12)
+    again = RegionMap.from_json(eq9_x_map.to_json())
+    assert again.to_json() == eq9_x_map.to_json()
+
+
+def test_map_over_x_is_below_every_sampled_motion(eq9_x: Coefficients, eq9_x_map, arm: PlanarArm) -> None:
+    """Dense in t at random (L, W, x): each motion's minimum lies above its leaf's bound, and a
+    motion that dips below the margin is never in a "margin" leaf."""
+    rng = np.random.default_rng(51)
+    for L, W, x in zip(
+        rng.uniform(0.2, 0.3, 30), rng.uniform(0.08, 0.12, 30), rng.uniform(-0.03, 0.03, 30), strict=True
+    ):
+        answer = generate(eq9_x, L, W, x=x)
+        lowest = analytic_link_clearance(answer.q(np.linspace(0.0, answer.duration_s, 1001)), arm, answer.obstacle)
+        cell = eq9_x_map.cell_at(L, W, x)
+        assert cell.extra_ranges_m[0][0] <= x <= cell.extra_ranges_m[0][1]
+        assert lowest.min() >= cell.clearance_bound_m - 1e-12
+        if lowest.min() < eq9_x_map.margin_m:
+            assert cell.status != "margin"
+
+
+def test_execution_bounds_over_x_hold_along_sampled_motions(eq9_x: Coefficients, eq9_x_map, arm: PlanarArm) -> None:
+    """Each leaf's joint-speed bound (paper timing) is above the speeds sampled at obstacles in it."""
+    from pipeline.certify.map_for_coefficients import with_execution_bounds
+    from pipeline.model.dynamics import identify_dynamics
+    from pipeline.model.limits import ArmLimits
+
+    mapped = with_execution_bounds(eq9_x_map, eq9_x, identify_dynamics(arm), ArmLimits.from_arm(arm, (5.0, 5.0)))
+    assert mapped.execution is not None and mapped.execution.size == eq9_x_map.depth.size
+    rng = np.random.default_rng(61)
+    for L, W, x in zip(
+        rng.uniform(0.2, 0.3, 20), rng.uniform(0.08, 0.12, 20), rng.uniform(-0.03, 0.03, 20), strict=True
+    ):
+        answer = generate(eq9_x, L, W, x=x)
+        t = np.linspace(0.0, answer.duration_s, 801)
+        speed = np.abs(answer.dq(t)).max(axis=0)
+        bound = mapped.execution.paper_speed_rad_s[mapped.leaf_at(L, W, x)]
+        assert np.all(speed <= bound + 1e-12)
