@@ -3,11 +3,13 @@ screenshot.
 
     python -m verify.view --L 0.27 --W 0.09 [--coefficients FILE]   (default: results/coefficients.json)
     python -m verify.view --L 0.27 --W 0.09 --html view.html
+    python -m verify.view --L 0.27 --W 0.09 --x 0.02 --coefficients results-x/coefficients.json
     python -m verify.view --paper-test1 --screenshot docs/viewer.png
 
 Live, a Meshcat server starts on 127.0.0.1 only, its URL is printed, and the scene stays
 up until Ctrl-C (or ``--hold`` seconds); the server process is then terminated. The scene:
-the arm from the URDF, the rounded obstacle at its true size and place, the desired and
+the arm from the URDF, the rounded obstacle at its true size and place (``--x``, ``--d`` for
+coefficients that vary the obstacle's centre x or far edge y), the desired and
 the actual end-effector paths, the five constraint points, the point of minimum clearance
 with its distance, and the trajectory as an animation (Animations > default: play, pause,
 scrub the time).
@@ -39,6 +41,7 @@ from pipeline.cli import (
     describe_coefficients,
     run_cli,
 )
+from pipeline.commands.generate import SCENE_VARIABLE_FLAGS, add_scene_variable_arguments, scene_variables
 from pipeline.exceptions import InvalidParameterError, OutOfFittedRangeWarning
 from pipeline.io.output_paths import check_output_file
 from pipeline.motion.families import PAPER_SOURCE
@@ -70,6 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--W", type=float, metavar="METRES", help="obstacle width W [m], > 0 (required unless --paper-test1)"
     )
+    add_scene_variable_arguments(parser)
     parser.add_argument(
         "--coefficients",
         default=DEFAULT_COEFFICIENTS,
@@ -151,6 +155,11 @@ def _check_args(args: argparse.Namespace) -> None:
                 raise InvalidParameterError(
                     f"--{name}", getattr(args, name), "no value with --paper-test1 (it fixes L and W)"
                 )
+        for name, (flag, _) in SCENE_VARIABLE_FLAGS.items():
+            if getattr(args, name) is not None:
+                raise InvalidParameterError(
+                    flag, getattr(args, name), "no value with --paper-test1 (the paper's scene)"
+                )
     else:
         for name in ("L", "W"):
             value = getattr(args, name)
@@ -207,11 +216,12 @@ def _case(args: argparse.Namespace):  # -> TrajectoryCase (the viewer's, importe
     from pipeline.online.generator import generate
 
     coefficients = load_coefficients_for_verify(PROG, args.coefficients, beside=False)  # the view shows no bounds
+    values = scene_variables(coefficients, args)
     arm = arm_for_verify(coefficients, args.urdf)
     print(describe_coefficients(coefficients), flush=True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", OutOfFittedRangeWarning)
-        generated = generate(coefficients, args.L, args.W)
+        generated = generate(coefficients, args.L, args.W, **values)
     for warning in caught:
         print(f"{PROG}: warning: {warning.message}", file=sys.stderr)
     return case_from_generated(generated, arm)
@@ -227,6 +237,7 @@ def _joint_plot(args: argparse.Namespace) -> int:
     from verify.acceptance.joint_plot import plot_joint_states
 
     coefficients = load_coefficients_for_verify(PROG, args.coefficients)
+    values = scene_variables(coefficients, args)
     arm = arm_for_verify(coefficients, args.urdf)
     if args.acceleration_limit is None:
         limits = ArmLimits.recorded(arm, coefficients.provenance)
@@ -239,6 +250,7 @@ def _joint_plot(args: argparse.Namespace) -> int:
             args.L,
             args.W,
             arm,
+            **values,
             timing=timing,
             limits=limits,
             config=RepairConfig(certificate_tolerance_m=1e-5),
@@ -246,7 +258,8 @@ def _joint_plot(args: argparse.Namespace) -> int:
     except (NoCertifiedTrajectoryError, ExecutionRefusedError) as exc:
         print(f"{PROG}: certification refused: {exc}", file=sys.stderr)
         return EXIT_FAILED
-    title = f"L = {args.L} m, W = {args.W} m: q, dq, ddq, τ (dotted: certified bounds, dashed: limits)"
+    where = "".join(f", {name} = {value} m" for name, value in values.items())
+    title = f"L = {args.L} m, W = {args.W} m{where}: q, dq, ddq, τ (dotted: certified bounds, dashed: limits)"
     plot_joint_states(answer.executed, arm, answer.execution, args.joint_plot, title=title)
     print(
         f"wrote {args.joint_plot} ({answer.execution.certificate.timing_name} timing, T' = {answer.duration_s:.3f} s)"

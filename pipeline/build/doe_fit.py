@@ -36,6 +36,7 @@ from pipeline.offline.coefficients import (
     UNCONVERGED_REASONS_KEY,
     Coefficients,
     fit_coefficients,
+    fit_over_variables,
     paper_data_path,
 )
 from pipeline.offline.convergence import (
@@ -48,10 +49,9 @@ from pipeline.offline.convergence import (
 )
 from pipeline.offline.designs import ScaledDesign
 from pipeline.offline.doe import DoeData, doe_document, doe_from_json, load_doe, run_doe
-from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_points_with_endpoints
+from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets
 from pipeline.offline.experiment import ExperimentResult, SolverConfig, score_parameters
 from pipeline.offline.fitness import FitnessProblem, fitness_problem
-from pipeline.offline.regression import fit_quadratic_points
 from pipeline.offline.variables import SIZE
 
 __all__ = ["DOE_STAGE", "DoeFit", "fit_doe", "fit_variables"]
@@ -64,6 +64,9 @@ EXTRA_GRID_POINTS = 5
 #: (grid_points, check_points) of the endpoint constraint over k > 2 variables, in place of the
 #: (L, W) fit's 21 and 101 per axis (21^3 and 101^3 obstacles would cost minutes and gigabytes).
 K_ENDPOINT_GRID = (9, 21)
+#: SLSQP's precision goal of the endpoint-constrained fit over k > 2 variables (the (L, W) fit's
+#: 1e-12 is not reached within its iteration budget there: ``EndpointConstraint.ftol``).
+K_ENDPOINT_FTOL = 1e-9
 
 #: One group of the grid: the extra variables' values and the (L, W) grid's problems in that scene.
 _GridGroup = tuple[dict[str, float], list[FitnessProblem]]
@@ -172,6 +175,7 @@ def _endpoint_constraint(config: BuildConfig) -> EndpointConstraint | None:
         constraint,
         grid_points=min(grid, constraint.grid_points),
         check_points=min(check, constraint.check_points),
+        ftol=max(K_ENDPOINT_FTOL, constraint.ftol),
     )
 
 
@@ -329,9 +333,8 @@ def fit_variables(
     endpoint_constraint: EndpointConstraint | None = None,
 ) -> Coefficients:
     """Regress a DOE over k scene variables (``doe.variables``, L and W among them) into
-    coefficients over those variables: :func:`pipeline.offline.coefficients.fit_coefficients`'s
-    steps with the k-variable regression (:func:`pipeline.offline.regression.fit_quadratic_points`,
-    :func:`pipeline.offline.endpoint_regression.fit_points_with_endpoints`).
+    coefficients over those variables, fitted on the design's box:
+    :func:`pipeline.offline.coefficients.fit_over_variables`, the route of every fit.
 
     Args:
         doe: The DOE as read back from its file.
@@ -339,36 +342,5 @@ def fit_variables(
         extra: More top-level keys of the coefficients (provenance).
         endpoint_constraint: The endpoint constraint (paper family), or None for the plain fit.
     """
-    variables = doe.variables
-    fitted_range = {name: (float(ranges_m[name][0]), float(ranges_m[name][1])) for name in variables.names}
-    points, free = doe.points, doe.free_parameters()
-    if endpoint_constraint is None or doe.family.pins_endpoints:
-        fit = fit_quadratic_points(points, free, variables)
-        method = {"regression": "least squares"}
-    else:
-        grid = endpoint_constraint.grid_points
-        targets = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, grid, variables)
-        check = None
-        if endpoint_constraint.check_points:
-            check_points = endpoint_constraint.check_points
-            check = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, check_points, variables)
-        fit, fit_report = fit_points_with_endpoints(points, free, targets, endpoint_constraint, check)
-        method = {"regression": "least squares + endpoint constraint", "endpoint_constraint": fit_report}
-    quality = {
-        "r_squared": fit.r_squared,
-        "loo_rmse": fit.loo_rmse,
-        "max_residual": fit.max_residual,
-        "experiments": len(points),
-        **method,
-    }
-    return Coefficients(
-        family=doe.family,
-        parameters=fit.coefficients,
-        fitted_range_m=fitted_range,
-        scene=doe.scene,
-        link_lengths_m=doe.link_lengths_m,
-        link_radii_m=doe.link_radii_m,
-        elbow=doe.elbow,
-        extra={"fit": quality, **(extra or {})},
-        variables=variables,
-    )
+    coefficients, _ = fit_over_variables(doe, doe.variables, ranges_m, extra, endpoint_constraint)
+    return coefficients

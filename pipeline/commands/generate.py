@@ -8,6 +8,11 @@ certified per query with Coal and repaired if needed, unless ``--no-repair``), e
 endpoint tolerance, and, with the chosen ``--timing``, keep the arm's joint, speed,
 acceleration (``--acceleration-limit``) and torque limits over all of [0, T'].
 
+Coefficients over more scene variables than (L, W) (``python -m pipeline.build --vary x ...``)
+take their values by flag: ``--x`` the obstacle's centre x [m] (``Scene.centre_x_m``), ``--d`` its
+far edge y [m] (``Scene.top_y_m``). A variable the coefficients vary without its flag, or a flag
+for one they do not vary, is refused in one line (exit 2) before any work.
+
 ``--timing rest-to-rest`` (the default of this command) executes the same path starting and
 ending at rest, in the shortest duration T' within the arm's limits: what a controller should be
 given, since the paper's timing (``--timing paper``, the default of :func:`pipeline.generate`)
@@ -17,8 +22,10 @@ the format the suffix names:
 
 * ``.csv``: one row per sample, columns ``t_s, q1_rad, q2_rad, dq1_rad_s, dq2_rad_s,
   ddq1_rad_s2, ddq2_rad_s2`` (units in the names);
-* ``.npz``: arrays ``t_s`` (n,), ``q_rad``, ``dq_rad_s``, ``ddq_rad_s2`` (n, 2), and ``parameters``
-  (8,) with ``parameter_names``, ``duration_s``, ``joint_names``;
+* ``.npz``: arrays ``t_s`` (n,), ``q_rad``, ``dq_rad_s``, ``ddq_rad_s2``, ``tau_n_m`` (n, 2),
+  ``parameters`` (8,) with ``parameter_names``, ``duration_s``, ``path_duration_s``, ``timing``,
+  ``joint_names``, and the obstacle's scene variables ``variables_m`` (k,) [m] with
+  ``variable_names`` (``L``, ``W``, then ``x`` and ``d`` when the coefficients vary them);
 * ``.json``: a ROS ``trajectory_msgs/JointTrajectory`` (``header``, ``joint_names`` from the URDF,
   ``points`` with ``positions`` [rad], ``velocities`` [rad/s], ``accelerations`` [rad/s^2] and
   ``time_from_start`` as ``{"sec", "nanosec"}``).
@@ -37,7 +44,7 @@ import math
 import sys
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +70,7 @@ from pipeline.motion.rest_to_rest import REST_TO_REST
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.timing import PAPER_TIMING
 from pipeline.motion.trajectory import PARAMETER_NAMES, PARAMETER_UNITS
+from pipeline.offline.coefficients import Coefficients
 from pipeline.online.execution import retime
 from pipeline.online.generator import OUT_OF_RANGE_POLICIES, generate
 from pipeline.online.repair import RepairConfig, generate_certified
@@ -90,6 +98,11 @@ CSV_COLUMNS = (
 )
 #: The timings of ``--timing``.
 TIMINGS = {"rest-to-rest": REST_TO_REST, "paper": PAPER_TIMING}
+#: The scene variables beyond (L, W) this command takes: name -> (flag, meaning).
+SCENE_VARIABLE_FLAGS = {
+    "x": ("--x", "the obstacle's centre x"),
+    "d": ("--d", "the obstacle's far edge y"),
+}
 
 
 def sample_times(duration_s: float, rate_hz: float) -> np.ndarray:
@@ -143,8 +156,16 @@ def sample(executed, arm: PlanarArm, rate_hz: float) -> dict:
     return {"t": times, "q": q, "dq": dq, "ddq": ddq, "tau": rnea_torques(arm, q, dq, ddq)}
 
 
-def encode(path: Path, executed, samples: dict, names: Sequence[str], ros1: bool = False) -> bytes:
-    """The file's bytes in the format of ``path``'s suffix."""
+def encode(
+    path: Path,
+    executed,
+    samples: dict,
+    names: Sequence[str],
+    ros1: bool = False,
+    variables: Mapping[str, float] | None = None,
+) -> bytes:
+    """The file's bytes in the format of ``path``'s suffix; the NPZ records ``variables``, the
+    obstacle's scene variables (name -> value [m]: L, W and those of ``--x``, ``--d``)."""
     suffix = path.suffix.lower()
     if suffix == ".json":
         return dumps(trajectory_document(samples, names, ros1)).encode("utf-8")
@@ -164,6 +185,8 @@ def encode(path: Path, executed, samples: dict, names: Sequence[str], ros1: bool
             path_duration_s=np.array(executed.trajectory.duration_s),
             timing=np.array(executed.timing.name),
             joint_names=np.array(list(names)),
+            variables_m=np.array([float(v) for v in (variables or {}).values()]),
+            variable_names=np.array(list(variables or {}), dtype=str),
         )
         return buffer.getvalue()
     text = io.StringIO()
@@ -172,6 +195,21 @@ def encode(path: Path, executed, samples: dict, names: Sequence[str], ros1: bool
     for row in np.column_stack([times, q, dq, ddq, tau]):
         writer.writerow([repr(float(v)) for v in row])
     return text.getvalue().encode("utf-8")
+
+
+def add_scene_variable_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--x`` and ``--d`` [m]: the values of the scene variables beyond (L, W), for coefficients
+    that vary them (read back by :func:`scene_variables`)."""
+    for name, (flag, meaning) in SCENE_VARIABLE_FLAGS.items():
+        parser.add_argument(
+            flag,
+            type=float,
+            default=None,
+            dest=name,
+            metavar="M",
+            help=f"{meaning} [m], for coefficients that vary {name} (python -m pipeline.build --vary {name}): "
+            f"required for those, refused for others (default: none; the coefficients' scene holds it fixed)",
+        )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -183,6 +221,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--L", type=float, required=True, metavar="M", help="obstacle length L [m]")
     p.add_argument("--W", type=float, required=True, metavar="M", help="obstacle width W [m]")
+    add_scene_variable_arguments(p)
     p.add_argument(
         "--coefficients",
         metavar="FILE",
@@ -259,6 +298,41 @@ def _check_inputs(args: argparse.Namespace) -> Path | None:
     return out
 
 
+def scene_variables(coefficients: Coefficients, args: argparse.Namespace) -> dict[str, float]:
+    """The values of ``--x`` and ``--d`` [m] for the call to :func:`generate`, checked against the
+    variables ``coefficients`` vary (before any work): name -> value, in the canonical order.
+
+    Raises:
+        InvalidParameterError: a variable of the coefficients without its flag, a flag for one
+            they do not vary, or a value that is not finite (the message names the flag).
+    """
+    varied = coefficients.variables
+    given = {name: getattr(args, name) for name in SCENE_VARIABLE_FLAGS if getattr(args, name) is not None}
+    for name, value in given.items():
+        flag = SCENE_VARIABLE_FLAGS[name][0]
+        if name not in varied.extra:
+            raise InvalidParameterError(
+                flag, value, f"no {flag}: the coefficients vary {', '.join(varied.names)} only, not {name}"
+            )
+        if not math.isfinite(value):
+            raise InvalidParameterError(flag, value, f"a finite value [m] ({SCENE_VARIABLE_FLAGS[name][1]})")
+    for name in varied.extra:
+        if name not in given:
+            flag, meaning = SCENE_VARIABLE_FLAGS[name]
+            raise InvalidParameterError(
+                flag, None, f"{meaning} [m]: the coefficients vary {', '.join(varied.names)} ({flag} is required)"
+            )
+    return {name: float(given[name]) for name in varied.extra}
+
+
+def _obstacle_line(generated, values: dict[str, float]) -> str:
+    """The obstacle in one line: L, W and the values of the extra variables [m]."""
+    extra = "".join(f", {name} = {value!r} m" for name, value in values.items())
+    return f"obstacle L = {generated.length_m!r} m, W = {generated.width_m!r} m{extra}" + (
+        " (outside the fitted range: extrapolated)" if generated.extrapolated else ""
+    )
+
+
 def _range_line(generated) -> str:
     """What the region map certifies for this answer, in one line."""
     if generated.certificate_source is None:
@@ -302,6 +376,7 @@ def work(args: argparse.Namespace) -> int:
                 "--acceleration-limit", args.acceleration_limit, "two positive limits [rad/s^2]"
             )
     coefficients = load_coefficients_for_cli(args.coefficients)
+    values = scene_variables(coefficients, args)
     print(describe_coefficients(coefficients))
     timing = TIMINGS[args.timing]
     needs_arm = args.certify or args.urdf is not None or out is not None or timing is REST_TO_REST
@@ -315,7 +390,7 @@ def work(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        generated = generate(coefficients, args.L, args.W, out_of_range=args.out_of_range)
+        generated = generate(coefficients, args.L, args.W, **values, out_of_range=args.out_of_range)
     for warning in caught:
         print(f"{PROG}: warning: {warning.message}", file=sys.stderr)
     trajectory = generated.trajectory
@@ -326,7 +401,15 @@ def work(args: argparse.Namespace) -> int:
         )
         try:
             certified = generate_certified(
-                coefficients, args.L, args.W, arm, out_of_range="ignore", config=config, timing=timing, limits=limits
+                coefficients,
+                args.L,
+                args.W,
+                arm,
+                **values,
+                out_of_range="ignore",
+                config=config,
+                timing=timing,
+                limits=limits,
             )
         except (NoCertifiedTrajectoryError, ExecutionRefusedError) as exc:
             print(f"{PROG}: certification refused: {exc}", file=sys.stderr)
@@ -339,10 +422,7 @@ def work(args: argparse.Namespace) -> int:
         executed = TimedTrajectory(trajectory, PAPER_TIMING)
     elapsed = time.perf_counter() - started
 
-    print(
-        f"obstacle L = {generated.length_m!r} m, W = {generated.width_m!r} m"
-        + (" (outside the fitted range: extrapolated)" if generated.extrapolated else "")
-    )
+    print(_obstacle_line(generated, values))
     for name, value in trajectory.as_dict().items():
         print(f"  {name:<7s}= {value: .9f} {PARAMETER_UNITS[name]}")
     print(f"T = {trajectory.duration_s:.9f} s (the path at the paper's speed)")
@@ -380,7 +460,8 @@ def work(args: argparse.Namespace) -> int:
             )
         samples = sample(executed, arm, args.rate)
         try:
-            write_bytes_atomic(out, encode(out, executed, samples, joint_names(arm), args.ros1))
+            variables = {"L": generated.length_m, "W": generated.width_m, **values}
+            write_bytes_atomic(out, encode(out, executed, samples, joint_names(arm), args.ros1, variables))
         except OSError as exc:
             raise InvalidParameterError("--out", str(out), f"a writable file ({exc.strerror})") from None
         print(f"wrote {out} ({samples['t'].size} samples at {args.rate:g} Hz, the last at T')")

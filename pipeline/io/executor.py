@@ -26,11 +26,13 @@ so the message is the parent's alone.
 Dask. ``distributed`` is imported only here, and only when a :class:`DaskScheduler` is used
 (``pip install 'twolink-obstacle[dask]'``). Each call connects a client with a short timeout
 before submitting anything (an unreachable scheduler raises
-:class:`pipeline.exceptions.SchedulerUnreachableError`, one line naming the address), submits the
-chunks, collects them with ``distributed.as_completed``, and closes the client; an error or
-Ctrl-C cancels the chunks not yet done. The workers must have this package installed (the same
-version): they import ``function`` by name. :func:`check_executor` makes the connection test on
-its own, so that a command can fail before any work.
+:class:`pipeline.exceptions.SchedulerUnreachableError`, one line naming the address), waits at
+most ``DaskScheduler.worker_timeout_s`` for at least one worker (a scheduler without workers
+would hold the tasks forever: :class:`NoDaskWorkersError`, one line naming the address and the
+timeout), submits the chunks, collects them with ``distributed.as_completed``, and closes the
+client; an error or Ctrl-C cancels the chunks not yet done. The workers must have this package
+installed (the same version): they import ``function`` by name. :func:`check_executor` makes the
+connection and worker test on its own, so that a command can fail before any work.
 """
 
 from __future__ import annotations
@@ -45,15 +47,17 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
-from pipeline.exceptions import InvalidParameterError, SchedulerUnreachableError, WorkerPoolError
+from pipeline.exceptions import InvalidParameterError, PipelineError, SchedulerUnreachableError, WorkerPoolError
 from pipeline.validation import check_positive, check_positive_int
 
 __all__ = [
     "DEFAULT_CONNECT_TIMEOUT_S",
+    "DEFAULT_WORKER_TIMEOUT_S",
     "MAX_DEFAULT_CHUNK",
     "DaskScheduler",
     "Executor",
     "LocalPool",
+    "NoDaskWorkersError",
     "as_executor",
     "check_executor",
     "check_scheduler_address",
@@ -68,10 +72,33 @@ Result = TypeVar("Result")
 MAX_DEFAULT_CHUNK = 16
 #: How long a Dask client waits for the scheduler before giving up [s].
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
+#: How long a Dask client waits for the scheduler's first worker before giving up [s].
+DEFAULT_WORKER_TIMEOUT_S = 30.0
 
 # host:port or tcp://host:port; host a name, an IPv4 address or a bracketed IPv6 address.
 _ADDRESS = re.compile(r"^(?:tcp://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.\-]*[A-Za-z0-9])?):(\d{1,5})$")
 _ADDRESS_EXPECTED = 'a Dask scheduler address "host:port" or "tcp://host:port"'
+
+
+class NoDaskWorkersError(SchedulerUnreachableError):
+    """The Dask scheduler answers but no worker joined it within the timeout (checked before any
+    work: without workers the tasks would wait forever).
+
+    Attributes:
+        address: The scheduler's address as given.
+        timeout_s: How long the client waited for a worker [s].
+        reason: What was missing, in words.
+    """
+
+    def __init__(self, address: str, timeout_s: float) -> None:
+        self.address = address
+        self.timeout_s = timeout_s
+        self.reason = f"no worker joined within {timeout_s:g} s"
+        PipelineError.__init__(
+            self,
+            f"the Dask scheduler at {address} has no workers: none joined within {timeout_s:g} s "
+            f"(start some with: dask worker {address})",
+        )
 
 
 def check_scheduler_address(name: str, value: object) -> str:
@@ -117,14 +144,18 @@ class DaskScheduler:
     Attributes:
         address: The scheduler's address, ``host:port`` or ``tcp://host:port``.
         connect_timeout_s: How long to wait for the scheduler before giving up [s].
+        worker_timeout_s: How long to wait, once connected, for at least one worker before
+            giving up [s] (:class:`NoDaskWorkersError`).
     """
 
     address: str
     connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S
+    worker_timeout_s: float = DEFAULT_WORKER_TIMEOUT_S
 
     def __post_init__(self) -> None:
         check_scheduler_address("scheduler", self.address)
         check_positive("connect_timeout_s", self.connect_timeout_s)
+        check_positive("worker_timeout_s", self.worker_timeout_s)
 
 
 #: Where tasks run.
@@ -149,12 +180,13 @@ def default_chunk_size(n_tasks: int, workers: int) -> int:
 
 
 def check_executor(executor: int | Executor) -> None:
-    """Fail now rather than after some work: for a :class:`DaskScheduler`, connect to its scheduler
-    and disconnect (a local pool needs no check).
+    """Fail now rather than after some work: for a :class:`DaskScheduler`, connect to its scheduler,
+    wait for a worker, and disconnect (a local pool needs no check).
 
     Raises:
         SchedulerUnreachableError: the scheduler cannot be reached within its timeout (or
             ``distributed`` is not installed).
+        NoDaskWorkersError: no worker joined it within ``worker_timeout_s``.
     """
     executor = as_executor(executor)
     if isinstance(executor, DaskScheduler):
@@ -186,6 +218,7 @@ def map_tasks(
         WorkerPoolError: a local worker process died, or this is a worker still importing the
             main script (a script without a ``__main__`` guard).
         SchedulerUnreachableError: the Dask scheduler cannot be reached (before any task runs).
+        NoDaskWorkersError: it has no worker within ``worker_timeout_s`` (before any task runs).
         Whatever ``function`` raises (the first failing chunk's error), or KeyboardInterrupt.
     """
     executor = as_executor(executor)
@@ -255,10 +288,12 @@ def _pool_map(
 
 
 def _connect(scheduler: DaskScheduler) -> Any:
-    """A ``distributed.Client`` connected to ``scheduler`` (the caller closes it).
+    """A ``distributed.Client`` connected to ``scheduler`` with at least one worker (the caller
+    closes it).
 
     Raises:
         SchedulerUnreachableError: not within ``scheduler.connect_timeout_s``, or no ``distributed``.
+        NoDaskWorkersError: no worker within ``scheduler.worker_timeout_s`` (the client is closed).
     """
     try:
         import distributed  # lazily: only a Dask executor needs it
@@ -267,9 +302,21 @@ def _connect(scheduler: DaskScheduler) -> Any:
             scheduler.address, "the distributed package is not installed (pip install 'twolink-obstacle[dask]')"
         ) from None
     try:
-        return distributed.Client(scheduler.address, timeout=scheduler.connect_timeout_s, set_as_default=False)
+        client = distributed.Client(scheduler.address, timeout=scheduler.connect_timeout_s, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
         raise SchedulerUnreachableError(scheduler.address, str(exc) or type(exc).__name__) from None
+    try:
+        client.wait_for_workers(1, timeout=scheduler.worker_timeout_s)
+    except TimeoutError:  # distributed's WorkerStartTimeoutError is one
+        client.close()
+        raise NoDaskWorkersError(scheduler.address, scheduler.worker_timeout_s) from None
+    except OSError as exc:  # the connection dropped while waiting
+        client.close()
+        raise SchedulerUnreachableError(scheduler.address, str(exc) or type(exc).__name__) from None
+    except BaseException:
+        client.close()
+        raise
+    return client
 
 
 def _dask_map(

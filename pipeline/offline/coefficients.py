@@ -18,6 +18,7 @@ import hashlib
 import math
 import os
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -28,8 +29,8 @@ from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineEr
 from pipeline.io.jsonio import dumps, read_json, write_text_atomic
 from pipeline.model.scene import Scene
 from pipeline.motion.families import PAPER_SOURCE, TrajectoryFamily, family_from_name
-from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_with_endpoints
-from pipeline.offline.regression import fit_quadratic, predict, predict_points
+from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_points_with_endpoints
+from pipeline.offline.regression import QuadraticFit, fit_quadratic_points, predict, predict_points
 from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables
 
 FORMAT = "twolink-coefficients/1"
@@ -295,13 +296,15 @@ def read_coefficients(source: str | Path) -> Coefficients:
 
 def fit_coefficients(
     doe, extra: dict | None = None, endpoint_constraint: EndpointConstraint | None = None
-) -> tuple[Coefficients, object]:
-    """Regress a DOE (a :class:`pipeline.offline.doe.DoeData`) into coefficients.
+) -> tuple[Coefficients, QuadraticFit]:
+    """Regress a DOE (a :class:`pipeline.offline.doe.DoeData`) into coefficients over (L, W).
 
     Every optimum is first mapped to the canonical form of Eq. 8, then each free
     parameter of the family is fitted on the quadratic basis: by plain least squares (the
     paper's Eq. 9), or, given an :class:`pipeline.offline.endpoint_regression.EndpointConstraint`
     (paper family only), with the endpoint errors held within its tolerance over the range.
+    The fitted range is the DOE's (smallest and largest L and W [m]). :func:`fit_over_variables`
+    does the work.
 
     Returns:
         (coefficients, the :class:`pipeline.offline.regression.QuadraticFit` with R^2 and LOO errors).
@@ -314,27 +317,78 @@ def fit_coefficients(
         "L": (float(doe.lengths_m.min()), float(doe.lengths_m.max())),
         "W": (float(doe.widths_m.min()), float(doe.widths_m.max())),
     }
+    return fit_over_variables(doe, DEFAULT_VARIABLES, fitted_range, extra, endpoint_constraint)
+
+
+def fit_over_variables(
+    doe,
+    variables: Variables,
+    fitted_range_m: Mapping[str, tuple[float, float]],
+    extra: dict | None = None,
+    endpoint_constraint: EndpointConstraint | None = None,
+) -> tuple[Coefficients, QuadraticFit]:
+    """Regress a DOE (a :class:`pipeline.offline.doe.DoeData`) into coefficients over ``variables``.
+
+    The route of every fit, (L, W) (:func:`fit_coefficients`) or k scene variables (the build's
+    ``--vary``, :func:`pipeline.build.doe_fit.fit_variables`): each free parameter of the family,
+    in the canonical form of Eq. 8, is fitted on the full quadratic in ``variables`` by plain least
+    squares, or, given an endpoint constraint (paper family only), with the endpoint errors held
+    within its tolerance over ``fitted_range_m``. For (L, W) the floats are those of
+    :func:`pipeline.offline.regression.fit_quadratic` and
+    :func:`pipeline.offline.endpoint_regression.fit_with_endpoints`.
+
+    Args:
+        doe: The DOE as read back from its file; its ``points`` columns are ``variables``' (L and
+            W first).
+        variables: The scene variables of the fit (L and W among them).
+        fitted_range_m: (lo, hi) [m] per variable: the range the coefficients claim, and that of
+            the endpoint constraint's grids.
+        extra: More top-level keys of the coefficients (provenance).
+        endpoint_constraint: The endpoint constraint, or None for the plain fit.
+
+    Returns:
+        (coefficients, the :class:`pipeline.offline.regression.QuadraticFit` with R^2 and LOO errors).
+
+    Raises:
+        InvalidParameterError: ``variables`` without L and W first, or other than the DOE's
+            columns; an endpoint constraint for a family that is exact by construction; or as
+            :func:`pipeline.offline.regression.fit_quadratic_points`.
+    """
+    variables = Variables.of(variables)
+    if variables.names[:2] != SIZE:
+        raise InvalidParameterError("variables", variables.names, "variables that hold L and W")
+    if variables.is_size_only:
+        variables = DEFAULT_VARIABLES  # the instance an (L, W) Coefficients carries (its fast route)
+        points = np.column_stack([doe.lengths_m, doe.widths_m])
+    else:
+        points = np.asarray(doe.points, dtype=float)
+        if points.shape[1:] != (variables.k,):
+            raise InvalidParameterError("variables", variables.names, f"the DOE's {doe.variables.names}")
+    fitted_range = {name: (float(fitted_range_m[name][0]), float(fitted_range_m[name][1])) for name in variables.names}
+    free = doe.free_parameters()
     if endpoint_constraint is None:
-        fit = fit_quadratic(doe.lengths_m, doe.widths_m, doe.free_parameters())
+        fit = fit_quadratic_points(points, free, variables)
         method = {"regression": "least squares"}
     elif doe.family.pins_endpoints:
         raise InvalidParameterError(
             "endpoint_constraint", endpoint_constraint, f"None for the {doe.family.name} family (exact by construction)"
         )
     else:
-        targets = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.grid_points)
+        targets = endpoint_targets(
+            fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.grid_points, variables
+        )
         check = None
         if endpoint_constraint.check_points:
-            check = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.check_points)
-        fit, report = fit_with_endpoints(
-            doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, endpoint_constraint, check
-        )
+            check = endpoint_targets(
+                fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.check_points, variables
+            )
+        fit, report = fit_points_with_endpoints(points, free, targets, endpoint_constraint, check)
         method = {"regression": "least squares + endpoint constraint", "endpoint_constraint": report}
     quality = {
         "r_squared": fit.r_squared,
         "loo_rmse": fit.loo_rmse,
         "max_residual": fit.max_residual,
-        "experiments": len(doe.lengths_m),
+        "experiments": len(points),
         **method,
     }
     coefficients = Coefficients(
@@ -346,5 +400,6 @@ def fit_coefficients(
         link_radii_m=doe.link_radii_m,
         elbow=doe.elbow,
         extra={"fit": quality, **(extra or {})},
+        variables=variables,
     )
     return coefficients, fit

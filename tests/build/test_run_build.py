@@ -58,7 +58,7 @@ def _interrupt(*args, **kwargs):
 #: Where a build can be stopped: (module, function) replaced by one that raises KeyboardInterrupt.
 PHASES = {
     "DOE": (doe_fit, "run_doe"),
-    "regression": (coefficients_module, "fit_with_endpoints"),
+    "regression": (coefficients_module, "fit_points_with_endpoints"),
     "certifiable regression": (certifiable_regression, "fit_certifiable"),
     "range map": (range_stage, "certify_range"),
     "staging the files": (file_set, "_stage"),

@@ -88,7 +88,7 @@ def check_render(image: np.ndarray, camera: TopDownCamera, case: TrajectoryCase,
     failures = []
     palette = style.palette
     obstacle = case.obstacle
-    x0, x1 = -obstacle.length_m / 2, obstacle.length_m / 2
+    x0, x1 = obstacle.centre_x_m - obstacle.length_m / 2, obstacle.centre_x_m + obstacle.length_m / 2
     y0, y1 = obstacle.top_y_m - obstacle.width_m, obstacle.top_y_m
 
     # Hidden background and grid: the bottom corners of the page are white.
@@ -178,6 +178,16 @@ def test_check_fails_when_the_obstacle_is_moved(case, style, tmp_path):
     assert all(f.startswith("obstacle:") for f in failures), failures
     # And the moved page matches its own (moved) geometry.
     assert check_render(image, camera, moved, style) == []
+
+
+@needs_chromium
+def test_an_obstacle_moved_along_x_is_drawn_at_its_place(case, style, tmp_path):
+    # The obstacle of the case at centre x = 0.03 m: drawn there (its node's transform), not at x = 0.
+    moved = dataclasses.replace(case, obstacle=dataclasses.replace(case.obstacle, centre_x_m=0.03))
+    image, camera = render(moved, style, tmp_path / "moved_x.png")
+    assert check_render(image, camera, moved, style) == []
+    failures = check_render(image, camera, case, style)
+    assert failures and all(f.startswith("obstacle:") for f in failures), failures
 
 
 @needs_chromium

@@ -3,8 +3,10 @@
 What is drawn, in the arm's base frame (metres; the arm moves in the z = 0 plane):
 
 * the arm from its URDF through Pinocchio's ``MeshcatVisualizer`` (visual geometry);
-* the obstacle as a triangle mesh of the rounded box at its true size and place (the
-  L x W footprint with rounded vertical edges, extruded over the obstacle's height);
+* the obstacle as a triangle mesh of the rounded box at its true size (the L x W footprint
+  with rounded vertical edges, extruded over the obstacle's height), in its own frame, placed
+  by its node's transform at its centre (x_c, d - W/2, 0): an obstacle moved by the scene's
+  centre x (``Scene.centre_x_m``) is drawn at its place, with the path around it;
 * the desired path (the paper's quartic) and the actual end-effector path as tubes;
 * the five constraint points P1..P5 as small spheres;
 * the point of minimum link-to-obstacle clearance over the trajectory (Coal's exact
@@ -329,16 +331,26 @@ def prism_mesh(outline_m: np.ndarray, z_bottom_m: float, z_top_m: float) -> tupl
     return vertices, np.concatenate([sides, bottom_cap, top_cap])
 
 
-def obstacle_mesh(obstacle: Obstacle) -> mg.TriangularMeshGeometry:
+def obstacle_mesh(obstacle: Obstacle, centred: bool = False) -> mg.TriangularMeshGeometry:
     """The obstacle as a triangle mesh at its true size and place.
 
     Its section in every horizontal plane is the rounded L x W footprint (exact at z = 0,
     where the arm moves); it spans the obstacle's height. Coal's swept-sphere box also
-    rounds the top and bottom edges; those are drawn square.
+    rounds the top and bottom edges; those are drawn square. With ``centred`` the mesh is in
+    the obstacle's own frame (origin at its centre), placed by :func:`obstacle_transform`.
     """
     half_height = obstacle.height_m / 2.0
-    vertices, faces = prism_mesh(rounded_rectangle_outline(obstacle), -half_height, half_height)
+    outline = rounded_rectangle_outline(obstacle)
+    if centred:
+        outline = outline - obstacle.center_m[:2]
+    vertices, faces = prism_mesh(outline, -half_height, half_height)
     return mg.TriangularMeshGeometry(vertices, faces)
+
+
+def obstacle_transform(obstacle: Obstacle) -> np.ndarray:
+    """The 4x4 transform that places the obstacle's own frame in its case's frame: the
+    translation to its centre (x_c, d - W/2, 0) [m], x_c its centre x (``Scene.centre_x_m``)."""
+    return mtf.translation_matrix(obstacle.center_m)
 
 
 def tube_mesh(points_m: np.ndarray, radius_m: float, sides: int = 8) -> mg.TriangularMeshGeometry:
@@ -560,8 +572,9 @@ def draw_case(
     _, desired = case.path.samples(style.samples)
 
     root["obstacle"].set_object(
-        obstacle_mesh(case.obstacle), style.material(palette.obstacle, opacity=style.obstacle_opacity)
+        obstacle_mesh(case.obstacle, centred=True), style.material(palette.obstacle, opacity=style.obstacle_opacity)
     )
+    root["obstacle"].set_transform(obstacle_transform(case.obstacle))
     _draw_paths(root, case, style, desired, tip)
     clearance = min_clearance(case, times)
     marker = _draw_min_clearance(root, clearance, style)
