@@ -9,7 +9,7 @@ A DOE over more scene variables than (L, W) (``BuildConfig.vary``, e.g. the obst
 x) solves each run in its moved scene, checks each run and a grid over the whole box (every
 extra variable at :data:`EXTRA_GRID_POINTS` levels) before the work, and regresses the full
 quadratic in the k variables (:func:`fit_variables`), with the endpoint constraint on a coarser
-grid per variable (:data:`K_ENDPOINT_GRID`: grid_points^k obstacles in all).
+grid per variable (``endpoint_regression.K_ENDPOINT_GRID``: grid_points^k obstacles in all).
 """
 
 from __future__ import annotations
@@ -61,12 +61,6 @@ DOE_STAGE = "DOE"
 #: Levels of each variable beyond L and W in the grid checked before the work and for collisions
 #: of the regressed trajectories (the (L, W) grid keeps its 21 x 21).
 EXTRA_GRID_POINTS = 5
-#: (grid_points, check_points) of the endpoint constraint over k > 2 variables, in place of the
-#: (L, W) fit's 21 and 101 per axis (21^3 and 101^3 obstacles would cost minutes and gigabytes).
-K_ENDPOINT_GRID = (9, 21)
-#: SLSQP's precision goal of the endpoint-constrained fit over k > 2 variables (the (L, W) fit's
-#: 1e-12 is not reached within its iteration budget there: ``EndpointConstraint.ftol``).
-K_ENDPOINT_FTOL = 1e-9
 
 #: One group of the grid: the extra variables' values and the (L, W) grid's problems in that scene.
 _GridGroup = tuple[dict[str, float], list[FitnessProblem]]
@@ -165,18 +159,10 @@ def _check_before_work(config: BuildConfig, arm: PlanarArm) -> list[_GridGroup]:
 
 
 def _endpoint_constraint(config: BuildConfig) -> EndpointConstraint | None:
-    """The regression's endpoint constraint, on the coarser grids of :data:`K_ENDPOINT_GRID`
-    over more variables than (L, W)."""
+    """The regression's endpoint constraint, on the coarser grids over more variables than (L, W)
+    (:meth:`pipeline.offline.endpoint_regression.EndpointConstraint.for_variables`)."""
     constraint = config.endpoint_constraint()
-    if constraint is None or config.variables.is_size_only:
-        return constraint
-    grid, check = K_ENDPOINT_GRID
-    return replace(
-        constraint,
-        grid_points=min(grid, constraint.grid_points),
-        check_points=min(check, constraint.check_points),
-        ftol=max(K_ENDPOINT_FTOL, constraint.ftol),
-    )
+    return None if constraint is None else constraint.for_variables(config.variables)
 
 
 def _paper_rows(arm: PlanarArm, config: BuildConfig) -> list[dict] | None:

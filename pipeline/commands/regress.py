@@ -91,7 +91,8 @@ def endpoint_constraint(args: argparse.Namespace, family: TrajectoryFamily) -> E
 def parser() -> Parser:
     p = Parser(
         prog=PROG,
-        description="Fit p(L, W) = b0 + b1 L + b2 W + b3 L^2 + b4 L W + b5 W^2 per parameter on a DOE file.",
+        description="Fit p(L, W) = b0 + b1 L + b2 W + b3 L^2 + b4 L W + b5 W^2 per parameter on a DOE file "
+        "(the full quadratic in its variables for a DOE over more than L and W, e.g. (L, W, x)).",
         epilog=f"{OVERWRITE_RULE} Exit status: 0 written, 1 not converged (nothing written), 2 bad input.",
     )
     p.add_argument("doe", help="DOE file (JSON), or 'paper' for the paper's Table 2")

@@ -297,14 +297,17 @@ def read_coefficients(source: str | Path) -> Coefficients:
 def fit_coefficients(
     doe, extra: dict | None = None, endpoint_constraint: EndpointConstraint | None = None
 ) -> tuple[Coefficients, QuadraticFit]:
-    """Regress a DOE (a :class:`pipeline.offline.doe.DoeData`) into coefficients over (L, W).
+    """Regress a DOE (a :class:`pipeline.offline.doe.DoeData`) into coefficients over its
+    variables ((L, W), or those its experiments vary, e.g. (L, W, x)).
 
     Every optimum is first mapped to the canonical form of Eq. 8, then each free
     parameter of the family is fitted on the quadratic basis: by plain least squares (the
     paper's Eq. 9), or, given an :class:`pipeline.offline.endpoint_regression.EndpointConstraint`
     (paper family only), with the endpoint errors held within its tolerance over the range.
-    The fitted range is the DOE's (smallest and largest L and W [m]). :func:`fit_over_variables`
-    does the work.
+    The fitted range is the DOE's (smallest and largest value of each variable [m]); over more
+    variables than (L, W) the endpoint constraint runs on its coarser grids
+    (:meth:`~pipeline.offline.endpoint_regression.EndpointConstraint.for_variables`).
+    :func:`fit_over_variables` does the work.
 
     Returns:
         (coefficients, the :class:`pipeline.offline.regression.QuadraticFit` with R^2 and LOO errors).
@@ -313,6 +316,14 @@ def fit_coefficients(
         InvalidParameterError: an endpoint constraint for a family that is exact by
             construction, or as :func:`pipeline.offline.regression.fit_quadratic`.
     """
+    variables = doe.variables
+    if not variables.is_size_only:
+        points = np.asarray(doe.points, dtype=float)
+        fitted_range = {
+            name: (float(points[:, k].min()), float(points[:, k].max())) for k, name in enumerate(variables.names)
+        }
+        constraint = None if endpoint_constraint is None else endpoint_constraint.for_variables(variables)
+        return fit_over_variables(doe, variables, fitted_range, extra, constraint)
     fitted_range = {
         "L": (float(doe.lengths_m.min()), float(doe.lengths_m.max())),
         "W": (float(doe.widths_m.min()), float(doe.widths_m.max())),

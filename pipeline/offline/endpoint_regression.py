@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -53,6 +53,13 @@ from pipeline.offline.regression import (
 )
 from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables
 from pipeline.validation import check_positive, check_positive_int
+
+#: (grid_points, check_points) of the endpoint constraint over k > 2 variables, in place of the
+#: (L, W) fit's 21 and 101 per axis (21^3 and 101^3 obstacles would cost minutes and gigabytes).
+K_ENDPOINT_GRID = (9, 21)
+#: SLSQP's precision goal of the endpoint-constrained fit over k > 2 variables (the (L, W) fit's
+#: 1e-12 is not reached within its iteration budget there: ``EndpointConstraint.ftol``).
+K_ENDPOINT_FTOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -97,6 +104,20 @@ class EndpointConstraint:
             raise InvalidParameterError("check_points", self.check_points, "0 (no check grid) or an integer >= 2")
         check_positive_int("check_rounds", self.check_rounds)
         check_positive_int("points_per_round", self.points_per_round)
+
+    def for_variables(self, variables: Variables) -> EndpointConstraint:
+        """This constraint as a fit over ``variables`` runs it: itself over (L, W); over more
+        variables on the coarser grids of :data:`K_ENDPOINT_GRID` and with the precision goal
+        :data:`K_ENDPOINT_FTOL` (or this constraint's, where coarser)."""
+        if variables.is_size_only:
+            return self
+        grid, check = K_ENDPOINT_GRID
+        return replace(
+            self,
+            grid_points=min(grid, self.grid_points),
+            check_points=min(check, self.check_points),
+            ftol=max(K_ENDPOINT_FTOL, self.ftol),
+        )
 
     @property
     def fit_tolerance_m(self) -> float:
