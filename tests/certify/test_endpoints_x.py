@@ -34,36 +34,14 @@ X_RANGE = (-0.03, 0.03)
 TOLERANCE_M, MARGIN_M = 0.002, 0.01
 
 
-def with_x(coefficients: Coefficients, seed: int = 1, scale: float = 0.1) -> Coefficients:
-    """``coefficients`` over (L, W, x): the same (L, W) terms (positions 0, 1, 2, 4, 5, 7 of the
-    (L, W, x) basis 1, L, W, x, L^2, L x, ... ) and random x terms of size ``scale``
-    (``scale`` 0: the (L, W) coefficients, constant in x)."""
-    rng = np.random.default_rng(seed)
-    parameters = {}
-    for name, b in coefficients.parameters.items():
-        lifted = np.zeros(LWX.basis_size)
-        lifted[[0, 1, 2, 4, 5, 7]] = b
-        lifted[[3, 6, 8, 9]] = rng.normal(0.0, scale, 4)
-        parameters[name] = tuple(float(v) for v in lifted)
-    return replace(
-        coefficients,
-        parameters=parameters,
-        fitted_range_m={**coefficients.fitted_range_m, "x": X_RANGE},
-        variables=LWX,
-        source="",
-        source_sha256="",
-        region_map=None,
-    )
-
-
 @pytest.fixture(scope="module")
 def eq9() -> Coefficients:
     return load_coefficients("paper")
 
 
 @pytest.fixture(scope="module")
-def eq9_x(eq9: Coefficients) -> Coefficients:
-    return with_x(eq9)
+def eq9_x(eq9: Coefficients, over_x) -> Coefficients:
+    return over_x(eq9)
 
 
 def random_cells(model: RangeModel, n: int, seed: int, depths=(0, 2, 4, 6, 8)) -> tuple[np.ndarray, np.ndarray]:
@@ -130,11 +108,11 @@ def test_endpoint_error_bound_is_tight_on_small_cells_and_follows_x(eq9_x: Coeff
             assert error <= b < error + 2e-4
 
 
-def test_with_x_fixed_at_zero_the_bounds_are_those_over_length_and_width(eq9: Coefficients) -> None:
+def test_with_x_fixed_at_zero_the_bounds_are_those_over_length_and_width(eq9: Coefficients, over_x) -> None:
     """Coefficients constant in x, cells of x = 0 with no x extent: the (L, W, x) bounds equal the
     (L, W) ones (the end-pose certificate depends on the geometry alone: to the bit)."""
     model2 = RangeModel.from_coefficients(eq9)
-    model3 = RangeModel.from_coefficients(with_x(eq9, scale=0.0))
+    model3 = RangeModel.from_coefficients(over_x(eq9, scale=0.0))
     half = np.array([0.1, 0.04]) / 512
     L = 0.2 + half[0] * (2 * np.arange(0, 256, 23) + 1)
     W = 0.12 - half[1] * (1 + 2 * np.arange(0, 8))

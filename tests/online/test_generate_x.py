@@ -33,35 +33,14 @@ LWX = Variables(("L", "W", "x"))
 X_RANGE = (-0.03, 0.03)
 
 
-def with_x(coefficients: Coefficients, seed: int = 1, scale: float = 0.1) -> Coefficients:
-    """``coefficients`` over (L, W, x): the same (L, W) terms (at positions 0, 1, 2, 4, 5, 7 of
-    the (L, W, x) basis) and random x terms of size ``scale``."""
-    rng = np.random.default_rng(seed)
-    parameters = {}
-    for name, b in coefficients.parameters.items():
-        lifted = np.zeros(LWX.basis_size)
-        lifted[[0, 1, 2, 4, 5, 7]] = b
-        lifted[[3, 6, 8, 9]] = rng.normal(0.0, scale, 4)
-        parameters[name] = tuple(float(v) for v in lifted)
-    return replace(
-        coefficients,
-        parameters=parameters,
-        fitted_range_m={**coefficients.fitted_range_m, "x": X_RANGE},
-        variables=LWX,
-        source="",
-        source_sha256="",
-        region_map=None,
-    )
+@pytest.fixture(scope="module")
+def paper_x(paper, over_x) -> Coefficients:
+    return over_x(paper)
 
 
 @pytest.fixture(scope="module")
-def paper_x(paper) -> Coefficients:
-    return with_x(paper)
-
-
-@pytest.fixture(scope="module")
-def exact_x(exact) -> Coefficients:
-    return with_x(exact, seed=2, scale=0.05)
+def exact_x(exact, over_x) -> Coefficients:
+    return over_x(exact, seed=2, scale=0.05)
 
 
 CASES = [(0.25, 0.10, 0.02), (0.21, 0.085, -0.03), (0.29, 0.115, 0.011), (0.27, 0.09, -0.004)]
@@ -92,10 +71,10 @@ def test_obstacle_and_path_are_moved_by_x_and_t_is_unchanged(request, family, L,
     assert moved.range_status is None and not moved.extrapolated
 
 
-def test_x_terms_of_zero_give_the_l_w_answer(paper) -> None:
+def test_x_terms_of_zero_give_the_l_w_answer(paper, over_x) -> None:
     """With the x terms zero, x moves only the obstacle and the path: the parameters are the
     (L, W) coefficients' to rounding and T is theirs to the bit."""
-    flat = with_x(paper, scale=0.0)
+    flat = over_x(paper, scale=0.0)
     for L, W, x in CASES:
         reference = generate(paper, L, W)
         answer = generate(flat, L, W, x=x)
