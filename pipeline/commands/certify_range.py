@@ -19,6 +19,7 @@ import numpy as np
 from pipeline.certify.map_for_coefficients import default_config, summary_lines, with_execution_bounds
 from pipeline.certify.range_certificate import (
     DEFAULT_BOUNDARY_CELL,
+    DEFAULT_CELLS,
     DEFAULT_ENDPOINT_TOLERANCE_M,
     DEFAULT_MIN_CELL,
     certify_range,
@@ -102,7 +103,8 @@ def parser() -> argparse.ArgumentParser:
         "--min-cell",
         type=_fraction,
         default=None,
-        help=f"smallest (L, W) cell, as a fraction of the fitted range's side [-] (default: {DEFAULT_MIN_CELL})",
+        help="smallest cell, as a fraction of the fitted range's side on every axis [-] (default: "
+        f"{DEFAULT_MIN_CELL} over (L, W), {DEFAULT_CELLS[3][0]} over (L, W, x))",
     )
     p.add_argument(
         "--witnesses",
