@@ -118,3 +118,19 @@ def test_bad_scheduler_options_are_one_line_errors(tmp_path: Path, capsys: pytes
     assert all("--scheduler" in line for line in lines[:2])
     assert lines[2].startswith("python -m pipeline.certify_range: error: ") and UNREACHABLE in lines[2]
     assert not (tmp_path / "a").exists()
+
+
+def test_an_l_w_x_map_on_a_cluster_has_the_local_pools_bytes(over_x, cluster) -> None:
+    """The range certificate over (L, W, x): one worker, two workers and the cluster give one map."""
+    from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+    from pipeline.certify.region_map import region_map_text
+    from pipeline.online.loading import load_coefficients
+
+    coefficients = over_x(load_coefficients("paper"), scale=0.2)
+    coarse = RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 4, max_depth_s=12)
+    texts = [
+        region_map_text(certify_range(coefficients, RangeCertificateConfig(**{**coarse.__dict__, **where})))
+        for where in ({"jobs": 1}, {"jobs": 2}, {"executor": DaskScheduler(cluster.scheduler_address)})
+    ]
+    assert texts[0] == texts[1] == texts[2]
+    assert '"axes"' in texts[0] and len(texts[0]) > 10_000

@@ -61,7 +61,8 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-#: Tiny settings: 3 obstacles, a 4-particle 2-iteration PSO without polish on one of them.
+#: Tiny settings: 3 obstacles, a 4-particle 2-iteration PSO without polish on one of them; the rows over
+#: (L, W, x) left out (test_bench_over_x.py).
 TINY = [
     "--n",
     "3",
@@ -80,6 +81,7 @@ TINY = [
     "--pso-no-polish",
     "--ompl-time",
     "0.5",
+    "--no-x",
     "--quiet",
 ]
 METHOD_KEYS = (
