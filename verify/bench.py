@@ -3,7 +3,9 @@
 On the same ``--n`` random obstacles it times side by side the regression generator (per query
 and batched), the generator with the range certificate (per query and batched), the generator
 with certification, the PSO re-run online and OMPL's RRT-Connect (:mod:`verify.benchmark`), and
-prints the medians, their ratios and how many answers are certified collision-free.
+prints the medians, their ratios and how many answers are certified collision-free. With
+coefficients over (L, W, x) (``--coefficients-x``, or ``results-x/coefficients.json``), it also times
+the generator with their map on random (L, W, x) and OMPL on the same moved obstacles.
 
 Exit status: 0 on success, 2 on bad input (one line on stderr), 130 if interrupted.
 
@@ -31,7 +33,12 @@ from pipeline.io.output_paths import check_output_file
 from pipeline.io.progress import ProgressBars
 from pipeline.motion.families import PAPER_SOURCE
 from verify.benchmark.report import format_report
-from verify.benchmark.results import DEFAULT_BUILD_TIMING, BenchSettings
+from verify.benchmark.results import (
+    DEFAULT_BUILD_TIMING,
+    DEFAULT_COEFFICIENTS_X,
+    MAKE_COEFFICIENTS_X,
+    BenchSettings,
+)
 from verify.benchmark.run import run_bench
 from verify.cli_support import arm_for_verify, load_coefficients_for_verify
 
@@ -71,6 +78,19 @@ def _add_method_options(parser: argparse.ArgumentParser, defaults: BenchSettings
         "coefficients, if it certifies them; if there is none, e.g. for 'paper', the coefficients are certified "
         "first, with the build's settings in one process, not timed but reported: that takes minutes, about 1 min "
         "for the default build and 4.5 min for 'paper'); a map of other coefficients is refused",
+    )
+    parser.add_argument(
+        "--coefficients-x",
+        type=Path,
+        metavar="FILE",
+        default=None,
+        help="coefficients over (L, W, x), with their region map beside them, for the row (a*) over (L, W, x) "
+        "(generate(..., x=x) with the map, on random (L, W, x) in their box) and OMPL on the same moved obstacles "
+        f"(default: {DEFAULT_COEFFICIENTS_X} if it exists, else the row is left out; {MAKE_COEFFICIENTS_X} "
+        "makes it)",
+    )
+    parser.add_argument(
+        "--no-x", action="store_true", help="leave out the rows over (L, W, x) even if their coefficients exist"
     )
     parser.add_argument(
         "--slow-repeats",
@@ -178,7 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
             "Time, on the same random obstacles in one run: (a) the regression generator per query and "
             "batched, (a*) the same with the range certificate's bounds (region map), (b) the generator "
             "with certification, (c) re-running the PSO online, (d) OMPL "
-            "RRT-Connect with a Coal validity checker, then our certificate of its path. Prints median "
+            "RRT-Connect with a Coal validity checker, then our certificate of its path; with coefficients over "
+            "(L, W, x), (a*) over (L, W, x) and (d) on the same moved obstacles. Prints median "
             "time per query, ratios to (a) and (b), the fraction of answers certified collision-free, the "
             "build time and the sweep rate. Ratios measured in one run on this machine, not absolute claims."
         ),
@@ -212,6 +233,8 @@ def settings_from_args(args: argparse.Namespace) -> BenchSettings:
         run_build_levels=args.run_build,
         urdf=args.urdf,
         region_map=args.region_map,
+        coefficients_x=args.coefficients_x,
+        run_x=not args.no_x,
     )
 
 

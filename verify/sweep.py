@@ -1,18 +1,22 @@
 """The acceptance verifier: ``python -m verify.sweep``.
 
-For ``n`` obstacle sizes (L, W) drawn uniformly (seeded) from the coefficients' fitted range
-(or ``--range``), the trajectory is generated from the coefficients exactly as an online user
-would and measured (:mod:`verify.acceptance`): sampled and certified clearance (Pinocchio + Coal,
-continuous-time certificate), endpoint errors, tracking errors, joint peaks against the URDF.
+For ``n`` cases drawn uniformly (seeded) from the box of the coefficients' variables — the
+obstacle size (L, W) and, for coefficients that vary them, the other scene variables such as the
+obstacle's centre x [m] — over their fitted range (``--range`` replaces the (L, W) part), the
+trajectory is generated from the coefficients exactly as an online user would (with the
+obstacle and path moved to the case's x) and measured (:mod:`verify.acceptance`): sampled and
+certified clearance (Pinocchio + Coal, continuous-time certificate), endpoint errors, tracking
+errors, joint peaks against the URDF.
 
 Exit status: 0 if every case passes (and agrees with the region map), 1 if any case fails (they
-are listed with their (L, W)), 2 on bad input (one line on stderr, no traceback), 130 if interrupted.
+are listed with their (L, W) and extra values), 2 on bad input (one line on stderr, no traceback), 130 if interrupted.
 
 ``--coefficients paper`` judges the paper's own Eq. 9 with the same verifier; ``--compare A B``
-runs both on the same sampled cases and prints them side by side.
+runs both on the same sampled cases and prints them side by side (both must vary the same
+variables).
 
 The range certificate (``region_map.json``, written by the build beside the coefficients) is
-reported and every sampled case is cross-checked against it
+reported and every sampled case is cross-checked against it, in the leaf holding its whole point
 (:mod:`verify.acceptance.range_check`); a case that contradicts it fails the run. One beside the
 coefficients that was made for other coefficients is not used (a warning says so). ``--region-map
 FILE`` names another map (the only way for ``paper``), reported as not belonging and not checked
@@ -105,7 +109,7 @@ def _add_region_map_options(parser: argparse.ArgumentParser) -> None:
 
 def _add_sampling_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n", type=int, default=DEFAULT_CASES, help="number of sampled cases [cases] (>= 1)")
-    parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help="seed of the (L, W) sampler (>= 0) (default: 0)")
+    parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help="seed of the cases' sampler (>= 0) (default: 0)")
     parser.add_argument(
         "--range",
         nargs=4,
@@ -113,7 +117,8 @@ def _add_sampling_options(parser: argparse.ArgumentParser) -> None:
         metavar=("LMIN", "LMAX", "WMIN", "WMAX"),
         default=None,
         help="sample L in [LMIN, LMAX] m and W in [WMIN, WMAX] m instead of the fitted range "
-        "(cases outside it are reported as extrapolation) (default: the coefficients' fitted range)",
+        "(cases outside it are reported as extrapolation; the coefficients' other variables, such as "
+        "x, keep their fitted range) (default: the coefficients' fitted range)",
     )
     parser.add_argument(
         "--jobs",
@@ -223,7 +228,8 @@ def _add_output_options(parser: argparse.ArgumentParser) -> None:
         type=Path,
         default=None,
         help="write PNG plots (clearance and endpoint error over (L, W), the four case studies, and the region "
-        "map if it belongs to the coefficients) into DIR",
+        "map if it belongs to the coefficients; over (L, W, x) the map and the sampled clearance in slices "
+        "of x) into DIR",
     )
     parser.add_argument(
         "--meshcat",
@@ -361,9 +367,13 @@ def _show(
     from pipeline.online.generator import generate
 
     for k, (run, coefficient_set, arm) in enumerate(zip(runs, coefficients, arms, strict=True)):
+        # The viewer names a case by (L, W); its extra variables (x, ...) are the case's own.
+        extra = {(c.L_m, c.W_m): c.extra_values for c in (*run.cases, *run.case_studies)}
 
-        def regenerate(length_m: float, width_m: float, chosen: Coefficients = coefficient_set) -> Any:
-            return generate(chosen, length_m, width_m, out_of_range="ignore")
+        def regenerate(
+            length_m: float, width_m: float, chosen: Coefficients = coefficient_set, extra: dict = extra
+        ) -> Any:
+            return generate(chosen, length_m, width_m, out_of_range="ignore", **extra.get((length_m, width_m), {}))
 
         cases = run.cases
         region_map = None if run.range_check is None else run.range_check.region_map  # None unless it belongs
@@ -390,11 +400,20 @@ def _labels(sources: Sequence[str]) -> list[str]:
 def _chosen_range(
     args: argparse.Namespace, sources: Sequence[str], coefficients: Sequence[Coefficients]
 ) -> SweepRange | None:
-    """The --range, or the fitted ranges' intersection with --compare, or None (the fitted range)."""
+    """The --range (over (L, W); the other variables over their fitted range), or the fitted
+    ranges' intersection with --compare, or None (the fitted range)."""
+    names = [c.variables.names for c in coefficients]
+    if len(set(names)) > 1:
+        raise InvalidParameterError(
+            "--compare",
+            list(sources),
+            "coefficients over the same variables (got " + " and ".join(f"({', '.join(n)})" for n in names) + ")",
+        )
     if args.range is not None:
-        return SweepRange((args.range[0], args.range[1]), (args.range[2], args.range[3]))
+        fitted = SweepRange.from_fitted(coefficients[0].fitted_range_m, names[0])
+        return SweepRange((args.range[0], args.range[1]), (args.range[2], args.range[3]), fitted.extra_m)
     if len(coefficients) > 1:
-        ranges = [SweepRange.from_fitted(c.fitted_range_m) for c in coefficients]
+        ranges = [SweepRange.from_fitted(c.fitted_range_m, names[0]) for c in coefficients]
         chosen = ranges[0].intersection(ranges[1])
         if chosen is None:
             raise InvalidParameterError(
@@ -445,7 +464,8 @@ def _work(args: argparse.Namespace, argv: Sequence[str]) -> int:
         print(describe_coefficients(coefficient_set), flush=True)
     maps = _region_maps(args, coefficients)
     chosen = _chosen_range(args, sources, coefficients)
-    cases = sample_cases(chosen or SweepRange.from_fitted(coefficients[0].fitted_range_m), args.n, args.seed)
+    box = chosen or SweepRange.from_fitted(coefficients[0].fitted_range_m, coefficients[0].variables.names)
+    cases = sample_cases(box, args.n, args.seed)
     runs = [
         run_sweep(
             source,

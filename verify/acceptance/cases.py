@@ -1,5 +1,6 @@
-"""Which obstacles a sweep judges: the sampled rectangle of sizes, the seeded sampler, the paper's
-DOE grid and the four case studies off it. Every length in m."""
+"""Which obstacles a sweep judges: the sampled box of sizes (and of the coefficients' other scene
+variables), the seeded sampler, the paper's DOE grid and the four case studies off it. Every
+length in m."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
 from pipeline.offline.doe import Design
-from pipeline.validation import check_positive, check_positive_int
+from pipeline.offline.variables import NAMES, SIZE, Variables, check_name
+from pipeline.validation import check_finite, check_positive, check_positive_int
 
 Pair = tuple[float, float]
 
@@ -26,15 +28,20 @@ CASE_STUDY_FRACTIONS = ((0.70, 0.75), (0.20, 0.25), (0.80, 0.125), (0.30, 0.875)
 
 @dataclass(frozen=True)
 class SweepRange:
-    """The rectangle of obstacle sizes sampled [m].
+    """The box of scene values sampled [m]: the obstacle's size (L, W) and, for coefficients that
+    vary more scene variables (:mod:`pipeline.offline.variables`, e.g. the obstacle's centre x),
+    a range per extra variable.
 
     Attributes:
         L_m: (min, max) of L [m].
         W_m: (min, max) of W [m].
+        extra_m: ((name, (min, max)), ...) of each extra variable, in the canonical order of
+            :data:`pipeline.offline.variables.NAMES` [m] (empty: the box is (L, W)).
     """
 
     L_m: Pair
     W_m: Pair
+    extra_m: tuple[tuple[str, Pair], ...] = ()
 
     def __post_init__(self) -> None:
         for name, (lo, hi) in (("L", self.L_m), ("W", self.W_m)):
@@ -42,54 +49,96 @@ class SweepRange:
             check_positive(f"{name} max", hi)
             if lo > hi:
                 raise InvalidParameterError(f"{name} range", (lo, hi), "min <= max")
+        extra = []
+        for name, (lo, hi) in self.extra_m:
+            check_name(name, NAMES[2:])
+            check_finite(f"{name} min", lo)
+            check_finite(f"{name} max", hi)
+            if lo > hi:
+                raise InvalidParameterError(f"{name} range", (lo, hi), "min <= max")
+            extra.append((name, (float(lo), float(hi))))
+        names = [name for name, _ in extra]
+        if names != sorted(set(names), key=NAMES.index):
+            raise InvalidParameterError("extra variables", names, "each once, in the order " + ", ".join(NAMES[2:]))
         object.__setattr__(self, "L_m", (float(self.L_m[0]), float(self.L_m[1])))
         object.__setattr__(self, "W_m", (float(self.W_m[0]), float(self.W_m[1])))
+        object.__setattr__(self, "extra_m", tuple(extra))
 
     @classmethod
-    def from_fitted(cls, fitted_range_m: dict[str, Sequence[float]]) -> SweepRange:
-        """The range of a coefficients file's ``fitted_range_m`` ({"L": (lo, hi), "W": (lo, hi)})."""
-        return cls(tuple(fitted_range_m["L"]), tuple(fitted_range_m["W"]))  # type: ignore[arg-type]
+    def from_fitted(cls, fitted_range_m: dict[str, Sequence[float]], names: Sequence[str] = SIZE) -> SweepRange:
+        """The range of a coefficients file's ``fitted_range_m`` ({"L": (lo, hi), "W": (lo, hi),
+        ...}) over the variables ``names`` (default (L, W); ``coefficients.variables.names`` for
+        the whole box of the coefficients)."""
+        extra = tuple((name, tuple(fitted_range_m[name])) for name in Variables.of(names).extra)
+        return cls(tuple(fitted_range_m["L"]), tuple(fitted_range_m["W"]), extra)  # type: ignore[arg-type]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The sampled variables: L, W, then the extra ones."""
+        return (*SIZE, *(name for name, _ in self.extra_m))
+
+    @property
+    def ranges_m(self) -> tuple[Pair, ...]:
+        """(min, max) of every variable of :attr:`names` [m]."""
+        return (self.L_m, self.W_m, *(pair for _, pair in self.extra_m))
 
     def contains(self, other: SweepRange) -> bool:
-        """True if ``other`` lies inside this range."""
-        return (
-            self.L_m[0] <= other.L_m[0] <= other.L_m[1] <= self.L_m[1]
-            and self.W_m[0] <= other.W_m[0] <= other.W_m[1] <= self.W_m[1]
+        """True if ``other`` lies inside this range (over the same variables)."""
+        return self.names == other.names and all(
+            lo <= o_lo <= o_hi <= hi for (lo, hi), (o_lo, o_hi) in zip(self.ranges_m, other.ranges_m, strict=True)
         )
 
     def intersection(self, other: SweepRange) -> SweepRange | None:
-        """The common part of both ranges, or None if they do not overlap."""
-        lo_l, hi_l = max(self.L_m[0], other.L_m[0]), min(self.L_m[1], other.L_m[1])
-        lo_w, hi_w = max(self.W_m[0], other.W_m[0]), min(self.W_m[1], other.W_m[1])
-        if lo_l > hi_l or lo_w > hi_w:
+        """The common part of both ranges, or None if they do not overlap.
+
+        Raises:
+            InvalidParameterError: the ranges are over different variables.
+        """
+        if self.names != other.names:
+            raise InvalidParameterError(
+                "ranges", [list(self.names), list(other.names)], "ranges over the same variables"
+            )
+        common = [
+            (max(lo, o_lo), min(hi, o_hi)) for (lo, hi), (o_lo, o_hi) in zip(self.ranges_m, other.ranges_m, strict=True)
+        ]
+        if any(lo > hi for lo, hi in common):
             return None
-        return SweepRange((lo_l, hi_l), (lo_w, hi_w))
+        return SweepRange(common[0], common[1], tuple(zip(self.names[2:], common[2:], strict=True)))
 
     def widened(self, fraction: float, floor_m: float = 1e-3) -> SweepRange:
-        """This range grown by ``fraction`` of its width on each side (never below ``floor_m`` [m])."""
+        """This range grown by ``fraction`` of its width on each side (L and W never below
+        ``floor_m`` [m])."""
         grow_l = fraction * (self.L_m[1] - self.L_m[0])
         grow_w = fraction * (self.W_m[1] - self.W_m[0])
+        extra = tuple((name, (lo - fraction * (hi - lo), hi + fraction * (hi - lo))) for name, (lo, hi) in self.extra_m)
         return SweepRange(
             (max(floor_m, self.L_m[0] - grow_l), self.L_m[1] + grow_l),
             (max(floor_m, self.W_m[0] - grow_w), self.W_m[1] + grow_w),
+            extra,
         )
 
     def to_dict(self) -> dict[str, list[float]]:
-        """{"L": [lo, hi], "W": [lo, hi]} [m]."""
-        return {"L": list(self.L_m), "W": list(self.W_m)}
+        """{"L": [lo, hi], "W": [lo, hi]} [m], and [lo, hi] per extra variable."""
+        return {"L": list(self.L_m), "W": list(self.W_m), **{name: list(pair) for name, pair in self.extra_m}}
+
+    def describe(self) -> str:
+        """ "L in [lo, hi] m, W in [lo, hi] m" and one such item per extra variable."""
+        pairs = zip(self.names, self.ranges_m, strict=True)
+        return ", ".join(f"{name} in [{lo:.4f}, {hi:.4f}] m" for name, (lo, hi) in pairs)
 
 
 def sample_cases(sweep_range: SweepRange, n: int, seed: int) -> np.ndarray:
-    """n obstacle sizes (L, W) [m], uniform in ``sweep_range``, from ``numpy.random.default_rng(seed)``.
+    """n points (L, W, then the extra variables) [m], uniform in ``sweep_range``, from
+    ``numpy.random.default_rng(seed)``: n values of L, then n of W, then n of each extra variable.
 
-    Returns shape (n, 2). The same (range, n, seed) always gives the same cases.
+    Returns shape (n, k), k = ``len(sweep_range.names)`` (2 for (L, W), whose cases do not depend
+    on the extra variables). The same (range, n, seed) always gives the same cases.
     """
     check_positive_int("n", n, minimum=1)
     check_positive_int("seed", seed, minimum=0)
     rng = np.random.default_rng(seed)
-    lengths = rng.uniform(sweep_range.L_m[0], sweep_range.L_m[1], n)
-    widths = rng.uniform(sweep_range.W_m[0], sweep_range.W_m[1], n)
-    return np.stack([lengths, widths], -1)
+    columns = [rng.uniform(lo, hi, n) for lo, hi in sweep_range.ranges_m]
+    return np.stack(columns, -1)
 
 
 def case_study_sizes(fitted: SweepRange) -> list[Pair]:

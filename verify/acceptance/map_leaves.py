@@ -1,6 +1,7 @@
 """The region map's leaves as drawable rectangles over (L, W), each coloured by its status and
 shaded by its clearance bound: one look shared by the PNG (:mod:`verify.acceptance.plots`) and
-the Meshcat sweep view (:mod:`verify.viewer.sweep_view`).
+the Meshcat sweep view (:mod:`verify.viewer.sweep_view`). A map over more axes (L, W, x) is
+drawn in slices: the leaves holding one value of the extra axes (:func:`leaves_in_slice`).
 
 Each status has its own hue (margin green, collision-free orange, infeasible purple, undecided
 red); within a status, a leaf is the darker the smaller its clearance bound, on a linear scale
@@ -43,11 +44,29 @@ class LeafDrawing:
 
 
 def leaf_rectangles_m(region_map: RegionMap) -> np.ndarray:
-    """(n, 4) rows (L_lo, L_hi, W_lo, W_hi) [m] of the leaves (vectorised :meth:`RegionMap.cell`)."""
+    """(n, 4) rows (L_lo, L_hi, W_lo, W_hi) [m] of the leaves (vectorised :meth:`RegionMap.cell`);
+    over more axes than (L, W), each leaf's extent in (L, W) (:func:`leaves_in_slice` picks those
+    of one slice)."""
     (l_lo, _), (w_lo, _) = region_map.length_range_m, region_map.width_range_m
-    dl, dw = region_map.leaf_sizes_m().T
+    sizes = region_map.leaf_sizes_m()
+    dl, dw = sizes[:, 0], sizes[:, 1]
     il, iw = region_map.index_l.astype(float), region_map.index_w.astype(float)
     return np.column_stack([l_lo + il * dl, l_lo + (il + 1) * dl, w_lo + iw * dw, w_lo + (iw + 1) * dw])
+
+
+def leaves_in_slice(region_map: RegionMap, extra_m: tuple[float, ...]) -> np.ndarray:
+    """Mask (n,) of the leaves that tile the (L, W) plane at the extra axes' values ``extra_m``
+    (``axes`` order, [m]): those the map's own lookup returns at their (L, W) centre and
+    ``extra_m`` (so that a value on a leaf boundary picks the leaf the lookup picks). Every leaf
+    for a map over (L, W)."""
+    n = region_map.depth.size
+    if len(region_map.axes) == 2:
+        return np.ones(n, dtype=bool)
+    rectangles = leaf_rectangles_m(region_map)
+    centre_l = 0.5 * (rectangles[:, 0] + rectangles[:, 1])
+    centre_w = 0.5 * (rectangles[:, 2] + rectangles[:, 3])
+    found = region_map.leaf_indices(centre_l, centre_w, *(np.full(n, float(v)) for v in extra_m))
+    return found == np.arange(n)
 
 
 def shade(status_name: str, fraction: np.ndarray) -> np.ndarray:

@@ -198,6 +198,7 @@ def measure_trajectory(
     index: int = 0,
     extrapolated: bool = False,
     reach: LinkReach | None = None,
+    extra: tuple[tuple[str, float], ...] = (),
 ) -> CaseResult:
     """Measure one trajectory against its obstacle and desired path.
 
@@ -210,6 +211,8 @@ def measure_trajectory(
         index: Case number (kept in the result).
         extrapolated: Whether (L, W) lies outside the coefficients' fitted range.
         reach: The links' reach for the certificate (computed from ``arm`` if None).
+        extra: The values of the scene variables beyond L and W that placed ``obstacle`` and
+            ``path`` ((name, value), ... [m]), kept in the result.
 
     Returns:
         The :class:`CaseResult`.
@@ -236,6 +239,7 @@ def measure_trajectory(
         extrapolated=bool(extrapolated),
         measurement=measurement,
         verdict=verdict,
+        extra=extra,
     )
 
 
@@ -533,10 +537,12 @@ def acceptance_failures(measurement: Measurement, thresholds: AcceptanceThreshol
     return failures
 
 
-def is_extrapolated(coefficients: Coefficients, L_m: float, W_m: float) -> bool:
-    """True if (L, W) lies outside the coefficients' fitted range."""
+def is_extrapolated(coefficients: Coefficients, L_m: float, W_m: float, **values: float) -> bool:
+    """True if (L, W), or one of the extra variables' ``values`` (by name, [m]), lies outside the
+    coefficients' fitted range."""
     fitted = coefficients.fitted_range_m
-    return not (fitted["L"][0] <= L_m <= fitted["L"][1] and fitted["W"][0] <= W_m <= fitted["W"][1])
+    inside = fitted["L"][0] <= L_m <= fitted["L"][1] and fitted["W"][0] <= W_m <= fitted["W"][1]
+    return not (inside and all(fitted[name][0] <= value <= fitted[name][1] for name, value in values.items()))
 
 
 def check_arm_matches(coefficients: Coefficients, arm: PlanarArm, option: str = "--urdf") -> None:
@@ -562,18 +568,30 @@ def measure_case(
     *,
     index: int = 0,
     reach: LinkReach | None = None,
+    extra: tuple[tuple[str, float], ...] = (),
 ) -> CaseResult:
-    """Generate the trajectory for (L, W) as an online user would, then measure it.
+    """Generate the trajectory for (L, W) and the extra variables' values ``extra`` ((name,
+    value), ... [m], e.g. (("x", 0.01),) for coefficients over (L, W, x)) as an online user would,
+    then measure it against the obstacle and path they place (moved to x).
 
     Extrapolation is allowed (and reported in ``extrapolated``). A case whose trajectory cannot
     be generated (e.g. the arm cannot reach the constraint points) is returned as failed with
     ``error`` set; it does not raise. The generator uses the link lengths stored in the
     coefficients; :func:`check_arm_matches` tells whether they are ``arm``'s.
     """
+    values = {name: float(value) for name, value in extra}
+    extra = tuple(values.items())
     try:
-        generated = generate(coefficients, L_m, W_m, out_of_range="ignore")
+        generated = generate(coefficients, L_m, W_m, out_of_range="ignore", **values)
     except PipelineError as exc:
-        return failed_case(index, L_m, W_m, is_extrapolated(coefficients, L_m, W_m), f"{type(exc).__name__}: {exc}")
+        return failed_case(
+            index,
+            L_m,
+            W_m,
+            is_extrapolated(coefficients, L_m, W_m, **values),
+            f"{type(exc).__name__}: {exc}",
+            extra,
+        )
     return measure_trajectory(
         generated.trajectory,
         generated.path,
@@ -583,4 +601,5 @@ def measure_case(
         index=index,
         extrapolated=bool(generated.extrapolated),
         reach=reach,
+        extra=extra,
     )

@@ -1,12 +1,16 @@
 """PNG plots of a sweep (matplotlib, Agg backend): clearance and endpoint error over the (L, W)
 plane, the paper's four case studies redone like its Fig. 5 (arm snapshots, obstacle,
 desired and actual end-effector paths), and the region map (the range certificate's leaves
-coloured by status, shaded by their clearance bound, with the sampled cases over it). All
-lengths are converted to mm only for display.
+coloured by status, shaded by their clearance bound, with the sampled cases over it). A sweep
+over more variables than (L, W) (the obstacle's centre x) is also drawn in slices of x: the
+map over (L, W) at a few values of x, and the sampled clearance of the cases near each. All
+lengths are converted to mm only for display; every file is written atomically.
 """
 
 from __future__ import annotations
 
+import io
+import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +31,7 @@ from pipeline import load_coefficients
 from pipeline.certify.region_map import STATUSES, RegionMap
 from pipeline.exceptions import PipelineError
 from pipeline.geometry.clearance import link_segments
+from pipeline.io.jsonio import write_bytes_atomic
 from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import QuarticPath
@@ -34,13 +39,25 @@ from pipeline.motion.trajectory import JointTrajectory
 from pipeline.online.generator import generate
 
 from .cases import DOE_L_M, DOE_W_M, SweepRange
-from .map_leaves import STATUS_SHADES, leaf_drawing
+from .map_leaves import STATUS_SHADES, leaf_drawing, leaves_in_slice
 from .results import CaseResult
 
 if TYPE_CHECKING:  # pragma: no cover
     from .run import SweepRun
 
 _DPI = 120
+#: Where a slices figure cuts the first extra variable's range, as fractions (lo, mid, hi).
+SLICE_FRACTIONS = (0.0, 0.5, 1.0)
+
+
+def save_figure(fig: plt.Figure, path: Path) -> Path:
+    """Write ``fig`` as a PNG to ``path`` atomically (temporary file and rename), then close it."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=_DPI)
+    plt.close(fig)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_bytes_atomic(path, buffer.getvalue())
+    return path
 
 
 @dataclass(frozen=True)
@@ -140,10 +157,7 @@ def plot_map(
     ax.set_title(title)
     ax.legend(loc="upper left", fontsize=8, framealpha=0.8)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=_DPI)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def _status_colorbars(
@@ -275,10 +289,124 @@ def plot_region_map(
     )
     _status_colorbars(fig, slots, drawing.bound_range_m)
     fig.subplots_adjust(left=0.07, right=0.97, top=0.95, bottom=0.07)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=_DPI)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
+
+
+def slice_values(sweep_range: SweepRange) -> tuple[float, ...]:
+    """The values [m] of the first extra variable of ``sweep_range`` at which a slices figure
+    cuts it (:data:`SLICE_FRACTIONS` of its range: lo, mid, hi)."""
+    _, (lo, hi) = sweep_range.extra_m[0]
+    return tuple(lo + f * (hi - lo) for f in SLICE_FRACTIONS)
+
+
+def _slabs(values: Sequence[float], lo: float, hi: float) -> list[tuple[float, float]]:
+    """Around each slice value, the part of [lo, hi] nearer to it than to its neighbours [m]."""
+    cuts = [lo, *(0.5 * (a + b) for a, b in itertools.pairwise(values)), hi]
+    return list(itertools.pairwise(cuts))
+
+
+def _draw_slice_leaves(ax: plt.Axes, region_map: RegionMap, rgb: np.ndarray, at: tuple[float, ...]) -> dict:
+    """The leaves of ``region_map`` at the extra axes' values ``at`` [m] on ``ax`` (L, W in mm);
+    returns the area fraction of the slice per status."""
+    drawing = leaf_drawing(region_map)
+    keep = leaves_in_slice(region_map, at)
+    r = drawing.rectangles_m[keep] * 1e3
+    quads = np.stack([r[:, [0, 2]], r[:, [1, 2]], r[:, [1, 3]], r[:, [0, 3]]], axis=1)
+    ax.add_collection(PolyCollection(quads, facecolors=rgb[keep], edgecolors="face", linewidths=0.2))
+    area = (r[:, 1] - r[:, 0]) * (r[:, 3] - r[:, 2])
+    total = float(area.sum()) or 1.0
+    status = region_map.status[keep]
+    return {name: float(area[status == k].sum()) / total for k, name in enumerate(STATUSES)}
+
+
+def plot_slices(
+    cases: Sequence[CaseResult],
+    sweep_range: SweepRange,
+    path: Path,
+    *,
+    title: str,
+    margin_m: float,
+    region_map: RegionMap | None = None,
+    violations: Sequence[int] = (),
+) -> Path:
+    """A sweep over (L, W) and more variables, in slices of the first extra one (x): one column
+    per value of :func:`slice_values` (lo, mid, hi of its range). Top row, if ``region_map`` is
+    given: the map's leaves at that value over (L, W) [mm], coloured by status and shaded by
+    clearance bound as in :func:`plot_region_map` (the other extra axes at their range's
+    midpoint), with the sampled cases of the slab nearest that value as dots. Bottom row: the
+    sampled (Coal) clearance [mm] of those cases over (L, W), on one scale centred on
+    ``margin_m`` [m]; cases not generated as grey crosses. The cases that contradict the map
+    (``violations``: case indices) are red crosses in both rows."""
+    name, (lo, hi) = sweep_range.extra_m[0]
+    values = slice_values(sweep_range)
+    slabs = _slabs(values, lo, hi)
+    others = tuple(0.5 * (a + b) for _, (a, b) in sweep_range.extra_m[1:])
+    rows = 2 if region_map is not None else 1
+    fig, axes = plt.subplots(rows, len(values), figsize=(4.6 * len(values), 4.2 * rows + 0.9), squeeze=False)
+    bad = set(violations)
+    value_of = np.array([c.extra_values.get(name, np.nan) for c in cases], dtype=float)
+    lw_mm = np.array([[c.L_m, c.W_m] for c in cases], dtype=float).reshape(-1, 2) * 1e3
+    clearance = np.array([np.nan if c.clearance_m is None else c.clearance_m for c in cases], dtype=float) * 1e3
+    finite = clearance[np.isfinite(clearance)]
+    centre = margin_m * 1e3
+    if finite.size and finite.min() < centre < finite.max():
+        norm: Normalize = TwoSlopeNorm(vcenter=centre, vmin=float(finite.min()), vmax=float(finite.max()))
+    else:
+        top = float(finite.max()) if finite.size else 1.0
+        low = float(finite.min()) if finite.size else 0.0
+        norm = Normalize(vmin=low, vmax=top if top > low else low + 1e-9)
+    rgb = leaf_drawing(region_map).rgb if region_map is not None else None
+    full = np.array([*sweep_range.L_m, *sweep_range.W_m]) * 1e3
+    points = None
+    for j, (value, (a, b)) in enumerate(zip(values, slabs, strict=True)):
+        last = j == len(values) - 1
+        near = (value_of >= a) & ((value_of <= b) if last else (value_of < b))
+        shown = lw_mm[near]
+        wrong = np.array([c.index in bad for c in cases], dtype=bool) & near
+        label = f"{name} = {value * 1e3:.1f} mm"
+        slab = f"{name} in [{a * 1e3:.1f}, {b * 1e3:.1f}] mm"
+        if region_map is not None and rgb is not None:
+            ax = axes[0, j]
+            fractions = _draw_slice_leaves(ax, region_map, rgb, (value, *others))
+            ax.scatter(shown[:, 0], shown[:, 1], s=3, color="black", linewidths=0)
+            text = ", ".join(f"{k.replace('_', '-')} {100 * v:.1f} %" for k, v in fractions.items() if v > 0)
+            ax.set_title(f"map at {label}\n{text}", fontsize=8)
+        ax = axes[rows - 1, j]
+        ok = near & np.isfinite(clearance)
+        points = ax.scatter(lw_mm[ok, 0], lw_mm[ok, 1], c=clearance[ok], cmap="RdYlGn", norm=norm, s=10, linewidths=0)
+        missing = near & ~np.isfinite(clearance)
+        if missing.any():
+            ax.scatter(lw_mm[missing, 0], lw_mm[missing, 1], marker="x", color="0.5", s=20, label="not generated")
+        ax.set_title(f"sampled clearance, {int(near.sum())} cases with {slab}", fontsize=8)
+        for row in range(rows):
+            axis = axes[row, j]
+            if wrong.any():
+                axis.scatter(
+                    lw_mm[wrong, 0], lw_mm[wrong, 1], marker="x", s=50, color="red", label="contradict the map"
+                )
+            axis.set_xlim(full[0], full[1])
+            axis.set_ylim(full[2], full[3])
+            axis.set_xlabel("obstacle length L [mm]")
+            axis.set_ylabel("obstacle width W [mm]")
+    fig.suptitle(title, fontsize=10)
+    fig.subplots_adjust(
+        left=0.06, right=0.9, top=0.9, bottom=0.16 if region_map is not None else 0.12, hspace=0.35, wspace=0.28
+    )
+    if points is not None:  # the clearance scale beside the bottom row
+        box = axes[rows - 1, -1].get_position()
+        bar = fig.add_axes((box.x1 + 0.015, box.y0, 0.012, box.height))
+        fig.colorbar(points, cax=bar, label=f"sampled clearance [mm] (centre: {centre:g} mm margin)")
+    if region_map is not None:
+        statuses = [Patch(color=STATUS_SHADES[k][0], label=k.replace("_", "-")) for k in STATUSES]
+        fig.legend(
+            handles=statuses,
+            loc="lower center",
+            ncol=len(statuses),
+            fontsize=8,
+            title="map status (darker = smaller clearance bound)",
+            title_fontsize=8,
+        )
+    return save_figure(fig, path)
 
 
 def draw_case_study(ax: plt.Axes, study: CaseStudy, arm: PlanarArm, *, snapshots: int = 7, title: str = "") -> None:
@@ -342,10 +470,7 @@ def plot_case_studies(studies: Sequence[CaseStudy], arm: PlanarArm, path: Path, 
     if suptitle:
         fig.suptitle(suptitle)
     fig.tight_layout(rect=(0, 0.04, 1, 0.97))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=_DPI)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def _mm(value: float | None) -> str:
@@ -354,7 +479,9 @@ def _mm(value: float | None) -> str:
 
 def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None) -> list[Path]:
     """Write clearance_map.png, endpoint_error_map.png, case_studies.png and, if the run checked a
-    region map that belongs to its coefficients, region_map.png for ``run`` into ``directory``.
+    region map that belongs to its coefficients, region_map.png for ``run`` into ``directory``;
+    for a sweep over more variables than (L, W), slices.png (:func:`plot_slices`, with the map if
+    it belongs) instead of region_map.png, the (L, W) plots showing every case whatever its x.
 
     The case studies' trajectories are regenerated from the run's coefficients (as an online
     user would) and drawn with the run's arm (its URDF, recorded in ``run.provenance``; or
@@ -388,7 +515,21 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
         ),
     ]
     check = run.range_check
-    if check is not None and check.region_map is not None:
+    region_map = None if check is None else check.region_map
+    if run.sweep_range.extra_m:
+        written.append(
+            plot_slices(
+                run.cases,
+                run.sweep_range,
+                directory / "slices.png",
+                title=f"{run.label}: {len(run.cases)} cases over ({', '.join(run.sweep_range.names)}), "
+                f"in slices of {run.sweep_range.extra_m[0][0]}",
+                margin_m=run.settings.thresholds.margin_m,
+                region_map=region_map,
+                violations=() if check is None else check.violations,
+            )
+        )
+    if check is not None and region_map is not None and len(region_map.axes) == 2:
         written.append(
             plot_region_map(
                 check.region_map,
@@ -405,7 +546,7 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
         studies = []
         for result in run.case_studies:
             try:
-                generated = generate(coefficients, result.L_m, result.W_m, out_of_range="ignore")
+                generated = generate(coefficients, result.L_m, result.W_m, out_of_range="ignore", **result.extra_values)
             except PipelineError:
                 continue
             studies.append(CaseStudy(result, generated.trajectory, generated.path, generated.obstacle))

@@ -1,10 +1,13 @@
 """The sweep against the range certificate: what the region map claims, and whether every
 sampled case agrees with it.
 
-The region map (:mod:`pipeline.certify.region_map`) claims, for every (L, W) of one leaf, a
+The region map (:mod:`pipeline.certify.region_map`) claims, for every point of one leaf ((L, W),
+or (L, W, x) and so on for coefficients over more scene variables: the map's ``axes``), a
 lower bound ``b_c`` on the clearance of both links over all of [0, T] and an upper bound
-``b_e`` on the endpoint error max(|tip(0) - P1|, |tip(T) - P5|). The sweep measures each case on
-its own (:mod:`verify.acceptance.metrics`), so each case tests the map's claim for its cell:
+``b_e`` on the endpoint error max(|tip(0) - P1|, |tip(T) - P5|). Each case is looked up at its
+whole point (L, W and its extra variables' values), in the leaf holding it. The sweep measures
+each case on its own (:mod:`verify.acceptance.metrics`), so each case tests the map's claim for
+its cell:
 
 **Clearance.** The per-query certificate of a case (``MeasureSettings``: the adaptive sinusoid
 certificate with Coal's distances, error ``e`` = :data:`COAL_DISTANCE_ERROR_M`, refinement
@@ -141,6 +144,8 @@ class MapReport:
         area_fraction: Area fraction of the fitted range per status (keys :data:`STATUSES`).
         clearance_bound_min_m: The smallest clearance bound of any leaf [m].
         worst_cell_L_m, worst_cell_W_m: That leaf's (lo, hi) in L and W [m].
+        worst_cell_extra_m: ((name, (lo, hi)), ...) of that leaf along each axis beyond L and W [m]
+            (empty for a map over (L, W)).
         endpoint_bound_max_m: The largest endpoint-error bound of any leaf [m].
         margin_m, endpoint_tolerance_m: The map's margin and endpoint tolerance [m].
         cells: Number of leaves.
@@ -157,6 +162,7 @@ class MapReport:
     margin_m: float
     endpoint_tolerance_m: float
     cells: int
+    worst_cell_extra_m: tuple[tuple[str, tuple[float, float]], ...] = ()
 
     def __post_init__(self) -> None:
         check_non_negative("margin_m", self.margin_m)
@@ -180,6 +186,9 @@ class MapReport:
             margin_m=region_map.margin_m,
             endpoint_tolerance_m=region_map.endpoint_tolerance_m,
             cells=int(summary["cells"]),
+            worst_cell_extra_m=tuple(
+                (name, (float(worst[f"{name}_m"][0]), float(worst[f"{name}_m"][1]))) for name in region_map.axes[2:]
+            ),
         )
 
 
@@ -280,7 +289,11 @@ class RangeCheck:
             "belongs_to_coefficients": m.belongs,
             "area_fraction": m.area_fraction,
             "clearance_bound_min_m": m.clearance_bound_min_m,
-            "worst_cell": {"L_m": list(m.worst_cell_L_m), "W_m": list(m.worst_cell_W_m)},
+            "worst_cell": {
+                "L_m": list(m.worst_cell_L_m),
+                "W_m": list(m.worst_cell_W_m),
+                **{f"{name}_m": list(pair) for name, pair in m.worst_cell_extra_m},
+            },
             "endpoint_bound_max_m": m.endpoint_bound_max_m,
             "margin_m": m.margin_m,
             "endpoint_tolerance_m": m.endpoint_tolerance_m,
@@ -324,6 +337,22 @@ def _case_columns(cases: Sequence[CaseResult]) -> dict[str, np.ndarray]:
     }
 
 
+def _extra_columns(region_map: RegionMap, cases: Sequence[CaseResult]) -> list[np.ndarray]:
+    """The cases' values along each of the map's axes beyond L and W, in ``axes`` order [m].
+
+    Raises:
+        InvalidParameterError: a case without a value of one of those axes.
+    """
+    columns = []
+    for name in region_map.axes[2:]:
+        values = [c.extra_values.get(name) for c in cases]
+        if any(v is None for v in values):
+            axes = ", ".join(region_map.axes)
+            raise InvalidParameterError("cases", name, f"a value of {name} in every case (the map's axes are {axes})")
+        columns.append(np.array(values, dtype=float))
+    return columns
+
+
 def check_range(
     region_map: RegionMap,
     coefficients: Coefficients,
@@ -333,7 +362,8 @@ def check_range(
     path: str | None = None,
     dynamics=None,
 ) -> RangeCheck:
-    """Report ``region_map`` and cross-check every in-range case of a sweep against it
+    """Report ``region_map`` and cross-check every in-range case of a sweep against it, each in
+    the leaf holding its whole point (L, W, then the map's extra axes, from ``CaseResult.extra``)
     (vectorised through :meth:`RegionMap.cells_at`; inequalities in the module docstring).
 
     Args:
@@ -350,7 +380,7 @@ def check_range(
     if not report.belongs:
         return RangeCheck(report, len(cases), 0, 0, 0, 0, None, None, None)
     col = _case_columns(cases)
-    cells = region_map.cells_at(col["L"], col["W"])
+    cells = region_map.cells_at(col["L"], col["W"], *_extra_columns(region_map, cases))
     inside = cells["leaf"] >= 0
     measured = inside & col["measured"]
     tight = measured & np.isfinite(col["certified"])

@@ -11,6 +11,7 @@ from .range_check import BoundCheck, ExecutionCheck, RangeCheck
 from .results import JOINT_QUANTITIES, CaseResult, Pair
 
 if TYPE_CHECKING:  # pragma: no cover
+    from .cases import SweepRange
     from .run import SweepRun
     from .summary import SweepSummary
 
@@ -25,6 +26,7 @@ def _samples(bounds: tuple[int, int] | None) -> str:
 
 def _case_line(case: CaseResult) -> str:
     head = f"#{case.index:<4d} L = {case.L_m:.4f} m, W = {case.W_m:.4f} m"
+    head += "".join(f", {name} = {value:.4f} m" for name, value in case.extra)
     if case.extrapolated:
         head += " (extrapolated)"
     if case.error is not None:
@@ -36,6 +38,17 @@ def _case_line(case: CaseResult) -> str:
     if case.failures:
         detail += " -- " + "; ".join(case.failures)
     return f"{head}: {detail}"
+
+
+def _ranges(box: SweepRange) -> list[tuple[str, tuple[float, float]]]:
+    """(name, (lo, hi)) of every variable of ``box`` [m]."""
+    return list(zip(box.names, box.ranges_m, strict=True))
+
+
+def _over(run: SweepRun) -> str:
+    """ " over (L, W, x)" for a sweep over more variables than (L, W); empty for (L, W)."""
+    names = run.sweep_range.names
+    return f" over ({', '.join(names)})" if len(names) > 2 else ""
 
 
 def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
@@ -50,15 +63,13 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
         ),
         (
             "cases",
-            f"{n}, L in [{run.sweep_range.L_m[0]:.4f}, {run.sweep_range.L_m[1]:.4f}] m, "
-            f"W in [{run.sweep_range.W_m[0]:.4f}, {run.sweep_range.W_m[1]:.4f}] m"
+            f"{n}{_over(run)}, {run.sweep_range.describe()}"
             + (" (the fitted range)" if not run.extrapolating else " (EXTRAPOLATION beyond the fitted range)"),
         ),
         (
             "extrapolated",
             f"{s.n_extrapolated} / {n} cases outside the fitted range "
-            f"L [{run.fitted_range.L_m[0]:.4f}, {run.fitted_range.L_m[1]:.4f}] m, "
-            f"W [{run.fitted_range.W_m[0]:.4f}, {run.fitted_range.W_m[1]:.4f}] m",
+            + ", ".join(f"{name} [{lo:.4f}, {hi:.4f}] m" for name, (lo, hi) in _ranges(run.fitted_range)),
         ),
         ("PASSED", f"{s.n_passed} / {n} ({100.0 * (s.pass_rate or 0.0):.1f} %)"),
         (
@@ -191,7 +202,9 @@ def _map_rows(check: RangeCheck) -> list[tuple[str, str]]:
         (
             "map bounds",
             f"clearance bound min {_mm(m.clearance_bound_min_m)} in the cell L [{m.worst_cell_L_m[0]:.4f}, "
-            f"{m.worst_cell_L_m[1]:.4f}] m, W [{m.worst_cell_W_m[0]:.4f}, {m.worst_cell_W_m[1]:.4f}] m; "
+            f"{m.worst_cell_L_m[1]:.4f}] m, W [{m.worst_cell_W_m[0]:.4f}, {m.worst_cell_W_m[1]:.4f}] m"
+            + "".join(f", {name} [{lo:.4f}, {hi:.4f}] m" for name, (lo, hi) in m.worst_cell_extra_m)
+            + "; "
             f"endpoint bound max {_mm(m.endpoint_bound_max_m)} (tolerance {_mm(m.endpoint_tolerance_m)})",
         ),
     ]
@@ -232,7 +245,7 @@ def _map_violation_lines(run: SweepRun, list_failures: int | None) -> list[str]:
     region_map = check.region_map
     for index in violations:
         case = by_index[index]
-        cell = "" if region_map is None else _cell_text(region_map.bounds_at(case.L_m, case.W_m))
+        cell = "" if region_map is None else _cell_text(region_map.bounds_at(*case.point))
         lines.append("  " + _case_line(case) + cell)
     if len(violations) < len(check.violations):
         lines.append(f"  ... and {len(check.violations) - len(violations)} more (all are in --json)")

@@ -354,9 +354,11 @@ class CaseResult:
     Attributes:
         index: Case number (>= 0).
         L_m, W_m: Obstacle size [m].
-        extrapolated: (L, W) lies outside the coefficients' fitted range.
+        extrapolated: (L, W), or an extra variable's value, lies outside the coefficients' fitted range.
         measurement: The measured trajectory, or None.
         verdict: Failed checks or error.
+        extra: ((name, value), ...) of the coefficients' scene variables beyond L and W, in their
+            canonical order (e.g. (("x", 0.01),): the obstacle's centre x [m]); empty for (L, W).
     """
 
     index: int
@@ -365,6 +367,7 @@ class CaseResult:
     extrapolated: bool
     measurement: Measurement | None
     verdict: Verdict
+    extra: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
         check_positive_int("index", self.index, minimum=0)
@@ -374,6 +377,18 @@ class CaseResult:
             raise InvalidParameterError(
                 "measurement", self.measurement, "a measurement exactly when the case has no error"
             )
+        object.__setattr__(self, "extra", tuple((str(name), float(value)) for name, value in self.extra))
+
+    @property
+    def extra_values(self) -> dict[str, float]:
+        """The extra variables' values by name [m] (keyword arguments of
+        :func:`pipeline.online.generator.generate`); empty for (L, W)."""
+        return dict(self.extra)
+
+    @property
+    def point(self) -> tuple[float, ...]:
+        """(L, W, then the extra variables' values) [m]: the case's point of the fitted box."""
+        return (self.L_m, self.W_m, *(value for _, value in self.extra))
 
     # The few numbers every report reads; the rest is in the parts.
 
@@ -418,7 +433,8 @@ class CaseResult:
         return None if self.measurement is None else self.measurement.tracking.max_m
 
     def to_json(self) -> dict[str, Any]:
-        """The flat JSON form ("L", "W", "T_s", "clearance_m", ...); non-finite numbers become null."""
+        """The flat JSON form ("L", "W", the extra variables by name (e.g. "x"), "T_s",
+        "clearance_m", ...); non-finite numbers become null."""
         m, c = self.measurement, self.certificate
         clearance = None if m is None else m.clearance
         joints = None if m is None else m.joints
@@ -426,6 +442,7 @@ class CaseResult:
             "index": self.index,
             "L": self.L_m,
             "W": self.W_m,
+            **self.extra_values,
             "extrapolated": self.extrapolated,
             "passed": self.passed,
             "failures": list(self.failures),
@@ -475,9 +492,17 @@ class CaseResult:
         return {key: _jsonable(value) for key, value in out.items()}
 
 
-def failed_case(index: int, L_m: float, W_m: float, extrapolated: bool, error: str) -> CaseResult:
-    """A case whose trajectory could not be generated (``error`` says why): it fails."""
-    return CaseResult(index, L_m, W_m, extrapolated, None, Verdict(error=error))
+def failed_case(
+    index: int,
+    L_m: float,
+    W_m: float,
+    extrapolated: bool,
+    error: str,
+    extra: tuple[tuple[str, float], ...] = (),
+) -> CaseResult:
+    """A case whose trajectory could not be generated (``error`` says why): it fails. ``extra``:
+    the extra variables' values, as in :class:`CaseResult`."""
+    return CaseResult(index, L_m, W_m, extrapolated, None, Verdict(error=error), extra)
 
 
 def _jsonable(value: Any) -> Any:

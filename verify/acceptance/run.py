@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from pipeline import load_coefficients
 from pipeline.certify.region_map import RegionMap
-from pipeline.exceptions import DataFileError
+from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.geometry.link_reach import LinkReach
 from pipeline.io.jsonio import json_safe
 from pipeline.io.parallel import process_map
@@ -121,10 +121,15 @@ def chunk_size(n_cases: int, jobs: int) -> int:
     return max(1, min(MAX_CHUNK_CASES, math.ceil(n_cases / (64 * jobs))))
 
 
-def _measure_in_worker(context: _WorkerContext, case: tuple[int, float, float]) -> CaseResult:
+def _measure_in_worker(context: _WorkerContext, case: tuple) -> CaseResult:
     coefficients, arm, reach = _loaded(context.source, context.sha256, context.urdf_path)
-    index, length, width = case
-    return measure_case(coefficients, length, width, arm, context.settings, index=index, reach=reach)
+    index, length, width, extra = case
+    return measure_case(coefficients, length, width, arm, context.settings, index=index, reach=reach, extra=extra)
+
+
+def case_columns(coefficients: Coefficients) -> tuple[str, ...]:
+    """The columns of a cases array for ``coefficients``: L, W, then their extra variables."""
+    return coefficients.variables.names
 
 
 def run_cases(
@@ -139,7 +144,8 @@ def run_cases(
     coefficients: Coefficients | None = None,
     arm: PlanarArm | None = None,
 ) -> tuple[CaseResult, ...]:
-    """Measure every case (L, W) of ``cases_m`` (shape (n, 2) [m]); results in case order.
+    """Measure every case of ``cases_m`` (shape (n, k) [m]: L, W, then the coefficients' extra
+    variables, :func:`case_columns`); results in case order.
 
     The results do not depend on ``jobs``: each case is measured independently and
     deterministically (:func:`pipeline.io.parallel.process_map`). ``jobs`` > 1 uses that many
@@ -148,7 +154,7 @@ def run_cases(
 
     Args:
         source: Coefficients file, or the paper's name.
-        cases_m: Obstacle sizes, shape (n, 2) [m].
+        cases_m: Cases, shape (n, k) [m] (k = 2 for (L, W) coefficients).
         settings: Measurement settings.
         jobs: Worker processes (0: every CPU; 1: in this process).
         urdf_path: URDF of the arm (default: the one recorded with the coefficients; ignored if
@@ -158,15 +164,21 @@ def run_cases(
         coefficients, arm: Already loaded objects (optional); ``arm`` must be the coefficients'.
     """
     jobs = resolve_jobs(jobs)
-    cases = np.asarray(cases_m, dtype=float).reshape(-1, 2)
     coefficients = coefficients if coefficients is not None else load_coefficients(source, region_map=None)
+    columns = case_columns(coefficients)
+    cases = _cases_array(cases_m, columns)
     arm = arm if arm is not None else arm_for_sweep(coefficients, urdf_path)
-    indexed = [(i, float(length), float(width)) for i, (length, width) in enumerate(cases)]
+    extra = columns[2:]
+    indexed = [
+        (i, float(row[0]), float(row[1]), tuple(zip(extra, (float(v) for v in row[2:]), strict=True)))
+        for i, row in enumerate(cases)
+    ]
     if jobs == 1:
         reach = LinkReach.from_arm(arm)
 
-        def function(case: tuple[int, float, float]) -> CaseResult:
-            return measure_case(coefficients, case[1], case[2], arm, settings, index=case[0], reach=reach)
+        def function(case: tuple) -> CaseResult:
+            index, length, width, values = case
+            return measure_case(coefficients, length, width, arm, settings, index=index, reach=reach, extra=values)
 
     else:
         context = _WorkerContext(source, coefficients.source_sha256, str(arm.urdf_path), settings)
@@ -181,6 +193,23 @@ def run_cases(
             on_done=lambda done: bar.update(len(done)),
         )
     return tuple(results)
+
+
+def _cases_array(cases_m: np.ndarray, columns: Sequence[str]) -> np.ndarray:
+    """``cases_m`` as an (n, k) float array, one column per variable of ``columns``.
+
+    Raises:
+        InvalidParameterError: the cases do not have one value per variable.
+    """
+    cases = np.asarray(cases_m, dtype=float)
+    k = len(columns)
+    if cases.ndim == 1 and cases.size % k == 0:
+        cases = cases.reshape(-1, k)
+    if cases.ndim != 2 or cases.shape[1] != k:
+        raise InvalidParameterError(
+            "cases", list(cases.shape), f"shape (n, {k}): one column per variable ({', '.join(columns)})"
+        )
+    return cases
 
 
 @dataclass(frozen=True)
@@ -268,7 +297,8 @@ def run_sweep(
     region_map: RegionMap | None = None,
     region_map_path: str | None = None,
 ) -> SweepRun:
-    """Judge one coefficients set on n seeded cases (or the given ``cases_m``), and, if a
+    """Judge one coefficients set on n seeded cases (or the given ``cases_m``), sampled over
+    every variable of the coefficients (L, W and, e.g., the obstacle's centre x), and, if a
     region map is given, cross-check the cases against it
     (:func:`verify.acceptance.range_check.check_range`: a contradiction fails the run).
 
@@ -276,14 +306,15 @@ def run_sweep(
         source: Coefficients file or the paper's name.
         n: Number of cases (ignored if ``cases_m`` is given).
         seed: Seed of the case sampler.
-        sweep_range: Sampled range; default the coefficients' fitted range.
+        sweep_range: Sampled range, over the coefficients' variables; default their fitted range.
         settings: Measurement settings; default :class:`MeasureSettings`.
         jobs: Worker processes (0: every CPU).
         urdf_path: URDF of the arm; default the one recorded with the coefficients (it must
             match them; ignored if ``arm`` is given).
         progress: Show a progress bar on stderr (only if it is a terminal).
         label: Name of the run; default :func:`source_label`.
-        cases_m: Explicit cases (n, 2) [m] instead of sampling (``seed`` is then only recorded).
+        cases_m: Explicit cases (n, k) [m] instead of sampling (``seed`` is then only recorded):
+            L, W, then the coefficients' extra variables.
         case_studies: Also measure the four case studies.
         argv: Command line to record in the provenance.
         coefficients: ``source`` already loaded (optional).
@@ -297,15 +328,20 @@ def run_sweep(
     """
     settings = settings or MeasureSettings()
     coefficients = coefficients if coefficients is not None else load_coefficients(source, region_map=None)
-    fitted = SweepRange.from_fitted(coefficients.fitted_range_m)
+    variables = coefficients.variables
+    fitted = SweepRange.from_fitted(coefficients.fitted_range_m, variables.names)
     chosen = sweep_range or fitted
-    cases = sample_cases(chosen, n, seed) if cases_m is None else np.asarray(cases_m, dtype=float).reshape(-1, 2)
+    if chosen.names != variables.names:
+        wanted = ", ".join(variables.names)
+        raise InvalidParameterError("sweep range", list(chosen.names), f"a range over the variables {wanted}")
+    cases = sample_cases(chosen, n, seed) if cases_m is None else _cases_array(cases_m, variables.names)
     if arm is None:
         arm = arm_for_sweep(coefficients, urdf_path)
     else:
         check_arm_matches(coefficients, arm)
-    for length, width in ((chosen.L_m[0], chosen.W_m[0]), (chosen.L_m[1], chosen.W_m[1])):
-        Obstacle.in_scene(length, width, coefficients.scene)  # fails early on impossible sizes
+    for corner in zip(*chosen.ranges_m, strict=True):  # the low and the high corner
+        scene = variables.scene_for(coefficients.scene, dict(zip(variables.extra, corner[2:], strict=True)))
+        Obstacle.in_scene(corner[0], corner[1], scene)  # fails early on impossible sizes
     name = label or source_label(source)
     start = time.perf_counter()
     results = run_cases(
@@ -351,10 +387,12 @@ def run_sweep(
 def measure_case_studies(
     coefficients: Coefficients, arm: PlanarArm, settings: MeasureSettings, fitted: SweepRange
 ) -> tuple[CaseResult, ...]:
-    """The four case studies of :func:`verify.acceptance.cases.case_study_sizes`, measured (index 0..3)."""
+    """The four case studies of :func:`verify.acceptance.cases.case_study_sizes`, measured (index
+    0..3); each extra variable of ``fitted`` (e.g. the obstacle's centre x) at its range's midpoint."""
     reach = LinkReach.from_arm(arm)
+    extra = tuple((name, 0.5 * (lo + hi)) for name, (lo, hi) in fitted.extra_m)
     return tuple(
-        measure_case(coefficients, length, width, arm, settings, index=i, reach=reach)
+        measure_case(coefficients, length, width, arm, settings, index=i, reach=reach, extra=extra)
         for i, (length, width) in enumerate(case_study_sizes(fitted))
     )
 

@@ -183,6 +183,7 @@ def brief(case: CaseResult) -> dict[str, Any]:
         "index": case.index,
         "L": case.L_m,
         "W": case.W_m,
+        **case.extra_values,
         "certified_clearance_m": case.certified_clearance_m,
         "clearance_m": case.clearance_m,
         "endpoint_error_m": case.endpoint_error_m,

@@ -1,6 +1,6 @@
 """The methods the benchmark times side by side: (a) the generator, (a') batched, (a*) the generator with
-the range certificate (per query and batched), (b) certify-or-repair, (c) PSO online, (d) OMPL
-RRT-Connect, and the sweep rate and build time."""
+the range certificate (per query and batched, and over (L, W, x)), (b) certify-or-repair, (c) PSO
+online, (d) OMPL RRT-Connect (also on moved obstacles), and the sweep rate and build time."""
 
 from __future__ import annotations
 
@@ -23,6 +23,7 @@ from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.io.jsonio import read_json
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
+from pipeline.model.scene import Scene
 from pipeline.motion.rest_to_rest import REST_TO_REST
 from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory
 from pipeline.offline.experiment import SolverConfig, solve_experiment
@@ -68,6 +69,31 @@ def bench_generator(
             started = clock()
             try:
                 answers[i] = generate(coefficients, float(length), float(width), region_map=region_map)
+            except PipelineError:
+                answers[i] = None
+            times.append(clock() - started)
+    return times, answers
+
+
+def bench_generator_x(
+    coefficients: Any, cases: np.ndarray, repeats: int, region_map: RegionMap | None
+) -> tuple[list[float], list[Any]]:
+    """(a*) over (L, W, x): time ``generate(coefficients, L, W, x=x, region_map=region_map)`` one query
+    at a time, ``repeats`` passes over the cases (shape (n, 3): L, W, x [m]); as :func:`bench_generator`.
+
+    Returns:
+        (time of every call [s], the answers of the last pass, None where it raised).
+    """
+    for _ in range(WARMUP_CALLS):
+        generate(coefficients, float(cases[0, 0]), float(cases[0, 1]), x=float(cases[0, 2]), region_map=region_map)
+    times: list[float] = []
+    answers: list[Any] = [None] * len(cases)
+    clock = time.perf_counter
+    for _ in range(repeats):
+        for i, (length, width, x) in enumerate(cases):
+            started = clock()
+            try:
+                answers[i] = generate(coefficients, float(length), float(width), x=float(x), region_map=region_map)
             except PipelineError:
                 answers[i] = None
             times.append(clock() - started)
@@ -273,24 +299,39 @@ class _OmplTally:
     checks: list[int] = field(default_factory=list)
     coal_queries: list[int] = field(default_factory=list)
     failures: dict[str, int] = field(default_factory=lambda: {"start_invalid": 0, "goal_invalid": 0, "not_solved": 0})
+    obstacles: list[Obstacle] = field(default_factory=list)  # the planner's obstacles of the first pass
 
 
 def _ompl_queries(
-    coefficients: Any, cases: np.ndarray, arm: PlanarArm, settings: BenchSettings, config: planner.PlannerConfig
+    coefficients: Any,
+    cases: np.ndarray,
+    arm: PlanarArm,
+    settings: BenchSettings,
+    config: planner.PlannerConfig,
+    scenes: Sequence[Scene] | None = None,
 ) -> _OmplTally:
-    """Every (d) query, ``settings.slow_repeats`` passes, each followed by our certificate of its path."""
-    scene = coefficients.scene
+    """Every (d) query, ``settings.slow_repeats`` passes, each followed by our certificate of its path.
 
-    def query(length: float, width: float) -> tuple[Obstacle, planner.PlanResult]:
+    ``cases`` holds (L, W) in its first two columns; ``scenes`` (one per case, default the
+    coefficients' scene for all) places each obstacle, e.g. an answer's moved scene (its obstacle
+    at the answer's centre x); the planner gets ``Obstacle.in_scene(L, W, scene)`` and the IK of
+    that scene's P1 and P5."""
+    scenes = [coefficients.scene] * len(cases) if scenes is None else list(scenes)
+
+    def query(length: float, width: float, scene: Scene) -> tuple[Obstacle, planner.PlanResult]:
         obstacle = Obstacle.in_scene(length, width, scene)
         start, goal = planner.start_goal_configurations(obstacle, scene, arm.link_lengths_m, coefficients.elbow)
         return obstacle, planner.plan_rrt_connect(arm, obstacle, start, goal, config)
 
-    query(float(cases[0, 0]), float(cases[0, 1]))  # warm-up
+    query(float(cases[0, 0]), float(cases[0, 1]), scenes[0])  # warm-up
     tally = _OmplTally()
     for _ in range(settings.slow_repeats):
-        for length, width in cases:
-            plan_s, (obstacle, result) = _timed(lambda length=length, width=width: query(float(length), float(width)))
+        for (length, width), scene in zip(cases[:, :2], scenes, strict=True):
+            plan_s, (obstacle, result) = _timed(
+                lambda length=length, width=width, scene=scene: query(float(length), float(width), scene)
+            )
+            if len(tally.obstacles) < len(cases):
+                tally.obstacles.append(obstacle)
             certify_s = 0.0
             if result.solved and result.path is not None:
                 certify_s, certificate = _timed(lambda r=result, o=obstacle: certify_path(r.path, arm, o))
@@ -317,12 +358,18 @@ def bench_ompl(
     settings: BenchSettings,
     validity_margin_m: float,
     margin_m: float,
+    *,
+    scenes: Sequence[Scene] | None = None,
+    rows: tuple[tuple[str, str], tuple[str, str]] | None = None,
 ) -> tuple[MethodResult, MethodResult]:
     """(d) and (d+): RRT-Connect per query (setup, IK of P1 / P5, solve, simplify), then our certificate.
 
     Args:
         validity_margin_m: A state is valid iff both links' Coal clearance is >= this [m].
         margin_m: The scene's margin, for the "keeps margin" count [m].
+        scenes: The scene of each obstacle (default: the coefficients' for all); with them, the
+            rows' extra records every obstacle's centre x the planner got (``obstacle_centre_x_m``).
+        rows: (key, label) of the two rows (default: "d" and "d_cert", as the table names them).
     """
     planner.seed_ompl(settings.seed)
     config = planner.PlannerConfig(
@@ -332,7 +379,7 @@ def bench_ompl(
         resolution=settings.ompl_resolution,
         log_level="none",  # failures are counted below, with their reasons
     )
-    tally = _ompl_queries(coefficients, cases, arm, settings, config)
+    tally = _ompl_queries(coefficients, cases, arm, settings, config, scenes)
     clearances = tally.clearances
     certified, keeps = certificate_counts(clearances, margin_m)
     limits = arm.position_limits_rad
@@ -353,6 +400,8 @@ def bench_ompl(
         "certified_clearance_min_m": min(clearances) if clearances else None,
         "certified_clearance_median_m": float(np.median(clearances)) if clearances else None,
     }
+    if scenes is not None:
+        extra["obstacle_centre_x_m"] = [float(o.centre_x_m) for o in tally.obstacles]
     common = {
         "obstacles": len(cases),
         "queries": len(tally.plan_times),
@@ -362,16 +411,21 @@ def bench_ompl(
         "extra": extra,
     }
     simplify = " + simplifySolution" if settings.ompl_simplify else ""
+    if rows is None:
+        rows = (
+            ("d", "(d)  OMPL RRT-Connect" + (" + simplify" if settings.ompl_simplify else "")),
+            ("d_cert", "(d+) OMPL path + our certificate"),
+        )
     plan = MethodResult(
-        key="d",
-        label="(d)  OMPL RRT-Connect" + (" + simplify" if settings.ompl_simplify else ""),
+        key=rows[0][0],
+        label=rows[0][1],
         times_s=tuple(tally.plan_times),
         note="per query: Coal checker + SimpleSetup + IK of P1/P5 + solve" + simplify,
         **common,
     )
     total = MethodResult(
-        key="d_cert",
-        label="(d+) OMPL path + our certificate",
+        key=rows[1][0],
+        label=rows[1][1],
         times_s=tuple(tally.total_times),
         note="(d) + certify_path (piecewise-linear certificate, Coal)",
         **common,

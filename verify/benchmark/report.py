@@ -1,6 +1,6 @@
 """The benchmark's printed table: medians per query, ratios to the generator alone (a) and to the
-generator with certification (b), the ratios of OMPL (d) to (a), (a*) and (b), and the fraction of
-answers certified collision-free."""
+generator with certification (b), the ratios of OMPL (d) to (a), (a*) and (b) (and, over (L, W, x),
+of OMPL on the moved obstacles to (a*) on them), and the fraction of answers certified collision-free."""
 
 from __future__ import annotations
 
@@ -9,6 +9,9 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover
     from .results import BenchReport
+
+#: How a skipped row is named where its key is not its name (the rows over (L, W, x)).
+_SKIPPED_NAMES = {"a_range_x": "(a*) over (L, W, x)", "d_x": "(d) over (L, W, x)"}
 
 
 def _format_time(seconds: float) -> str:
@@ -78,7 +81,7 @@ def _table_lines(report: BenchReport) -> list[str]:
             f"{_format_fraction(m.keeps_margin_fraction):>12}"
         )
     for key, reason in report.skipped.items():
-        lines.append(f"({key}) skipped: {reason}")
+        lines.append(f"{_SKIPPED_NAMES.get(key, f'({key})')} skipped: {reason}")
     lines.append("")
     return lines
 
@@ -91,6 +94,8 @@ def _ratio_lines(report: BenchReport) -> list[str]:
     shown = [f"{text} = {_format_ratio(ratios[key])}" for key, text in names if ratios[key] is not None]
     if ratios["b_over_a_range"] is not None:
         shown.append(f"(b) / (a*) = {_format_ratio(ratios['b_over_a_range'])}")
+    if ratios.get("d_x_over_a_range_x") is not None:
+        shown.append(f"over (L, W, x): (d) / (a*) = {_format_ratio(ratios['d_x_over_a_range_x'])}")
     lines = [f"Ratios of the medians per query (this run): {', '.join(shown)}."] if shown else []
     summary = report.a_range_summary()
     if summary is not None:
@@ -102,6 +107,14 @@ def _ratio_lines(report: BenchReport) -> list[str]:
             + (f"{batched:.3g} us per obstacle batched, " if batched is not None else "")
             + f"certified clearance > 0 on {certified} and >= the margin on {margin} of "
             f"{summary['in_range_queries']} in-range queries."
+        )
+    summary_x = report.a_range_x_summary()
+    if summary_x is not None:
+        certified = _format_fraction(_nan(summary_x["certified_fraction"]))
+        margin = _format_fraction(_nan(summary_x["margin_fraction"]))
+        lines.append(
+            f"(a*) over (L, W, x): median {summary_x['median_us']:.3g} us per query, certified clearance > 0 on "
+            f"{certified} and >= the margin on {margin} of {summary_x['in_range_queries']} in-range queries."
         )
     return lines + [""] if lines else lines
 
@@ -144,7 +157,7 @@ def _rate_lines(report: BenchReport) -> list[str]:
 def _note_lines(report: BenchReport) -> list[str]:
     lines = ["", "Notes:"]
     for m in report.methods:
-        lines.append(f"  {m.label.split()[0]} {m.note}")
+        lines.append(f"  {m.label.split(':')[0] if ':' in m.label else m.label.split()[0]} {m.note}")
     d = report.method("d")
     if d is not None:
         x = d.extra
@@ -163,6 +176,16 @@ def _note_lines(report: BenchReport) -> list[str]:
         )
     if report.range_map is not None:
         lines.append(f"  (a*) region map: {report.range_map['description']}.")
+    if report.over_x is not None:
+        info = report.over_x
+        box = ", ".join(f"{name} in [{lo:.3f}, {hi:.3f}] m" for name, (lo, hi) in info["fitted_range_m"].items())
+        region = info["region_map"]
+        lines.append(
+            f"  (a*) over (L, W, x): coefficients {info['source']} ({box}); region map {region['path']} "
+            f"({region['cells']:,} cells, certified collision-free on "
+            f"{100 * region['certified_collision_free_fraction']:.2f} % of the box); (d) over (L, W, x) plans "
+            "around the answer's obstacle, centred at its x."
+        )
     lines += [
         "  vs (a), vs (b): median time per query divided by that of (a) and of (b).",
         "  answered: queries that returned a trajectory or path; cert. free: answers whose certified clearance "

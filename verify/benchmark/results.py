@@ -15,6 +15,10 @@ from .ompl_planner import OMPL_DEFAULT_RESOLUTION
 
 FORMAT = "twolink-bench/1"
 DEFAULT_BUILD_TIMING = "results/build_timing.json"
+#: Coefficients over (L, W, x) of row (a*) over (L, W, x), used if the file exists (beside ``results/``).
+DEFAULT_COEFFICIENTS_X = "results-x/coefficients.json"
+#: The command that makes them.
+MAKE_COEFFICIENTS_X = "python -m pipeline.build --vary x -0.03 0.03 --out results-x"
 DEFAULT_N = 50
 DEFAULT_SEED = 0
 DEFAULT_REPEATS = 200
@@ -33,7 +37,8 @@ class MethodResult:
     """Timings and answer quality of one method.
 
     Attributes:
-        key: Short key: "a", "a_batch", "a_range", "a_range_batch", "b", "c", "d", "d_cert".
+        key: Short key: "a", "a_batch", "a_range", "a_range_batch", "b", "c", "d", "d_cert", and over
+            (L, W, x) "a_range_x", "d_x", "d_x_cert".
         label: Row label of the table.
         obstacles: Distinct obstacles queried.
         times_s: Every timed run, as time per query [s].
@@ -126,6 +131,10 @@ class BenchSettings:
         urdf: URDF of the arm (None: the project's).
         region_map: Region map of the coefficients for (a*) (None: the one beside them, else
             certified in-process).
+        coefficients_x: Coefficients over (L, W, x), with their region map beside them, for the row
+            (a*) over (L, W, x) and OMPL on the same moved obstacles (None: ``DEFAULT_COEFFICIENTS_X``
+            if it exists, else the rows are left out).
+        run_x: Run the rows over (L, W, x) (False: left out, even with ``coefficients_x``).
     """
 
     n: int = DEFAULT_N
@@ -147,6 +156,8 @@ class BenchSettings:
     run_build_levels: int | None = None
     urdf: Path | None = None
     region_map: Path | None = None
+    coefficients_x: Path | None = None
+    run_x: bool = True
 
     def __post_init__(self) -> None:
         check_positive_int("--n", self.n)
@@ -172,6 +183,10 @@ class BenchSettings:
             check_positive_int("--run-build", self.run_build_levels, minimum=3)
         if self.region_map is not None and not Path(self.region_map).is_file():
             raise InvalidParameterError("--region-map", str(self.region_map), "an existing region map file")
+        if self.coefficients_x is not None and not Path(self.coefficients_x).is_file():
+            raise InvalidParameterError(
+                "--coefficients-x", str(self.coefficients_x), f"an existing coefficients file ({MAKE_COEFFICIENTS_X})"
+            )
 
 
 @dataclass(frozen=True)
@@ -191,6 +206,8 @@ class BenchReport:
         machine: Python, platform, CPU count, package versions.
         command: The command line.
         elapsed_s: Wall time of the whole benchmark [s].
+        over_x: The coefficients over (L, W, x), their map and obstacles of the row (a*) over (L, W, x)
+            (None if it did not run).
     """
 
     coefficients: dict[str, Any]
@@ -205,14 +222,15 @@ class BenchReport:
     machine: dict[str, Any]
     command: str
     elapsed_s: float
+    over_x: dict[str, Any] | None = None
 
     def method(self, key: str) -> MethodResult | None:
         """The result of method ``key``, or None if it was not run."""
         return next((m for m in self.methods if m.key == key), None)
 
     def ratios(self) -> dict[str, float | None]:
-        """(d) / (a), (d) / (a*), (d) / (b) and (b) / (a*): medians per query measured in this run (None
-        where a method did not run)."""
+        """(d) / (a), (d) / (a*), (d) / (b), (b) / (a*) and, over (L, W, x), OMPL on the moved obstacles
+        over (a*) on them: medians per query measured in this run (None where a method did not run)."""
 
         def ratio(numerator: str, denominator: str) -> float | None:
             top, bottom = self.method(numerator), self.method(denominator)
@@ -223,6 +241,7 @@ class BenchReport:
             "d_over_a_range": ratio("d", "a_range"),
             "d_over_b": ratio("d", "b"),
             "b_over_a_range": ratio("b", "a_range"),
+            "d_x_over_a_range_x": ratio("d_x", "a_range_x"),
         }
 
     def a_range_summary(self) -> dict[str, Any] | None:
@@ -244,6 +263,23 @@ class BenchReport:
             "region_map": self.range_map,
         }
 
+    def a_range_x_summary(self) -> dict[str, Any] | None:
+        """The headline figures of (a*) over (L, W, x) (None if it did not run): median per query [us],
+        the fractions of in-range queries with a certified clearance > 0 and >= the margin, the ratio
+        of OMPL on the same moved obstacles to it, and where its coefficients and map came from."""
+        row = self.method("a_range_x")
+        if row is None:
+            return None
+        in_range = row.extra["in_range_queries"]
+        return {
+            "median_us": row.median_s * 1e6,
+            "certified_fraction": row.certified / in_range if in_range else None,
+            "margin_fraction": row.keeps_margin / in_range if in_range else None,
+            "ratio_to_d_x": self.ratios()["d_x_over_a_range_x"],
+            "in_range_queries": in_range,
+            "over_x": self.over_x,
+        }
+
     def to_json(self) -> dict[str, Any]:
         """The --json document."""
         a = self.method("a")
@@ -260,6 +296,7 @@ class BenchReport:
             "cases": [[float(length), float(width)] for length, width in self.cases_m],
             "methods": [m.to_json(reference_a, reference_b) for m in self.methods],
             "a_range": self.a_range_summary(),
+            "a_range_x": self.a_range_x_summary(),
             "ratios": self.ratios(),
             "skipped": dict(self.skipped),
             "sweep": self.sweep,

@@ -18,7 +18,10 @@ in one run on this machine, it times side by side:
 * **(d)** a general-purpose planner: OMPL's RRT-Connect from the start to the goal configuration
   (analytic IK of P1 and P5) with a Coal validity checker on the same geometry
   (:mod:`verify.benchmark.ompl_planner`), alone and **(d+)** followed by our certificate of its
-  piecewise-linear path.
+  piecewise-linear path;
+* **(a*) over (L, W, x)**: with coefficients that also vary the obstacle's centre x and their map,
+  ``generate(..., x=x)`` per query on random (L, W, x), and (d), (d+) on the same moved obstacles
+  (:mod:`verify.benchmark.over_x`).
 
 It reports per method the median time per query, its ratio to (a) and to (b), the ratios of (d) to
 (a), (a*) and (b), the fraction of
@@ -63,6 +66,7 @@ from verify.acceptance.metrics import check_arm_matches
 from verify.acceptance.run import arm_for_sweep
 
 from . import ompl_planner as planner
+from . import over_x
 from .methods import (
     batch_range_counts,
     bench_batched,
@@ -414,6 +418,7 @@ def run_bench(
     coefficients: Coefficients | None = None,
     arm: PlanarArm | None = None,
     progress: ProgressCallback | None = None,
+    coefficients_x: Coefficients | None = None,
 ) -> BenchReport:
     """Run every method on the same random obstacles and collect the report.
 
@@ -427,10 +432,15 @@ def run_bench(
         arm: The arm already loaded (optional; default ``settings.urdf``'s, else the one recorded
             with the coefficients; checked against them).
         progress: Progress of long stages (the in-process range certificate, if one is needed).
+        coefficients_x: Coefficients over (L, W, x) with their region map attached, for the rows
+            over (L, W, x) (optional; default: loaded from ``settings.coefficients_x``, else
+            ``results-x/coefficients.json`` if it exists, else those rows are left out and
+            ``skipped`` says how to make them; not loaded with ``settings.run_x`` False).
 
     Raises:
         DataFileError: missing or malformed coefficients / build timing file / region map, or a
-            ``settings.region_map`` that certifies other coefficients.
+            ``settings.region_map`` that certifies other coefficients; coefficients over (L, W, x)
+            that do not vary (L, W, x) or have no map beside them.
         InvalidParameterError: coefficients fitted for another arm, or bad settings.
     """
     started = time.perf_counter()
@@ -446,6 +456,9 @@ def run_bench(
     # Build timing first (a missing or malformed file is reported before minutes of work).
     timing = read_build_timing(settings.build_timing) if settings.build_timing is not None else None
     config, pso_source = solver_config(coefficients, settings)
+    if settings.run_x and coefficients_x is None:  # before minutes of work: a bad file is reported first
+        path_x = over_x.coefficients_x_path(settings)
+        coefficients_x = None if path_x is None else over_x.timed_load(path_x, arm, log)
     bench_map = bench_region_map(coefficients, settings.region_map, log=log, progress=progress, arm=arm)
     methods, sweep_info, answers_a = _sweep_and_generator(ctx)
     methods.extend(_range_methods(ctx, bench_map, answers_a))
@@ -457,6 +470,14 @@ def run_bench(
     else:
         skipped["c"] = "--pso-cases 0"
     methods.extend(_ompl_methods(ctx, skipped))
+    info_x = None
+    if settings.run_x and coefficients_x is not None:
+        methods_x, info_x = over_x.x_methods(
+            coefficients_x, arm, settings, log=log, skipped=skipped, ompl_margin_m=settings.ompl_margin_m
+        )
+        methods.extend(methods_x)
+    else:
+        skipped[over_x.KEY] = over_x.missing_reason(settings)
     build_info = _build_info(ctx, timing, config)
     settings_json = {key: (str(value) if isinstance(value, Path) else value) for key, value in asdict(settings).items()}
     settings_json.update(pso_resolved=asdict(config.pso), polish=config.polish, pso_settings_source=pso_source)
@@ -478,4 +499,5 @@ def run_bench(
         machine=machine,
         command=command,
         elapsed_s=time.perf_counter() - started,
+        over_x=info_x,
     )

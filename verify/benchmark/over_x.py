@@ -1,0 +1,192 @@
+"""The benchmark's rows over (L, W, x): coefficients that also vary the obstacle's centre x.
+
+**(a*) over (L, W, x)** times ``generate(coefficients, L, W, x=x, region_map=m)`` one query at a time
+on random (L, W, x) uniform in the coefficients' fitted box (seeded; its (L, W) columns are drawn
+as the bench's (L, W) obstacles are), with the map over (L, W, x) that the build wrote beside
+them: the answer carries the certified clearance and endpoint bounds of the leaf holding (L, W, x).
+**(d) over (L, W, x)** and **(d+)** run OMPL's RRT-Connect (:mod:`verify.benchmark.ompl_planner`) on
+the same moved obstacles: each query plans around ``Obstacle.in_scene(L, W, scene)`` in the
+answer's moved scene (its ``obstacle``, centred at x), from the IK of that scene's P1 to that of P5.
+
+The coefficients come from ``--coefficients-x FILE``, else ``results-x/coefficients.json`` if it
+exists; else the rows are left out, with the command that makes them.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pipeline import load_coefficients
+from pipeline.certify.region_map import DEFAULT_MAP_NAME
+from pipeline.exceptions import DataFileError
+from pipeline.model.arm import PlanarArm
+from pipeline.model.scene import Scene
+from pipeline.offline.coefficients import Coefficients
+from pipeline.online.loading import map_path_beside
+from verify.acceptance.metrics import check_arm_matches
+
+from . import ompl_planner as planner
+from .methods import bench_generator_x, bench_ompl, range_counts
+from .results import DEFAULT_COEFFICIENTS_X, MAKE_COEFFICIENTS_X, BenchSettings, MethodResult
+
+#: The variables the rows take.
+AXES = ("L", "W", "x")
+#: Key of the row, also of its entry in the report's ``skipped``.
+KEY = "a_range_x"
+#: How the table names the row.
+NAME = "(a*) over (L, W, x)"
+
+
+def coefficients_x_path(settings: BenchSettings) -> Path | None:
+    """The coefficients file of the rows: ``settings.coefficients_x``, else ``DEFAULT_COEFFICIENTS_X``
+    if it exists, else None."""
+    if settings.coefficients_x is not None:
+        return Path(settings.coefficients_x)
+    default = Path(DEFAULT_COEFFICIENTS_X)
+    return default if default.is_file() else None
+
+
+def missing_reason(settings: BenchSettings) -> str:
+    """Why the rows are left out (``coefficients_x_path`` gave None, or ``--no-x``), with the remedy."""
+    if not settings.run_x:
+        return "--no-x"
+    return f"no {DEFAULT_COEFFICIENTS_X} and no --coefficients-x (make it with: {MAKE_COEFFICIENTS_X})"
+
+
+def load_coefficients_x(path: Path, arm: PlanarArm) -> Coefficients:
+    """The coefficients over (L, W, x) at ``path`` with the region map beside them, for ``arm``.
+
+    Raises:
+        DataFileError: the file is missing or malformed, its coefficients do not vary (L, W, x),
+            or no map beside it certifies them.
+        InvalidParameterError: they were fitted for another arm.
+    """
+    coefficients = load_coefficients(path)
+    if tuple(coefficients.variables.names) != AXES:
+        raise DataFileError(
+            path,
+            f"--coefficients-x must vary {', '.join(AXES)}, these vary {', '.join(coefficients.variables.names)} "
+            f"({MAKE_COEFFICIENTS_X})",
+        )
+    if coefficients.region_map is None:
+        beside = map_path_beside(coefficients) or Path(DEFAULT_MAP_NAME)
+        raise DataFileError(
+            path, f"no {beside} certifying these coefficients (python -m pipeline.certify_range {path} makes it)"
+        )
+    check_arm_matches(coefficients, arm)
+    return coefficients
+
+
+def sample_cases_x(coefficients: Coefficients, n: int, seed: int) -> np.ndarray:
+    """n obstacles (L, W, x) [m], uniform in the coefficients' fitted box, shape (n, 3): L and W drawn
+    first as :func:`verify.acceptance.cases.sample_cases` draws them (the same (L, W) for the same
+    fitted (L, W) range), then x, from ``numpy.random.default_rng(seed)``."""
+    rng = np.random.default_rng(seed)
+    columns = [rng.uniform(*coefficients.fitted_range_m[name], n) for name in AXES]
+    return np.stack(columns, -1)
+
+
+def moved_scene(coefficients: Coefficients, case: np.ndarray, answer: Any) -> Scene:
+    """The scene of the obstacle (L, W, x) = ``case``: the answer's (its obstacle centred at x), or the
+    coefficients' scene moved to x where the generator refused (None)."""
+    if answer is not None:
+        return answer.scene
+    return coefficients.variables.scene_for(coefficients.scene, {"x": float(case[2])})
+
+
+def x_methods(
+    coefficients: Coefficients,
+    arm: PlanarArm,
+    settings: BenchSettings,
+    *,
+    log: Callable[[str], None] = lambda _: None,
+    skipped: dict[str, str],
+    ompl_margin_m: float | None = None,
+) -> tuple[list[MethodResult], dict[str, Any]]:
+    """(a*) over (L, W, x), then OMPL (d) and (d+) on the same moved obstacles if it runs.
+
+    Args:
+        coefficients: Over (L, W, x), with their region map attached (:func:`load_coefficients_x`).
+        ompl_margin_m: Validity margin of OMPL [m] (None: the coefficients' scene margin).
+        skipped: Why OMPL's rows over (L, W, x) were left out goes here (key "d_x").
+
+    Returns:
+        (the rows, the report's ``over_x``: coefficients, map and obstacles).
+    """
+    region_map, margin = coefficients.region_map, coefficients.scene.margin_m
+    cases = sample_cases_x(coefficients, settings.n, settings.seed)
+    log(f"timing {NAME}: the generator with the map over (L, W, x), one query at a time ...")
+    times, answers = bench_generator_x(coefficients, cases, settings.repeats, region_map)
+    counts = range_counts(answers, margin)
+    answered = [a for a in answers if a is not None]
+    row = MethodResult(
+        key=KEY,
+        label=f"{NAME}: generator + map",
+        obstacles=len(cases),
+        times_s=tuple(times),
+        queries=len(cases),
+        answered=len(answered),
+        certified=counts.certified,
+        keeps_margin=counts.keeps_margin,
+        note=f"generate(coefficients_x, L, W, x=x, region_map=m), each call timed, on random (L, W, x) in the "
+        f"fitted box; passes: {settings.repeats}; {counts.certified} of {counts.in_range} in-range queries "
+        f"answered with a certified clearance > 0, {counts.keeps_margin} >= the margin",
+        extra={"in_range_queries": counts.in_range, "certified_clearance_min_m": counts.clearance_min_m},
+    )
+    methods = [row]
+    if not settings.run_ompl:
+        skipped["d_x"] = "--no-ompl"
+    elif not planner.ompl_available():
+        skipped["d_x"] = "ompl is not installed (pip install ompl, or the project's 'bench' extra)"
+    else:
+        log(f"timing (d) OMPL RRT-Connect on the same moved obstacles ({settings.ompl_time_s} s budget per query) ...")
+        validity = margin if ompl_margin_m is None else ompl_margin_m
+        scenes = [moved_scene(coefficients, case, answer) for case, answer in zip(cases, answers, strict=True)]
+        simplify = " + simplify" if settings.ompl_simplify else ""
+        try:
+            methods.extend(
+                bench_ompl(
+                    coefficients,
+                    cases,
+                    arm,
+                    settings,
+                    validity,
+                    margin,
+                    scenes=scenes,
+                    rows=(
+                        ("d_x", f"(d) over (L, W, x): OMPL RRT-Connect{simplify}"),
+                        ("d_x_cert", "(d+) over (L, W, x): + our certificate"),
+                    ),
+                )
+            )
+        except ImportError as exc:
+            skipped["d_x"] = f"ompl could not be imported ({exc})"
+    summary = region_map.summary()
+    info = {
+        "source": coefficients.source,
+        "sha256": coefficients.source_sha256,
+        "fitted_range_m": {k: list(v) for k, v in coefficients.fitted_range_m.items()},
+        "region_map": {
+            "path": None if map_path_beside(coefficients) is None else str(map_path_beside(coefficients)),
+            "cells": summary["cells"],
+            "certified_collision_free_fraction": summary["certified_collision_free_fraction"],
+            "clearance_bound_min_m": summary["clearance_bound_min_m"],
+        },
+        "cases_m": [[float(v) for v in case] for case in cases],
+        "obstacle_centre_x_m": [float(a.obstacle.centre_x_m) for a in answered],
+    }
+    return methods, info
+
+
+def timed_load(path: Path, arm: PlanarArm, log: Callable[[str], None]) -> Coefficients:
+    """:func:`load_coefficients_x`, logged with its wall time (a fine map over (L, W, x) is tens of MB)."""
+    log(f"loading the coefficients over (L, W, x) and their region map: {path} ...")
+    started = time.perf_counter()
+    coefficients = load_coefficients_x(path, arm)
+    log(f"  loaded in {time.perf_counter() - started:.1f} s")
+    return coefficients
