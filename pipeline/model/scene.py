@@ -67,6 +67,15 @@ class Scene:
         check_positive("apex_dy_m", self.apex_dy_m)
         check_finite("centre_x_m", self.centre_x_m)
 
+    def with_checked(self, **values: float) -> Scene:
+        """This scene with ``values`` in place of the fields they name, without re-running the
+        checks: for callers that have checked them (the online generator's moved scene, whose
+        x and d are finite floats). Equal to ``dataclasses.replace(self, **values)``."""
+        scene = object.__new__(Scene)
+        scene.__dict__.update(self.__dict__)
+        scene.__dict__.update(values)
+        return scene
+
     @property
     def y1_m(self) -> float:
         """Height of the start and goal points P1, P5 [m] (d unless set)."""

@@ -56,7 +56,7 @@ from pipeline.motion.families import EndpointContext, TrajectoryFamily
 from pipeline.motion.path import QuarticPath, desired_path, symmetric_quartic, symmetric_quartic_length_m
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
-from pipeline.offline.variables import Variables, quadratic_design
+from pipeline.offline.variables import VOCABULARY, Variables
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
 
@@ -186,6 +186,7 @@ class QueryPlan(NamedTuple):
     variables: Variables
     extra: tuple[str, ...]  # the variables beyond L and W, () for the (L, W) route
     extra_ranges: tuple[tuple[float, float], ...]
+    fields: dict[str, str]  # extra variable -> the Scene field it sets
 
 
 #: The plans of coefficients over (L, W) alone: :func:`generate` takes its (L, W) route on a hit.
@@ -261,6 +262,7 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
             variables=coefficients.variables,
             extra=coefficients.variables.extra,
             extra_ranges=tuple(tuple(coefficients.fitted_range_m[name]) for name in coefficients.variables.extra),
+            fields={name: VOCABULARY[name][1] for name in coefficients.variables.extra},
         )
         plans[coefficients] = plan
     return plan
@@ -447,6 +449,22 @@ def _variable(value: object, name: str) -> float:
     return value
 
 
+def _extra_values(plan: QueryPlan, given: dict) -> dict[str, float]:
+    """The extra variables' values (finite floats), in the plan's order; a missing, unexpected or
+    non-numeric one is refused by :meth:`pipeline.offline.variables.Variables.take` and
+    :func:`_variable`, naming it."""
+    values = {}
+    for name in plan.extra:
+        value = given.get(name)
+        if type(value) is not float or not math.isfinite(value):
+            break
+        values[name] = value
+    else:
+        if all(value is None for name, value in given.items() if name not in values):
+            return values
+    return {name: _variable(value, name) for name, value in plan.variables.take(given).items()}
+
+
 def _generate_moved(
     coefficients: Coefficients,
     plan: QueryPlan,
@@ -462,27 +480,30 @@ def _generate_moved(
     values, every constraint point shifted by the obstacle's centre x, and the bounds of a map
     over the same variables looked up at (L, W and the variables' values).
     """
-    values = {name: _variable(value, name) for name, value in plan.variables.take(given).items()}
-    L = _size(length_m, (length_m, width_m), "L")
-    W = _size(width_m, (length_m, width_m), "W")
-    scene = plan.variables.scene_for(coefficients.scene, values)
+    values = _extra_values(plan, given)
+    L, W = length_m, width_m
+    if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
+        L = _size(length_m, (length_m, width_m), "L")
+        W = _size(width_m, (length_m, width_m), "W")
+    scene = coefficients.scene.with_checked(**{plan.fields[name]: value for name, value in values.items()})
     top, y1, c = float(scene.top_y_m), float(scene.y1_m), float(scene.centre_x_m)
     bottom = _checked_bottom(plan, L, W, top)
     # P1..P5 as pipeline.motion.path.constraint_points: the x of the centred path plus c.
     x1, x2 = L / 2.0 + plan.start_dx, L / 2.0 + plan.approach_dx
     y2, y3 = bottom - plan.approach_dy, bottom - plan.apex_dy
     lo, hi = plan.reach
-    points = (("P1", x1 + c, y1), ("P2", x2 + c, y2), ("P3", c, y3), ("P4", -x2 + c, y2), ("P5", -x1 + c, y1))
-    for name, px, py in points:
-        radius = math.hypot(px, py)
-        if not lo <= radius <= hi:
-            raise UnreachableObstacleError(name, radius, plan.reach, size_m=(L, W), variables=values)
-    extra = tuple((name, values[name], bounds) for name, bounds in zip(plan.extra, plan.extra_ranges, strict=True))
+    hypot = math.hypot
+    radii = (hypot(x1 + c, y1), hypot(x2 + c, y2), abs(hypot(c, y3)), hypot(c - x2, y2), hypot(c - x1, y1))
+    if not (lo <= min(radii) and max(radii) <= hi):
+        k = next(k for k, r in enumerate(radii) if not lo <= r <= hi)
+        raise UnreachableObstacleError(f"P{k + 1}", radii[k], plan.reach, size_m=(L, W), variables=values)
     (l_lo, l_hi), (w_lo, w_hi) = plan.l_range, plan.w_range
-    extrapolated = not (l_lo <= L <= l_hi and w_lo <= W <= w_hi) or any(
-        not b_lo <= value <= b_hi for _, value, (b_lo, b_hi) in extra
-    )
+    v = (L, W, *values.values())
+    extrapolated = not (l_lo <= L <= l_hi and w_lo <= W <= w_hi)
+    for value, (b_lo, b_hi) in zip(v[2:], plan.extra_ranges, strict=True):
+        extrapolated = extrapolated or not b_lo <= value <= b_hi
     if extrapolated and out_of_range != "ignore":
+        extra = tuple((name, values[name], bounds) for name, bounds in zip(plan.extra, plan.extra_ranges, strict=True))
         _check_range(plan, L, W, out_of_range, extra)
     # T of the path at x = 0: the moved path is the same curve, moved rigidly.
     if x1 > x2 > 0.0:
@@ -492,9 +513,9 @@ def _generate_moved(
         centred = replace(scene, centre_x_m=0.0)
         duration = desired_path(Obstacle.in_scene(L, W, centred), centred).duration_s
     # The regression, as Coefficients.predict_free (pipeline.offline.regression.predict_points): same bits.
-    free = quadratic_design(np.array([L, W, *values.values()])).dot(plan.matrix_t)
+    free = np.array([1.0, *v, *[v[i] * v[j] for i, j in plan.variables.pairs]]).dot(plan.matrix_t)
     family = coefficients.family
-    size = (L, W, *values.values())
+    size = v
     if family.uses_endpoint_context:
         start, end = (x1 + c, y1), (-x1 + c, y1)
         full = _expand_with_endpoints(coefficients, free, start, end, duration, size, plan.variables.names)
@@ -505,7 +526,7 @@ def _generate_moved(
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
     bounds = None
     if region_map is not None and not extrapolated and region_map.axes == plan.variables.names:
-        bounds = region_map.bounds_at(L, W, *values.values())
+        bounds = region_map.bounds_at(*v)
     return GeneratedTrajectory.trusted(
         L,
         W,
