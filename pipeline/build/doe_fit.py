@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import time
 import warnings
 from dataclasses import asdict, dataclass, replace
 
@@ -77,7 +78,8 @@ class DoeFit:
         paper_rows: The paper's Table 2 scored on our fitness (None unless the design and scene are the paper's).
         coefficients: The regressed coefficients (marked if the build did not converge).
         problems: What missed the convergence thresholds (empty: converged).
-        timing: The DOE's part of build_timing.json (per experiment, query counts).
+        timing: The DOE's part of build_timing.json: the DOE's and the regression's wall times
+            (``doe_s``, ``regression_s`` [s]), per experiment, query counts.
     """
 
     experiments: tuple[ExperimentResult, ...]
@@ -259,7 +261,9 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
             done.append(1)
             progress(DOE_STAGE, len(done), total)
 
+    started = time.perf_counter()
     results = run_doe(arm, design, config.scene, solver, int(config.seed), config.executor, progress=report)
+    doe_s = time.perf_counter() - started
     problems = _experiment_problems(results, design, arm, config)
 
     provenance = _provenance(config, arm, solver)
@@ -276,6 +280,7 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
     doe_text = dumps(document)
     doe = doe_from_json(json.loads(doe_text), str(doe_path))
     extra = {"provenance": {**provenance, "doe_sha256": hashlib.sha256(doe_text.encode()).hexdigest()}}
+    started = time.perf_counter()
     with warnings.catch_warnings():
         # A constraint the fit did not meet is reported as a convergence problem, not a warning.
         warnings.simplefilter("ignore", EndpointConstraintWarning)
@@ -283,6 +288,7 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
             coefficients, _ = fit_coefficients(doe, extra, config.endpoint_constraint())
         else:
             coefficients = fit_variables(doe, design.ranges_m, extra, _endpoint_constraint(config))
+    regression_s = time.perf_counter() - started
     problems += regression_problems(coefficients.extra["fit"])
     for values, group in grid:
         collisions = regression_collisions(lambda L, W, v=values: coefficients.predict_free(L, W, **v), group)
@@ -290,7 +296,7 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
         problems += [replace(p, missed=f"at {where}: {p.missed}") if where else p for p in collisions]
     if problems:
         coefficients = coefficients.marked_unconverged(problems)
-    timing = _timing_document(results, config.workers, design)
+    timing = {"doe_s": doe_s, "regression_s": regression_s, **_timing_document(results, config.workers, design)}
     if config.scheduler is not None:
         timing["scheduler"] = config.scheduler
     return DoeFit(tuple(results), document, doe_text, doe, paper_rows, coefficients, tuple(problems), timing)

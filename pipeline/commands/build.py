@@ -304,7 +304,8 @@ def print_report(result: BuildResult, out: TextIO) -> None:
     print(report.equation9(coefficients.parameters, paper_eq9, coefficients.extra["fit"]), file=out)
     print(report.regression_method(coefficients.extra["fit"]), file=out)
     print(
-        f"\nTiming: {timing['total_s']:.1f} s total, "
+        f"\nTiming: {timing['total_s']:.1f} s total (DOE {timing['doe_s']:.1f} s, regression "
+        f"{timing['regression_s']:.1f} s), "
         + ", ".join(f"{r.seconds:.1f}" for r in result.experiments)
         + f" s per experiment; {timing['coal_queries']} Coal distance queries, "
         f"{timing['objective_evaluations']} objective evaluations (analytic route)",
