@@ -299,9 +299,11 @@ def print_report(result: BuildResult, out: TextIO) -> None:
     coefficients, timing = result.coefficients, result.timing
     print("Table 2 (ours, with the paper's row below where the design matches it):", file=out)
     print(report.table2(result.doe_document["experiments"], result.paper_rows), file=out)
-    paper_eq9 = read_coefficients(PAPER_SOURCE).parameters if coefficients.family == PAPER else None
+    same_basis = coefficients.family == PAPER and coefficients.variables.is_size_only
+    paper_eq9 = read_coefficients(PAPER_SOURCE).parameters if same_basis else None
     print("\nEq. 9 (ours, paper below):", file=out)
-    print(report.equation9(coefficients.parameters, paper_eq9, coefficients.extra["fit"]), file=out)
+    fit = coefficients.extra["fit"]
+    print(report.equation9(coefficients.parameters, paper_eq9, fit, coefficients.variables.basis), file=out)
     print(report.regression_method(coefficients.extra["fit"]), file=out)
     print(
         f"\nTiming: {timing['total_s']:.1f} s total (DOE {timing['doe_s']:.1f} s, regression "

@@ -142,7 +142,10 @@ def regress(args: argparse.Namespace) -> int:
     replaced = save_coefficients(coefficients, output)
     if not args.quiet:
         paper = load_coefficients(PAPER_SOURCE).parameters if doe.family == PAPER else None
-        print(report.equation9(coefficients.parameters, paper, coefficients.extra["fit"]))
+        if not coefficients.variables.is_size_only:
+            paper = None  # another basis than the paper's
+        fit = coefficients.extra["fit"]
+        print(report.equation9(coefficients.parameters, paper, fit, coefficients.variables.basis))
         print(report.regression_method(coefficients.extra["fit"]))
     print(f"{'replaced' if replaced else 'wrote'} {output}")
     return EXIT_OK

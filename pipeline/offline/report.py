@@ -37,10 +37,15 @@ def table2(rows: Sequence[Mapping], paper_rows: Sequence[Mapping] | None) -> str
 
 
 def equation9(
-    ours: Mapping[str, Sequence[float]], paper: Mapping[str, Sequence[float]] | None, quality: Mapping | None = None
+    ours: Mapping[str, Sequence[float]],
+    paper: Mapping[str, Sequence[float]] | None,
+    quality: Mapping | None = None,
+    basis: Sequence[str] = BASIS,
 ) -> str:
-    """Our Eq. 9 coefficients beside the paper's, with R^2 and LOO RMSE per parameter."""
-    header = f"{'param':>7} {'src':>5} " + " ".join(f"{b:>9}" for b in BASIS)
+    """Our Eq. 9 coefficients beside the paper's, with R^2 and LOO RMSE per parameter (n/a where
+    the design leaves too few runs for it); ``basis``: the names of the coefficients' terms
+    (``Variables.basis``; the paper's six by default)."""
+    header = f"{'param':>7} {'src':>5} " + " ".join(f"{b:>9}" for b in basis)
     if quality:
         header += f" {'R^2':>7} {'LOO_rmse':>9}"
     lines = [header]
@@ -48,7 +53,8 @@ def equation9(
         line = f"{name:>7} {'ours':>5} " + " ".join(f"{v:9.4g}" for v in values)
         if quality:
             r2, loo = quality["r_squared"][name], quality["loo_rmse"][name]
-            line += f" {r2:7.4f} {loo:9.2e}" if np.isfinite(loo) else f" {r2:7.4f} {'n/a':>9}"
+            known = loo is not None and np.isfinite(loo)
+            line += f" {r2:7.4f} {loo:9.2e}" if known else f" {r2:7.4f} {'n/a':>9}"
         lines.append(line)
         if paper is not None and name in paper:
             lines.append(f"{'':>7} {'paper':>5} " + " ".join(f"{v:9.4g}" for v in paper[name]))
