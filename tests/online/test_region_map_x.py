@@ -31,24 +31,9 @@ SHA = "ef" * 32
 
 
 @pytest.fixture(scope="module")
-def paper_x(paper) -> Coefficients:
+def paper_x(paper, over_x) -> Coefficients:
     """The paper's Eq. 9 over (L, W, x) with small x terms, and a sha256 for maps to link to."""
-    rng = np.random.default_rng(1)
-    parameters = {}
-    for name, b in paper.parameters.items():
-        lifted = np.zeros(LWX.basis_size)
-        lifted[[0, 1, 2, 4, 5, 7]] = b
-        lifted[[3, 6, 8, 9]] = rng.normal(0.0, 0.02, 4)
-        parameters[name] = tuple(float(v) for v in lifted)
-    return replace(
-        paper,
-        parameters=parameters,
-        fitted_range_m={**paper.fitted_range_m, "x": X_RANGE},
-        variables=LWX,
-        source="",
-        source_sha256=SHA,
-        region_map=None,
-    )
+    return replace(over_x(paper, X_RANGE, seed=1, scale=0.02), source_sha256=SHA)
 
 
 def octree(coefficients: Coefficients, axes: tuple[str, ...] = ("L", "W", "x")) -> RegionMap:
