@@ -68,8 +68,12 @@ def test_centre_0_gives_the_symmetric_formula_bit_for_bit(arm: PlanarArm, size: 
     context = endpoint_context(path, arm.link_lengths_m, 1)
     assert context.theta_start_rad[1] == context.theta_end_rad[1]
     full = EXACT_ENDPOINTS.expand(np.array([0.9, 0.3, 1.2, 0.8]), context)
-    assert full.tolist() == [float.fromhex(v) for v in GOLDEN[size].split()]
+    # GOLDEN holds to 1e-13 relative: NumPy's dot products in T may differ in the last bit between
+    # builds, and A1 = (th1_e - th1_s) / (sin(w1 T + phi1) - sin(phi1)) amplifies that (16 ulp seen);
+    # the symmetric formula's phi2 and the free parameters hold to the bit.
+    np.testing.assert_allclose(full, [float.fromhex(v) for v in GOLDEN[size].split()], rtol=1e-13, atol=0.0)
     assert full[6] == (math.pi - 0.8 * context.duration_s) / 2.0
+    assert full[[1, 2, 4, 5]].tolist() == [0.9, 0.3, 1.2, 0.8]
 
 
 @pytest.mark.parametrize("elbow", [1, -1])
