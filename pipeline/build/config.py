@@ -349,7 +349,7 @@ def vary_name(name: object) -> str:
         raise InvalidParameterError(OPTIONS["vary"], name, f"one of {', '.join(VARY_NAMES)} ({name}'s range is {flag})")
     if isinstance(name, str) and name not in VARY_NAMES and name in _ALIASES:
         raise InvalidParameterError(
-            OPTIONS["vary"], name, f"did you mean {_ALIASES[name]!r}? one of {', '.join(VARY_NAMES)}"
+            OPTIONS["vary"], name, f"one of {', '.join(VARY_NAMES)} (did you mean {_ALIASES[name]!r}?)"
         )
     return check_name(name, VARY_NAMES, OPTIONS["vary"])
 
