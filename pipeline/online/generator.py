@@ -356,12 +356,7 @@ def generate(
         if plan.extra or x is not None or d is not None:
             region_map = _region_map_of(region_map, coefficients, out_of_range)
             return _generate_moved(coefficients, plan, length_m, width_m, {"x": x, "d": d}, out_of_range, region_map)
-    if region_map is ATTACHED:
-        region_map = coefficients.region_map
-    elif region_map is not None:
-        check_region_map(region_map, coefficients)
-    if out_of_range not in OUT_OF_RANGE_POLICIES:
-        raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
+    region_map = _region_map_of(region_map, coefficients, out_of_range)
     L, W = length_m, width_m
     if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
         L = _size(length_m, (length_m, width_m), "L")
@@ -429,7 +424,8 @@ def _expand_with_endpoints(
 
 
 def _region_map_of(region_map: object, coefficients: Coefficients, out_of_range: str) -> RegionMap | None:
-    """The arguments' checks of :func:`generate`, for the route over more variables."""
+    """The arguments' checks of :func:`generate` (both routes): the map to read bounds from
+    (the attached one, none, or a given one checked against the coefficients) and the policy."""
     if region_map is ATTACHED:
         region_map = coefficients.region_map
     elif region_map is not None:
