@@ -31,7 +31,7 @@ from pipeline.model.scene import Scene
 from pipeline.motion.families import PAPER_SOURCE, TrajectoryFamily, family_from_name
 from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_targets, fit_points_with_endpoints
 from pipeline.offline.regression import QuadraticFit, fit_quadratic_points, predict, predict_points
-from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables
+from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables, variables_in
 
 FORMAT = "twolink-coefficients/1"
 PAPER = PAPER_SOURCE
@@ -248,15 +248,10 @@ def coefficients_from_json(document: dict, source: str, sha256: str) -> Coeffici
 
 def _variables(document: dict, source: str) -> Variables:
     """The file's ``variables`` (absent: (L, W)), which must hold L and W, in the canonical order."""
+    variables = variables_in(document, source)
     if "variables" not in document:
-        return DEFAULT_VARIABLES
+        return variables
     names = document["variables"]
-    if not isinstance(names, list) or not all(isinstance(name, str) for name in names):
-        raise DataFileError(source, f"'variables' must be a list of names, found {names!r}")
-    try:
-        variables = Variables(tuple(names))
-    except PipelineError as exc:
-        raise DataFileError(source, f"variables: {exc}") from None
     if list(variables.names) != names or variables.names[:2] != SIZE:
         expected = list(Variables((*SIZE, *variables.extra)).names)
         raise DataFileError(source, f"variables are {names!r}, expected L and W first, in the order {expected}")

@@ -32,7 +32,7 @@ from pipeline.motion.families import PAPER, TrajectoryFamily, family_from_name
 from pipeline.motion.trajectory import PARAMETER_NAMES, canonicalize
 from pipeline.offline.designs import Factor, FullFactorial, ScaledDesign
 from pipeline.offline.experiment import ExperimentResult, SolverConfig, solve_experiment
-from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables
+from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables, variables_in
 from pipeline.validation import check_positive, check_positive_int
 
 FORMAT = "twolink-doe/1"
@@ -284,17 +284,9 @@ def doe_from_json(document: dict, path: str) -> DoeData:
 
 def _doe_variables(document: dict, path: str) -> Variables:
     """The DOE file's ``variables`` (absent: (L, W)); L and W must be among them."""
-    if "variables" not in document:
-        return DEFAULT_VARIABLES
-    names = document["variables"]
-    if not isinstance(names, list) or not all(isinstance(name, str) for name in names):
-        raise DataFileError(path, f"'variables' must be a list of names, found {names!r}")
-    try:
-        variables = Variables(tuple(names))
-    except PipelineError as exc:
-        raise DataFileError(path, f"variables: {exc}") from None
+    variables = variables_in(document, path)
     if variables.names[:2] != SIZE:
-        raise DataFileError(path, f"variables are {names!r}; L and W must be among them")
+        raise DataFileError(path, f"variables are {document['variables']!r}; L and W must be among them")
     return variables
 
 

@@ -30,7 +30,7 @@ from functools import cached_property
 
 import numpy as np
 
-from pipeline.exceptions import InvalidParameterError
+from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
 from pipeline.model.scene import Scene
 
 #: Every variable a fit may vary, in the canonical order: name -> (meaning, Scene field or None).
@@ -171,6 +171,23 @@ class Variables:
 
 #: The paper's variables, (L, W).
 DEFAULT_VARIABLES = Variables(SIZE)
+
+
+def variables_in(document: Mapping, source: str) -> Variables:
+    """The ``variables`` key of a coefficients or DOE file (absent: (L, W)) as Variables.
+
+    Raises:
+        DataFileError: not a list of names, or names that are not a valid set (naming ``source``).
+    """
+    if "variables" not in document:
+        return DEFAULT_VARIABLES
+    names = document["variables"]
+    if not isinstance(names, list) or not all(isinstance(name, str) for name in names):
+        raise DataFileError(source, f"'variables' must be a list of names, found {names!r}")
+    try:
+        return Variables(tuple(names))
+    except PipelineError as exc:
+        raise DataFileError(source, f"variables: {exc}") from None
 
 
 def quadratic_design(points: np.ndarray, k: int | None = None) -> np.ndarray:
