@@ -106,8 +106,8 @@ def _geometry(model: RangeModel, center: np.ndarray, radius: np.ndarray) -> dict
     half_x = L * 0.5 - r
     bottom = W * (-1.0) + (d + r)
     top = Jet.constant(np.full(center.shape[0], d - r), n)
-    if "x" in model.axes.names:  # the moved obstacle: [x - half_x, x + half_x]
-        x = model.centre_x(jets)
+    if model.x_column is not None:  # the moved obstacle: [x - half_x, x + half_x]
+        x = jets[model.x_column]
         right, left = x + half_x, x - half_x
     else:  # the paper's scene, centred on x = 0
         right, left = half_x, -half_x
@@ -173,8 +173,7 @@ def box_clearance_bounds(
     box = _geometry(model, center, radius)
     r_corner = model.scene.corner_radius_m
     d = model.scene.top_y_m
-    names = model.axes.names
-    x_col = names.index("x") if "x" in names else None
+    x_col = model.x_column
     rect_x = np.zeros(center.shape[0]) if x_col is None else center[:, x_col]
     rect_center = np.stack([rect_x, d - center[:, 1] / 2], -1)
     rect_half = np.stack([center[:, 0] / 2 - r_corner, center[:, 1] / 2 - r_corner], -1)

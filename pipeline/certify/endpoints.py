@@ -145,11 +145,6 @@ def _cells(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> tup
     return center, radius
 
 
-def _x_column(model: RangeModel) -> int | None:
-    """Column of the obstacle's centre x among the model's axes (None without an x axis)."""
-    return model.axes.names.index("x") if "x" in model.axes.names else None
-
-
 def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
     """Upper bounds [m] on |tip(0) - P1| and |tip(T) - P5| over cells of the model's axes, shape (N, 2).
 
@@ -162,7 +157,7 @@ def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.
     n = center2.shape[0]
     out = np.empty((n, 2))
     l1, l2 = model.link_lengths_m
-    moved = _x_column(model) is not None
+    moved = model.x_column is not None
     for column, (s, side) in enumerate(((0.0, 1.0), (1.0, -1.0))):
         center = np.column_stack([center2, np.full(n, s)])
         radius = np.column_stack([radius2, np.zeros(n)])
@@ -173,7 +168,7 @@ def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.
             jets = model.variables(center, r)
             px = (jets[0] * 0.5 + model.scene.start_dx_m) * side
             if moved:  # P1 and P5 move with the obstacle's centre x (module docstring)
-                px = px + model.centre_x(jets)
+                px = px + jets[model.x_column]
             ex = theta1.cos() * l1 + phi2.cos() * l2 - px
             ey = theta1.sin() * l1 + phi2.sin() * l2 - model.scene.y1_m
             comps.append((ex, ey))
@@ -293,7 +288,7 @@ def _upper_bounds_and_witnesses(
     n = center2.shape[0]
     out = np.empty((n, 2))
     found = np.zeros((n, 2), dtype=bool)
-    xi = _x_column(model)
+    xi = model.x_column
     corner = center2 - radius2
     if xi is None:
         # Every obstacle of the cell contains that of its smallest corner (L0, W0) (module docstring).
@@ -410,7 +405,7 @@ def infeasibility_upper_bounds(
     """
     k = model.k
     center2, radius2 = _cells(model, np.atleast_2d(center_m), np.atleast_2d(radius_m))
-    xi = _x_column(model)
+    xi = model.x_column
     n = center2.shape[0]
     worst = np.full(n, -np.inf)
     alive = np.ones(n, dtype=bool)

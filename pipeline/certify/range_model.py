@@ -148,11 +148,11 @@ class RangeModel:
         n = self.k + 1
         return tuple(Jet.variable(center[:, i], radius[:, i], i, n) for i in range(n))
 
-    def centre_x(self, jets: tuple[Jet, ...]) -> Jet | float:
-        """The obstacle's centre x [m] as a jet of the axes (the scene's constant without an x axis)."""
-        if "x" in self.axes.names:
-            return jets[self.axes.names.index("x")]
-        return self.scene.centre_x_m
+    @property
+    def x_column(self) -> int | None:
+        """Column of the obstacle's centre x among the axes (None without an x axis: the
+        obstacle stays at the scene's x = 0)."""
+        return self.axes.names.index("x") if "x" in self.axes.names else None
 
     def free_jets(self, *axes: Jet) -> list[Jet]:
         """Jets of the family's free parameters (quadratics in the axes, the basis of
