@@ -283,10 +283,10 @@ class BuildConfig:
     @property
     def certifiable_refit(self) -> bool:
         """True if the build runs the certifiable regression's rounds before the map (a range
-        map, (L, W) alone, rounds > 0, the endpoint constraint, the paper family)."""
+        map over certifiable axes, rounds > 0, the endpoint constraint, the paper family)."""
         return bool(
             self.range_map
-            and self.variables.is_size_only
+            and self.certifiable_axes
             and self.clearance_rounds > 0
             and self.endpoint_tolerance_m is not None
             and self.family == PAPER

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 from pipeline.build.config import BuildConfig
 from pipeline.certify.certifiable_regression import (
     REFIT_ENDPOINT_HEADROOM,
-    REFIT_MIN_CELL,
+    REFIT_MIN_CELLS,
     CertifiableFitConfig,
     refit_for_clearance,
 )
@@ -99,9 +99,15 @@ def certify_coefficients(
     if config.certifiable_refit:
         refit = CertifiableFitConfig(
             # The rounds but the last only pick constraint points: coarser cells, no strips.
-            certificate=replace(map_config, min_cell=max(map_config.min_cell, REFIT_MIN_CELL), strip_split=0),
+            certificate=replace(
+                map_config,
+                min_cell=max(map_config.min_cell, REFIT_MIN_CELLS[coefficients.variables.k]),
+                strip_split=0,
+            ),
             final_certificate=map_config,
-            endpoint=EndpointConstraint(tolerance_m=config.endpoint_tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM),
+            endpoint=EndpointConstraint(
+                tolerance_m=config.endpoint_tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM
+            ).for_variables(coefficients.variables),
             max_rounds=config.clearance_rounds,
         )
         started = time.perf_counter()

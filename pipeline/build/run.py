@@ -15,8 +15,8 @@ A build whose results miss the convergence thresholds writes nothing and raises
 DOE and coefficients are written, marked (``"converged": false`` and the reasons), without a
 region map, and :func:`pipeline.load_coefficients` warns whenever such a file is loaded.
 
-A build that varies more scene variables than (L, W) (``BuildConfig.vary``) writes no region map
-either: the range certificate and the certifiable refit cover (L, W) only
+A build that varies a scene variable the range certificate does not cover (``BuildConfig.vary``;
+it covers L, W and the obstacle's centre x) writes no region map either
 (:attr:`BuildResult.range_map_skipped` says why a map is missing).
 
 Worker processes (``jobs`` other than 1) start with ``spawn`` and re-import the main script: a

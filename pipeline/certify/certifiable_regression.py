@@ -6,8 +6,8 @@ Round k:
 1. certify the current coefficients over the fitted range (``certify_range``; the last round
    with ``final_certificate``, whose cells may be finer);
 2. for every leaf that misses the margin without being proven infeasible (status
-   ``collision_free`` or ``undecided``), take its worst point: the (L, W) of its centre and the
-   s in [0, 1] where the clearance along that motion is lowest (dense sampling); for every
+   ``collision_free`` or ``undecided``), take its worst point: the variables' values v at its
+   centre ((L, W), or (L, W, x) with the obstacle's centre x) and the s in [0, 1] where the clearance along that motion is lowest (dense sampling); for every
    leaf whose endpoint bound exceeds the tolerance, take its centre as an endpoint target;
 3. refit the same quadratic model by SLSQP from the current fit: minimise the squared distance
    to the DOE optima subject to the endpoint errors <= the endpoint constraint's fit tolerance
@@ -23,7 +23,7 @@ tried again without the points whose end poses keep less than margin + each of
 says so). Leaves whose end poses cannot keep margin + ``feasible_slack_m`` at the fit's
 endpoint tolerance (:func:`end_pose_room_m`, sampled at the leaf's centre) are not constrained:
 there the family cannot keep the margin at all with that tolerance, or only just. The fit
-remains a closed-form quadratic in (L, W); its certificate is the last map, so nothing here
+remains a closed-form quadratic in its variables; its certificate is the last map, so nothing here
 needs trusting beyond ``certify_range``. Paper family only (all 8 parameters regressed).
 
 The refit holds the endpoint errors to tolerance (1 - ``REFIT_ENDPOINT_HEADROOM``) and
@@ -67,6 +67,8 @@ from pipeline.offline.endpoint_regression import (
     endpoint_slack,
     endpoint_slack_jacobian,
     endpoint_targets,
+    merge_targets,
+    targets_at,
 )
 from pipeline.offline.regression import coefficient_of_determination, design_matrix
 from pipeline.validation import check_non_negative, check_positive_int
@@ -95,10 +97,10 @@ REFIT_ENDPOINT_HEADROOM = 0.005
 RETRY_SLACKS_M = (1e-4, 1e-3)
 #: Rounds of the build's certifiable regression (``python -m pipeline.build --clearance-rounds``).
 DEFAULT_CLEARANCE_ROUNDS = 1
-#: Smallest cell of the maps of the build's refit rounds but the last (fraction of the side);
-#: the last round, whose map the build writes, uses the build's (finer) cells. The coarser cells
-#: keep the refit's points on the leaves that matter and the rounds fast.
-REFIT_MIN_CELL = 1.0 / 256
+#: Smallest cell of the maps of the build's refit rounds but the last (fraction of the side), per
+#: number of variables; the last round, whose map the build writes, uses the build's (finer)
+#: cells. The coarser cells keep the refit's points on the leaves that matter and the rounds fast.
+REFIT_MIN_CELLS: dict[int, float] = {2: 1.0 / 256, 3: 1.0 / 32}
 
 
 @dataclass(frozen=True)
@@ -139,11 +141,12 @@ class CertifiableFitConfig:
 
 @dataclass(frozen=True, eq=False)
 class ClearancePoints:
-    """Points (L, W, s) where the refit must keep the clearance, with their T and obstacle geometry.
+    """Points (v, s) where the refit must keep the clearance, with their T: v the coefficients'
+    variables ((L, W), or (L, W, x)), s the normalised time.
 
     Attributes:
-        points: (n, 3) L [m], W [m], s [-].
-        duration_s: T(L, W) [s], (n,).
+        points: (n, k + 1): the k variables' values [m], then s [-].
+        duration_s: T [s], (n,) (of the path at x = 0: the moved path is a translate).
     """
 
     points: np.ndarray
@@ -151,16 +154,24 @@ class ClearancePoints:
 
 
 def clearance_points(coefficients: Coefficients, points: np.ndarray) -> ClearancePoints:
-    """:class:`ClearancePoints` of ``points`` (n, 3): L [m], W [m], s [-], each with its T."""
+    """:class:`ClearancePoints` of ``points`` (n, k + 1): the coefficients' variables [m], then s [-],
+    each with its T."""
+    points = np.asarray(points, dtype=float)
+    variables = coefficients.variables
     scene = coefficients.scene
-    durations = np.array([desired_path(Obstacle.in_scene(L, W, scene), scene).duration_s for L, W, _ in points])
-    return ClearancePoints(np.asarray(points, dtype=float), durations)
+    if variables.is_size_only:
+        durations = np.array([desired_path(Obstacle.in_scene(L, W, scene), scene).duration_s for L, W in points[:, :2]])
+    else:
+        durations = targets_at(points[:, :-1], variables, scene, coefficients.link_lengths_m).duration_s
+    return ClearancePoints(points, durations)
 
 
 def clearance_grid(coefficients: Coefficients, sizes_m: np.ndarray, s: np.ndarray) -> ClearancePoints:
-    """Every obstacle of ``sizes_m`` (n, 2: L, W [m]) at every normalised time of ``s`` (m,):
-    n * m points, obstacle-major (reshape values to (n, m)), T computed once per obstacle."""
-    sizes = np.asarray(sizes_m, dtype=float).reshape(-1, 2)
+    """Every obstacle of ``sizes_m`` (n, k: the coefficients' variables [m]) at every normalised
+    time of ``s`` (m,): n * m points, obstacle-major (reshape values to (n, m)), T computed once
+    per obstacle."""
+    k = coefficients.variables.k
+    sizes = np.asarray(sizes_m, dtype=float).reshape(-1, k)
     s = np.asarray(s, dtype=float).ravel()
     per_obstacle = clearance_points(coefficients, np.column_stack([sizes, np.zeros(len(sizes))]))
     points = np.column_stack([np.repeat(sizes, s.size, axis=0), np.tile(s, len(sizes))])
@@ -176,26 +187,48 @@ def _theta(parameters: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return theta, d
 
 
+def _design(coefficients: Coefficients, values: np.ndarray) -> np.ndarray:
+    """The quadratic basis of the coefficients' variables at ``values`` (n, k) [m]; for (L, W)
+    :func:`design_matrix`."""
+    if coefficients.variables.is_size_only:
+        return design_matrix(values[:, 0], values[:, 1])
+    return coefficients.variables.design(values)
+
+
+def _centre_x(coefficients: Coefficients, values: np.ndarray) -> np.ndarray | None:
+    """The obstacle's centre x [m] per row of ``values`` (n, k), None where the coefficients do not vary it."""
+    variables = coefficients.variables
+    return values[:, variables.index("x")] if "x" in variables.names else None
+
+
+def _point_clearance(theta: np.ndarray, values: np.ndarray, coefficients: Coefficients) -> np.ndarray:
+    """Clearance [m] of ``theta`` (n, 2) against the obstacles at ``values`` (n, k)."""
+    return configuration_clearance(theta, values, coefficients, _centre_x(coefficients, values))
+
+
 def clearance_at(b: np.ndarray, data: ClearancePoints, coefficients: Coefficients) -> np.ndarray:
-    """Clearance [m] of the fit with coefficient matrix ``b`` (6 x 8, row-major) at the points."""
-    X = design_matrix(data.points[:, 0], data.points[:, 1])
-    theta, _ = _theta(X @ np.reshape(b, (6, 8)), data.points[:, 2] * data.duration_s)
-    return configuration_clearance(theta, data.points, coefficients)
+    """Clearance [m] of the fit with coefficient matrix ``b`` (basis size x 8, row-major) at the points."""
+    values = data.points[:, :-1]
+    X = _design(coefficients, values)
+    theta, _ = _theta(X @ np.reshape(b, (X.shape[1], 8)), data.points[:, -1] * data.duration_s)
+    return _point_clearance(theta, values, coefficients)
 
 
 def clearance_jacobian(b: np.ndarray, data: ClearancePoints, coefficients: Coefficients) -> np.ndarray:
-    """d :func:`clearance_at` / d b, (n, 48): central differences in theta, closed form beyond."""
-    X = design_matrix(data.points[:, 0], data.points[:, 1])
-    theta, d_theta = _theta(X @ np.reshape(b, (6, 8)), data.points[:, 2] * data.duration_s)
+    """d :func:`clearance_at` / d b, (n, 8 m): central differences in theta, closed form beyond."""
+    values = data.points[:, :-1]
+    X = _design(coefficients, values)
+    m = X.shape[1]
+    theta, d_theta = _theta(X @ np.reshape(b, (m, 8)), data.points[:, -1] * data.duration_s)
     grad = np.empty_like(theta)
     for j in (0, 1):
         step = np.zeros(2)
         step[j] = _FD_STEP_RAD
-        up = configuration_clearance(theta + step, data.points, coefficients)
-        down = configuration_clearance(theta - step, data.points, coefficients)
+        up = _point_clearance(theta + step, values, coefficients)
+        down = _point_clearance(theta - step, values, coefficients)
         grad[:, j] = (up - down) / (2 * _FD_STEP_RAD)
     d_p = (grad[:, :, None] * d_theta).reshape(len(theta), 8)  # joint-major = PARAMETER_NAMES order
-    return np.einsum("np,nk->nkp", d_p, X).reshape(len(theta), 48)
+    return np.einsum("np,nk->nkp", d_p, X).reshape(len(theta), 8 * m)
 
 
 def worst_points(
@@ -205,13 +238,13 @@ def worst_points(
     feasible_slack_m: float = _DEFAULT_FEASIBLE_SLACK_M,
     tolerance_m: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Clearance points (L, W, s) of the leaves that miss the margin without being infeasible
+    """Clearance points (v, s) of the leaves that miss the margin without being infeasible
     and whose end poses leave room for it (:func:`end_pose_room_m` at ``tolerance_m``, default
     the map's endpoint tolerance, at least margin + ``feasible_slack_m`` at the leaf's centre;
-    at most ``limit``, spread evenly over those leaves in (L, W) order: the lowest ``limit``
-    crowd into one corner and leave the rest of the strip to later rounds), and the centres
-    (L, W) of leaves whose endpoint bound exceeds the tolerance, largest bound first (at most
-    ``limit``)."""
+    at most ``limit``, spread evenly over those leaves in lexicographic order of their centres:
+    the lowest ``limit`` crowd into one corner and leave the rest of the strip to later rounds),
+    and the centres v of leaves whose endpoint bound exceeds the tolerance, largest bound first
+    (at most ``limit``); v the coefficients' variables."""
     centres = region_map.leaf_centres_m()
     failing = np.flatnonzero(
         (region_map.status == STATUSES.index("collision_free")) | (region_map.status == STATUSES.index("undecided"))
@@ -219,19 +252,20 @@ def worst_points(
     # Leaves whose end poses cannot keep the margin (sampled) are left out: the constraint
     # would be infeasible there.
     tolerance = region_map.endpoint_tolerance_m if tolerance_m is None else tolerance_m
-    room = end_pose_room_m(coefficients, centres[failing, 0], centres[failing, 1], tolerance)
+    x = _centre_x(coefficients, centres[failing])
+    room = end_pose_room_m(coefficients, centres[failing, 0], centres[failing, 1], tolerance, x)
     failing = failing[room >= region_map.margin_m + feasible_slack_m]
-    order = np.lexsort((centres[failing, 1], centres[failing, 0]))
+    order = np.lexsort(centres[failing].T[::-1])
     chosen = failing[order[np.unique(np.linspace(0, order.size - 1, min(limit, order.size)).round().astype(np.int64))]]
     s = np.linspace(0.0, 1.0, _SAMPLES_S)
     data = clearance_points(coefficients, np.column_stack([centres[chosen], np.zeros(len(chosen))]))
-    params = design_matrix(centres[chosen, 0], centres[chosen, 1]) @ _matrix(coefficients)  # (n, 8)
+    params = _design(coefficients, centres[chosen]) @ _matrix(coefficients)  # (n, 8)
     where = np.empty(len(chosen), dtype=np.int64)
     for chunk in range(0, len(chosen), _CHUNK_LEAVES):  # vectorised over leaves x samples
         rows = slice(chunk, chunk + _CHUNK_LEAVES)
         count = params[rows].shape[0]
         theta, _ = _theta(np.repeat(params[rows], _SAMPLES_S, 0), (data.duration_s[rows, None] * s).ravel())
-        clearance = configuration_clearance(theta, np.repeat(data.points[rows], _SAMPLES_S, 0), coefficients)
+        clearance = _point_clearance(theta, np.repeat(centres[chosen][rows], _SAMPLES_S, 0), coefficients)
         where[rows] = np.argmin(clearance.reshape(count, _SAMPLES_S), axis=1)
     worst = np.column_stack([centres[chosen], s[where]])
     loose = np.flatnonzero(region_map.endpoint_bound_m > region_map.endpoint_tolerance_m)
@@ -240,18 +274,14 @@ def worst_points(
 
 
 def _merge_targets(grid: EndpointTargets, extra: EndpointTargets | None) -> EndpointTargets:
-    if extra is None:
-        return grid
-    return EndpointTargets(
-        *(np.concatenate([getattr(grid, f), getattr(extra, f)]) for f in ("lengths_m", "widths_m", "start_m")),
-        np.concatenate([grid.end_m, extra.end_m]),
-        np.concatenate([grid.duration_s, extra.duration_s]),
-        grid.link_lengths_m,
-    )
+    return grid if extra is None else merge_targets(grid, extra)
 
 
 def _targets_at(coefficients: Coefficients, centres: np.ndarray) -> EndpointTargets:
+    """P1, P5 and T at ``centres`` (n, k) of the coefficients' variables."""
     scene = coefficients.scene
+    if not coefficients.variables.is_size_only:
+        return targets_at(centres, coefficients.variables, scene, coefficients.link_lengths_m)
     paths = [desired_path(Obstacle.in_scene(L, W, scene), scene) for L, W in centres]
     return EndpointTargets(
         centres[:, 0].copy(),
@@ -297,15 +327,14 @@ def _solve_refit(
         jac=True,
         method="SLSQP",
         constraints=constraints,
-        options={"maxiter": config.endpoint.max_iterations, "ftol": 1e-12},
+        options={"maxiter": config.endpoint.max_iterations, "ftol": config.endpoint.ftol},
     )
     return result.x, bool(result.success)
 
 
 def refit(
     start: Coefficients,
-    length_m: np.ndarray,
-    width_m: np.ndarray,
+    points: np.ndarray,
     values: Mapping[str, np.ndarray],
     targets: EndpointTargets,
     clearance: ClearancePoints,
@@ -314,13 +343,15 @@ def refit(
 ) -> tuple[Coefficients, bool]:
     """One refit from ``start`` (module docstring, step 3): clearance >= margin + cushion at the
     points, or, if SLSQP cannot meet that (the cushion can be out of the family's reach where the
-    margin barely is), >= the margin itself. Returns the coefficients and convergence."""
-    X_data = design_matrix(length_m, width_m)
-    X_grid = design_matrix(targets.lengths_m, targets.widths_m)
+    margin barely is), >= the margin itself. ``points``: the DOE's runs (n, k) of the
+    coefficients' variables [m]. Returns the coefficients and convergence."""
+    X_data = _design(start, np.asarray(points, dtype=float))
+    X_grid = targets.design()
+    m = X_data.shape[1]
     Y = np.stack([np.asarray(values[name], dtype=float) for name in PARAMETER_NAMES], -1)
 
     def objective(b: np.ndarray) -> tuple[float, np.ndarray]:
-        residual = X_data @ b.reshape(6, 8) - Y
+        residual = X_data @ b.reshape(m, 8) - Y
         return float(np.sum(residual * residual)), (2.0 * X_data.T @ residual).ravel()
 
     b0 = np.stack([start.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
@@ -328,7 +359,7 @@ def refit(
         x, converged = _solve_refit(objective, b0, X_grid, targets, clearance, start, margin_m + cushion_m, config)
         if converged:
             break
-    B = x.reshape(6, 8)
+    B = x.reshape(m, 8)
     parameters = {name: tuple(float(v) for v in B[:, i]) for i, name in enumerate(PARAMETER_NAMES)}
     return replace(start, parameters=parameters, source_sha256=""), converged
 
@@ -342,8 +373,7 @@ def _prefixed(progress: ProgressCallback | None, prefix: str) -> ProgressCallbac
 
 def fit_certifiable(
     coefficients: Coefficients,
-    length_m: np.ndarray,
-    width_m: np.ndarray,
+    points: np.ndarray,
     values: Mapping[str, np.ndarray],
     config: CertifiableFitConfig | None = None,
     progress: ProgressCallback | None = None,
@@ -352,7 +382,7 @@ def fit_certifiable(
 
     Args:
         coefficients: The starting fit (paper family).
-        length_m, width_m: The DOE's obstacle sizes [m], (n,).
+        points: The DOE's runs, (n, k): the coefficients' variables [m] ((L, W), or (L, W, x)).
         values: The DOE optima per parameter (canonical form), name -> (n,).
         config: Settings; default :class:`CertifiableFitConfig`.
         progress: Gets each round's certificate stages, prefixed "round k: ", and its refit.
@@ -370,10 +400,14 @@ def fit_certifiable(
         raise InvalidParameterError("family", coefficients.family.name, "a family regressing all 8 parameters")
     margin = coefficients.scene.margin_m if config.certificate.margin_m is None else config.certificate.margin_m
     grid = endpoint_targets(
-        coefficients.fitted_range_m, coefficients.scene, coefficients.link_lengths_m, config.endpoint.grid_points
+        coefficients.fitted_range_m,
+        coefficients.scene,
+        coefficients.link_lengths_m,
+        config.endpoint.grid_points,
+        coefficients.variables,
     )
     extra_targets: EndpointTargets | None = None
-    collected = np.empty((0, 3))
+    collected = np.empty((0, coefficients.variables.k + 1))
     current = coefficients
     rounds = []
     final = config.final_certificate or config.certificate
@@ -408,9 +442,14 @@ def fit_certifiable(
             extra_targets = more if extra_targets is None else _merge_targets(extra_targets, more)
         targets = _merge_targets(grid, extra_targets)
         candidate, converged = refit(
-            current, length_m, width_m, values, targets, clearance_points(current, collected), margin, config
+            current, points, values, targets, clearance_points(current, collected), margin, config
         )
-        room = None if converged else end_pose_room_m(current, *collected[:, :2].T, config.endpoint.fit_tolerance_m)
+        room = None
+        if not converged:
+            held = collected[:, :-1]
+            room = end_pose_room_m(
+                current, held[:, 0], held[:, 1], config.endpoint.fit_tolerance_m, _centre_x(current, held)
+            )
         for slack in RETRY_SLACKS_M:  # the points with least room are the hardest to hold: retry without them
             if converged:
                 break
@@ -419,7 +458,7 @@ def fit_certifiable(
                 continue
             collected, room = collected[roomy], room[roomy]
             candidate, converged = refit(
-                current, length_m, width_m, values, targets, clearance_points(current, collected), margin, config
+                current, points, values, targets, clearance_points(current, collected), margin, config
             )
             rounds[-1]["retried_without_points_below_m"] = slack
         rounds[-1]["refit_converged"] = converged
@@ -429,7 +468,7 @@ def fit_certifiable(
         current = candidate
         rounds[-1]["refit_seconds"] = time.perf_counter() - start - region_map.seconds
         rounds[-1]["grid_endpoint_error_max_m"] = float(
-            endpoint_errors_m(design_matrix(targets.lengths_m, targets.widths_m) @ _matrix(current), targets).max()
+            endpoint_errors_m(targets.design() @ _matrix(current), targets).max()
         )
     return current, region_map, {"rounds": rounds}
 
@@ -449,7 +488,7 @@ def _fit_block(coefficients: Coefficients, doe: DoeData, report: dict, seconds_f
     """The coefficients file's ``fit`` block after the clearance refit: R^2 and residuals of the
     final coefficients, and the rounds (without their times, so that the file is reproducible)."""
     values = doe.free_parameters()
-    fitted = design_matrix(doe.lengths_m, doe.widths_m) @ _matrix(coefficients)
+    fitted = _design(coefficients, doe.points) @ _matrix(coefficients)
     r_squared, max_residual = {}, {}
     for i, name in enumerate(PARAMETER_NAMES):
         residual = np.asarray(values[name], dtype=float) - fitted[:, i]
@@ -488,9 +527,7 @@ def refit_for_clearance(
         InvalidParameterError: the family is not the paper's.
         DataFileError: the text does not read back with the certified parameters.
     """
-    fitted, region_map, report = fit_certifiable(
-        start, doe.lengths_m, doe.widths_m, doe.free_parameters(), config, progress
-    )
+    fitted, region_map, report = fit_certifiable(start, doe.points, doe.free_parameters(), config, progress)
     timeless = [{k: v for k, v in r.items() if not k.endswith("_seconds")} for r in report["rounds"]]
     fitted = replace(fitted, extra={**fitted.extra, "fit": _fit_block(fitted, doe, report, timeless)})
     text = dumps(fitted.to_json())

@@ -24,43 +24,60 @@ _CHUNK_OBSTACLES = 256
 __all__ = ["ROOM_ANGLES", "ROOM_RINGS", "configuration_clearance", "end_pose_room_m"]
 
 
-def configuration_clearance(theta: np.ndarray, sizes_m: np.ndarray, arm) -> np.ndarray:
+def configuration_clearance(
+    theta: np.ndarray, sizes_m: np.ndarray, arm, centre_x_m: np.ndarray | None = None
+) -> np.ndarray:
     """Analytic clearance [m] (both links) of configurations ``theta`` (n, 2) [rad] against the
-    obstacles ``sizes_m`` (n, >= 2: L, W [m]) of ``arm``'s scene; ``arm`` is anything with
-    ``scene``, ``link_lengths_m`` and ``link_radii_m`` (coefficients, a range model)."""
+    obstacles ``sizes_m`` (n, >= 2: L, W [m]) of ``arm``'s scene, centred at ``centre_x_m`` (n,)
+    [m] (None: the scene's centre x); ``arm`` is anything with ``scene``, ``link_lengths_m`` and
+    ``link_radii_m`` (coefficients, a range model)."""
     scene = arm.scene
     r = scene.corner_radius_m
-    center = np.stack([np.zeros(len(sizes_m)), scene.top_y_m - sizes_m[:, 1] / 2], -1)
+    centre_x = np.full(len(sizes_m), float(scene.centre_x_m)) if centre_x_m is None else centre_x_m
+    center = np.stack([centre_x, scene.top_y_m - sizes_m[:, 1] / 2], -1)
     half = np.stack([sizes_m[:, 0] / 2 - r, sizes_m[:, 1] / 2 - r], -1)
     links = link_box_clearance(theta, arm.link_lengths_m, arm.link_radii_m, center, half, r)
     return np.minimum(links[:, 0], links[:, 1])
 
 
-def end_pose_room_m(arm, length_m: np.ndarray, width_m: np.ndarray, tolerance_m: float) -> np.ndarray:
-    """Sampled room at the ends [m], (n,): for each obstacle, the smaller over P1 and P5 of the
+def end_pose_room_m(
+    arm, length_m: np.ndarray, width_m: np.ndarray, tolerance_m: float, centre_x_m: np.ndarray | None = None
+) -> np.ndarray:
+    """Sampled room at the ends [m], (n,): for each obstacle (centred at ``centre_x_m`` (n,) [m],
+    None: the scene's centre x; P1 and P5 move with it), the smaller over P1 and P5 of the
     largest clearance of a pose on the family's elbow branch whose tip lies within
     ``tolerance_m`` of that end point (tips on :data:`ROOM_RINGS` circles of radii up to the
     tolerance, :data:`ROOM_ANGLES` angles each; analytic distance). ``arm``: anything with
     ``scene``, ``link_lengths_m``, ``link_radii_m`` and ``elbow`` (coefficients, a range model)."""
     lengths = np.asarray(length_m, dtype=float).ravel()
     widths = np.asarray(width_m, dtype=float).ravel()
+    scene = arm.scene
+    if centre_x_m is None:
+        centres = np.full(lengths.size, float(scene.centre_x_m))
+    else:
+        centres = np.broadcast_to(np.asarray(centre_x_m, dtype=float).ravel(), lengths.shape)
     if lengths.size > _CHUNK_OBSTACLES:  # every obstacle's room is computed on its own: chunks change nothing
         return np.concatenate(
             [
-                end_pose_room_m(arm, lengths[k : k + _CHUNK_OBSTACLES], widths[k : k + _CHUNK_OBSTACLES], tolerance_m)
+                end_pose_room_m(
+                    arm,
+                    lengths[k : k + _CHUNK_OBSTACLES],
+                    widths[k : k + _CHUNK_OBSTACLES],
+                    tolerance_m,
+                    centres[k : k + _CHUNK_OBSTACLES],
+                )
                 for k in range(0, lengths.size, _CHUNK_OBSTACLES)
             ]
         )
-    scene = arm.scene
     angle = np.linspace(0.0, 2.0 * np.pi, ROOM_ANGLES, endpoint=False)
     radius = np.linspace(0.0, tolerance_m, ROOM_RINGS)
     offsets = np.stack([np.outer(radius, np.cos(angle)).ravel(), np.outer(radius, np.sin(angle)).ravel()], -1)
     room = np.full(lengths.size, np.inf)
     sizes = np.repeat(np.column_stack([lengths, widths]), offsets.shape[0], axis=0)  # the obstacle of each tip
     for side in (1.0, -1.0):
-        ends = np.stack([side * (lengths / 2 + scene.start_dx_m), np.full(lengths.size, scene.y1_m)], -1)
+        ends = np.stack([centres + side * (lengths / 2 + scene.start_dx_m), np.full(lengths.size, scene.y1_m)], -1)
         tips = (ends[:, None, :] + offsets[None]).reshape(-1, 2)
         theta = inverse_kinematics_batch(tips, arm.link_lengths_m, arm.elbow)
-        clearance = configuration_clearance(theta, sizes, arm)
+        clearance = configuration_clearance(theta, sizes, arm, np.repeat(centres, offsets.shape[0]))
         room = np.minimum(room, clearance.reshape(lengths.size, offsets.shape[0]).max(axis=1, initial=-np.inf))
     return room

@@ -59,7 +59,8 @@ def test_build_config_takes_factors_and_design_classes() -> None:
     assert len(config.design().points()) == 13
     assert len(BuildConfig(vary=config.vary, design_kind=CentralComposite).design().points()) == 15
     assert len(BuildConfig(vary=config.vary).design().points()) == 27
-    assert not config.certifiable_refit
+    assert config.certifiable_refit  # the range certificate covers x
+    assert not BuildConfig(vary=(("d", 0.55, 0.57),)).certifiable_refit
     with pytest.raises(InvalidParameterError, match="--design"):
         BuildConfig(design_kind="latin-square")
     with pytest.raises(PipelineError, match="a range the arm reaches"):

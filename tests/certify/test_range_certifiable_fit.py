@@ -77,7 +77,7 @@ def test_refit_lifts_the_clearance_at_its_points(eq9: Coefficients) -> None:
     assert np.min(before) < 0.0105
     config = CertifiableFitConfig(endpoint=EndpointConstraint(tolerance_m=0.02, grid_points=3, max_iterations=100))
     targets = endpoint_targets(eq9.fitted_range_m, eq9.scene, eq9.link_lengths_m, 3)
-    fitted, _ = refit(eq9, doe.lengths_m, doe.widths_m, doe.free_parameters(), targets, data, 0.0105, config)
+    fitted, _ = refit(eq9, doe.points, doe.free_parameters(), targets, data, 0.0105, config)
     after = clearance_at(_matrix(fitted), data, fitted)
     assert np.min(after) >= 0.0105 + config.cushion_m - 1e-6
 
@@ -184,9 +184,9 @@ def test_a_refit_that_fails_is_retried_without_the_tightest_points(monkeypatch) 
     calls = []
     real = module.refit
 
-    def failing_first(start, length_m, width_m, values, targets, clearance, margin_m, config):
+    def failing_first(start, points, values, targets, clearance, margin_m, config):
         calls.append(clearance.points.copy())
-        result, converged = real(start, length_m, width_m, values, targets, clearance, margin_m, config)
+        result, converged = real(start, points, values, targets, clearance, margin_m, config)
         return result, converged and len(calls) > 1
 
     monkeypatch.setattr(module, "refit", failing_first)
@@ -194,7 +194,7 @@ def test_a_refit_that_fails_is_retried_without_the_tightest_points(monkeypatch) 
         min_cell=1 / 64, boundary_cell=1 / 16, strip_split=0
     )  # strips: tests/certify/test_strip_split.py
     config = CertifiableFitConfig(certificate=certificate, max_rounds=1)
-    _, _, report = module.fit_certifiable(fitted, doe.lengths_m, doe.widths_m, doe.free_parameters(), config)
+    _, _, report = module.fit_certifiable(fitted, doe.points, doe.free_parameters(), config)
     first = report["rounds"][0]
     assert len(calls) >= 2 and first["refit_converged"]
     slack = first["retried_without_points_below_m"]
