@@ -7,8 +7,9 @@ Round k:
    with ``final_certificate``, whose cells may be finer);
 2. for every leaf that misses the margin without being proven infeasible (status
    ``collision_free`` or ``undecided``), take its worst point: the variables' values v at its
-   centre ((L, W), or (L, W, x) with the obstacle's centre x) and the s in [0, 1] where the clearance along that motion is lowest (dense sampling); for every
-   leaf whose endpoint bound exceeds the tolerance, take its centre as an endpoint target;
+   centre ((L, W), or (L, W, x) with the obstacle's centre x) and the s in [0, 1] where the
+   clearance along that motion is lowest (dense sampling); for every leaf whose endpoint bound
+   exceeds the tolerance, take its centre as an endpoint target;
 3. refit the same quadratic model by SLSQP from the current fit: minimise the squared distance
    to the DOE optima subject to the endpoint errors <= the endpoint constraint's fit tolerance
    (tolerance (1 - headroom), as the build's regression) on its grid plus the new endpoint
