@@ -298,7 +298,8 @@ def print_report(result: BuildResult, out: TextIO) -> None:
     """Our Table 2 and Eq. 9 beside the paper's, the regression method and the timing."""
     coefficients, timing = result.coefficients, result.timing
     print("Table 2 (ours, with the paper's row below where the design matches it):", file=out)
-    print(report.table2(result.doe_document["experiments"], result.paper_rows), file=out)
+    extra_names = coefficients.variables.extra
+    print(report.table2(result.doe_document["experiments"], result.paper_rows, extra_names), file=out)
     same_basis = coefficients.family == PAPER and coefficients.variables.is_size_only
     paper_eq9 = read_coefficients(PAPER_SOURCE).parameters if same_basis else None
     print("\nEq. 9 (ours, paper below):", file=out)

@@ -10,15 +10,18 @@ from pipeline.motion.trajectory import PARAMETER_NAMES
 from pipeline.offline.regression import BASIS
 
 
-def table2(rows: Sequence[Mapping], paper_rows: Sequence[Mapping] | None) -> str:
-    """Our Table 2 (one line per experiment), with the paper's row below each when given."""
+def table2(rows: Sequence[Mapping], paper_rows: Sequence[Mapping] | None, extra_names: Sequence[str] = ()) -> str:
+    """Our Table 2 (one line per experiment), with the paper's row below each when given;
+    ``extra_names``: the DOE's variables beyond L and W (e.g. ("x",)), a column each [m]."""
     header = f"{'Test':>4} {'src':>5} " + " ".join(f"{n:>7}" for n in PARAMETER_NAMES) + f" {'L':>5} {'W':>5}"
+    header += "".join(f" {name:>6}" for name in extra_names)
     extra = f" {'fitness':>9} {'clear_mm':>8} {'end0_mm':>7} {'endT_mm':>7}"
     lines = [header + extra]
     for i, row in enumerate(rows):
         values = " ".join(f"{row['parameters'][n]:7.3f}" for n in PARAMETER_NAMES)
+        moved = "".join(f" {row[name]:6.3f}" for name in extra_names)
         lines.append(
-            f"{i + 1:>4} {'ours':>5} {values} {row['L']:5.3f} {row['W']:5.3f} {row['fitness']:9.3e} "
+            f"{i + 1:>4} {'ours':>5} {values} {row['L']:5.3f} {row['W']:5.3f}{moved} {row['fitness']:9.3e} "
             f"{row['clearance_m'] * 1e3:8.2f} {row['endpoint_error_start_m'] * 1e3:7.2f} "
             f"{row['endpoint_error_end_m'] * 1e3:7.2f}"
         )

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from pipeline.offline.report import equation9
+from pipeline.offline.report import equation9, table2
 from pipeline.offline.variables import Variables
 
 
@@ -27,3 +27,23 @@ def test_equation9_of_the_paper_basis_is_unchanged() -> None:
     assert header.split()[2:8] == ["1", "L", "W", "L^2", "L*W", "W^2"]
     assert mine.split()[-2:] == ["0.5000", "1.00e-03"]
     assert paper.split()[:3] == ["paper", "6", "5"]
+
+
+def test_table2_shows_each_runs_extra_variables() -> None:
+    """A DOE over (L, W, x) prints each run's x beside L and W; the (L, W) table has no such column."""
+    names = ("A1", "w1", "phi1", "gamma1", "A2", "w2", "phi2", "gamma2")
+    row = {
+        "parameters": dict.fromkeys(names, 0.5),
+        "L": 0.3,
+        "W": 0.12,
+        "x": -0.03,
+        "fitness": 0.05,
+        "clearance_m": 0.0119,
+        "endpoint_error_start_m": 0.0078,
+        "endpoint_error_end_m": 0.0051,
+    }
+    header, line = table2([row], None, ("x",)).splitlines()
+    assert header.split()[10:13] == ["L", "W", "x"]
+    assert line.split()[10:13] == ["0.300", "0.120", "-0.030"]
+    plain_header, plain = table2([row], None).splitlines()
+    assert plain_header.split()[10:13] == ["L", "W", "fitness"] and "-0.030" not in plain
