@@ -67,13 +67,18 @@ class Scene:
         check_positive("apex_dy_m", self.apex_dy_m)
         check_finite("centre_x_m", self.centre_x_m)
 
-    def with_checked(self, **values: float) -> Scene:
-        """This scene with ``values`` in place of the fields they name, without re-running the
-        checks: for callers that have checked them (the online generator's moved scene, whose
-        x and d are finite floats). Equal to ``dataclasses.replace(self, **values)``."""
+    def with_checked(self, centre_x_m: float | None = None, top_y_m: float | None = None) -> Scene:
+        """This scene with the obstacle's centre x and far edge y (d) [m] in place where given (not
+        None), without re-running the checks: for callers that have checked them (the online
+        generator's moved scene, whose x and d are finite floats). Equal to
+        ``dataclasses.replace(self, centre_x_m=..., top_y_m=...)`` with the values given."""
         scene = object.__new__(Scene)
-        scene.__dict__.update(self.__dict__)
-        scene.__dict__.update(values)
+        fields = scene.__dict__
+        fields.update(self.__dict__)
+        if centre_x_m is not None:
+            fields["centre_x_m"] = centre_x_m
+        if top_y_m is not None:
+            fields["top_y_m"] = top_y_m
         return scene
 
     @property

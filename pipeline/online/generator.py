@@ -35,6 +35,8 @@ import warnings
 import weakref
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from itertools import combinations_with_replacement, starmap
+from operator import le, mul
 from typing import NamedTuple
 
 import numpy as np
@@ -56,9 +58,11 @@ from pipeline.motion.families import EndpointContext, TrajectoryFamily
 from pipeline.motion.path import QuarticPath, desired_path, symmetric_quartic, symmetric_quartic_length_m
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
-from pipeline.offline.variables import VOCABULARY, Variables
+from pipeline.offline.variables import Variables
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
+#: The scene variables :func:`generate` takes by keyword, in the order of its arguments.
+_GIVEN: tuple[str, str] = ("x", "d")
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,20 +115,27 @@ class GeneratedTrajectory:
         bounds: tuple[float, float, str] | None = None,
         variables: tuple[tuple[str, float], ...] = (),
     ) -> GeneratedTrajectory:
-        """Build without the dataclass machinery, for :func:`generate`, which has checked everything."""
+        """Build without the dataclass machinery, for :func:`generate`, which has checked everything
+        (``bounds``: clearance bound [m], endpoint bound [m] and status of the map's leaf, or None)."""
+        if bounds is None:
+            clearance = endpoint = source = status = None
+        else:
+            (clearance, endpoint, status), source = bounds, RANGE_SOURCE
         answer = object.__new__(cls)
         answer.__dict__.update(
-            length_m=length_m,
-            width_m=width_m,
-            family=family,
-            scene=scene,
-            trajectory=trajectory,
-            extrapolated=extrapolated,
-            reach_m=reach_m,
-            certified_clearance_m=None if bounds is None else bounds[0],
-            endpoint_error_bound_m=None if bounds is None else bounds[1],
-            certificate_source=None if bounds is None else RANGE_SOURCE,
-            range_status=None if bounds is None else bounds[2],
+            {
+                "length_m": length_m,
+                "width_m": width_m,
+                "family": family,
+                "scene": scene,
+                "trajectory": trajectory,
+                "extrapolated": extrapolated,
+                "reach_m": reach_m,
+                "certified_clearance_m": clearance,
+                "endpoint_error_bound_m": endpoint,
+                "certificate_source": source,
+                "range_status": status,
+            }
         )
         if variables:  # else the class default, ()
             answer.__dict__["variables"] = variables
@@ -169,7 +180,7 @@ class QueryPlan(NamedTuple):
     matrix and the scene's numbers as plain floats (:func:`generate` and
     ``pipeline.online.batch.generate_batch`` read it through :func:`query_plan`)."""
 
-    matrix_t: np.ndarray  # (6, k): the regression, basis (1, L, W, L^2, LW, W^2) -> free parameters
+    matrix_t: np.ndarray  # (basis, k): the regression, basis (1, L, W, L^2, LW, W^2 over (L, W)) -> free parameters
     l_range: tuple[float, float]
     w_range: tuple[float, float]
     reach: tuple[float, float]
@@ -186,13 +197,16 @@ class QueryPlan(NamedTuple):
     variables: Variables
     extra: tuple[str, ...]  # the variables beyond L and W, () for the (L, W) route
     extra_ranges: tuple[tuple[float, float], ...]
-    fields: dict[str, str]  # extra variable -> the Scene field it sets
+    # What the route of coefficients over more variables (_generate_moved) reads:
+    given_types: tuple[type, type]  # type(x), type(d) of a query that gives exactly the variables, as floats
+    centre_x: float  # the scene's centre x [m], for coefficients that do not vary x
+    y1_is_top: bool  # y1 = d (the scene's start_y_m is None): a value of d moves P1 and P5 too
+    lows: tuple[float, ...]  # the fitted range of every variable (L, W, then ``extra``) [m]: lower ends
+    highs: tuple[float, ...]  # ... upper ends
 
 
-#: The plans of coefficients over (L, W) alone: :func:`generate` takes its (L, W) route on a hit.
+#: The plans of the coefficients queried so far, kept while they live.
 _PLANS: weakref.WeakKeyDictionary[Coefficients, QueryPlan] = weakref.WeakKeyDictionary()
-#: The plans of coefficients over more variables (module docstring).
-_VARYING_PLANS: weakref.WeakKeyDictionary[Coefficients, QueryPlan] = weakref.WeakKeyDictionary()
 
 
 class _Attached:
@@ -235,8 +249,7 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
     """
     if not isinstance(coefficients, Coefficients):
         raise _refuse_coefficients(coefficients)
-    plans = _PLANS if coefficients.variables.is_size_only else _VARYING_PLANS
-    plan = plans.get(coefficients)
+    plan = _PLANS.get(coefficients)
     if plan is None:
         scene = coefficients.scene
         names = coefficients.family.free_parameter_names
@@ -244,6 +257,8 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
         matrix = np.array([coefficients.parameters[name] for name in names], dtype=float)
         matrix.setflags(write=False)
         matrix = matrix.T
+        variables = coefficients.variables
+        ranges = [tuple(coefficients.fitted_range_m[name]) for name in variables.names]
         plan = QueryPlan(
             matrix_t=matrix,
             l_range=tuple(coefficients.fitted_range_m["L"]),
@@ -259,12 +274,16 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
             smallest=2.0 * float(scene.corner_radius_m),
             corner_radius=float(scene.corner_radius_m),
             height=float(scene.obstacle_height_m),
-            variables=coefficients.variables,
-            extra=coefficients.variables.extra,
-            extra_ranges=tuple(tuple(coefficients.fitted_range_m[name]) for name in coefficients.variables.extra),
-            fields={name: VOCABULARY[name][1] for name in coefficients.variables.extra},
+            variables=variables,
+            extra=variables.extra,
+            extra_ranges=tuple(tuple(coefficients.fitted_range_m[name]) for name in variables.extra),
+            given_types=tuple(float if name in variables.extra else type(None) for name in _GIVEN),
+            centre_x=float(scene.centre_x_m),
+            y1_is_top=scene.start_y_m is None,
+            lows=tuple(lo for lo, _ in ranges),
+            highs=tuple(hi for _, hi in ranges),
         )
-        plans[coefficients] = plan
+        _PLANS[coefficients] = plan
     return plan
 
 
@@ -351,12 +370,11 @@ def generate(
         plan = _PLANS.get(coefficients)
     except TypeError:  # not weak-referenceable: not a Coefficients
         raise _refuse_coefficients(coefficients) from None
-    if plan is None or x is not None or d is not None:  # a first query, or not the (L, W) route
+    if plan is None:  # a first query (or not a Coefficients: refused)
         plan = query_plan(coefficients)
-        if plan.extra or x is not None or d is not None:
-            region_map = _region_map_of(region_map, coefficients, out_of_range)
-            return _generate_moved(coefficients, plan, length_m, width_m, {"x": x, "d": d}, out_of_range, region_map)
     region_map = _region_map_of(region_map, coefficients, out_of_range)
+    if plan.extra or x is not None or d is not None:
+        return _generate_moved(coefficients, plan, length_m, width_m, x, d, out_of_range, region_map)
     L, W = length_m, width_m
     if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
         L = _size(length_m, (length_m, width_m), "L")
@@ -445,20 +463,12 @@ def _variable(value: object, name: str) -> float:
     return value
 
 
-def _extra_values(plan: QueryPlan, given: dict) -> dict[str, float]:
-    """The extra variables' values (finite floats), in the plan's order; a missing, unexpected or
-    non-numeric one is refused by :meth:`pipeline.offline.variables.Variables.take` and
-    :func:`_variable`, naming it."""
-    values = {}
-    for name in plan.extra:
-        value = given.get(name)
-        if type(value) is not float or not math.isfinite(value):
-            break
-        values[name] = value
-    else:
-        if all(value is None for name, value in given.items() if name not in values):
-            return values
-    return {name: _variable(value, name) for name, value in plan.variables.take(given).items()}
+def _extra_values(plan: QueryPlan, x: object, d: object) -> tuple[float | None, float | None]:
+    """The values of x and d [m] as finite floats where the coefficients vary them, else None; a
+    missing, unexpected or non-numeric one is refused by
+    :meth:`pipeline.offline.variables.Variables.take` and :func:`_variable`, naming it."""
+    values = {name: _variable(value, name) for name, value in plan.variables.take({"x": x, "d": d}).items()}
+    return values.get("x"), values.get("d")
 
 
 def _generate_moved(
@@ -466,40 +476,48 @@ def _generate_moved(
     plan: QueryPlan,
     length_m: float,
     width_m: float,
-    given: dict,
+    x: object,
+    d: object,
     out_of_range: str,
     region_map: RegionMap | None,
 ) -> GeneratedTrajectory:
     """:func:`generate` for coefficients over more variables than (L, W) (module docstring).
 
     The same steps as the (L, W) route, with the scene's fields replaced by the variables'
-    values, every constraint point shifted by the obstacle's centre x, and the bounds of a map
-    over the same variables looked up at (L, W and the variables' values).
+    values (the obstacle's centre x and far edge d [m]), every constraint point shifted by the
+    centre x, and the bounds of a map over the same variables looked up at (L, W and the
+    variables' values).
     """
-    values = _extra_values(plan, given)
+    if not (
+        (type(x), type(d)) == plan.given_types
+        and (x is None or -math.inf < x < math.inf)
+        and (d is None or -math.inf < d < math.inf)
+    ):  # not finite floats for exactly the coefficients' variables: converted, or refused
+        x, d = _extra_values(plan, x, d)
+    values = (x,) if d is None else (d,) if x is None else (x, d)  # in canonical order, as plan.extra
     L, W = length_m, width_m
     if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
         L = _size(length_m, (length_m, width_m), "L")
         W = _size(width_m, (length_m, width_m), "W")
-    scene = coefficients.scene.with_checked(**{plan.fields[name]: value for name, value in values.items()})
-    top, y1, c = float(scene.top_y_m), float(scene.y1_m), float(scene.centre_x_m)
+    scene = coefficients.scene.with_checked(centre_x_m=x, top_y_m=d)
+    c = plan.centre_x if x is None else x
+    top = plan.top if d is None else d
+    y1 = top if plan.y1_is_top else plan.y1
     bottom = _checked_bottom(plan, L, W, top)
     # P1..P5 as pipeline.motion.path.constraint_points: the x of the centred path plus c.
     x1, x2 = L / 2.0 + plan.start_dx, L / 2.0 + plan.approach_dx
     y2, y3 = bottom - plan.approach_dy, bottom - plan.apex_dy
     lo, hi = plan.reach
     hypot = math.hypot
-    radii = (hypot(x1 + c, y1), hypot(x2 + c, y2), abs(hypot(c, y3)), hypot(c - x2, y2), hypot(c - x1, y1))
-    if not (lo <= min(radii) and max(radii) <= hi):
-        k = next(k for k, r in enumerate(radii) if not lo <= r <= hi)
-        raise UnreachableObstacleError(f"P{k + 1}", radii[k], plan.reach, size_m=(L, W), variables=values)
-    (l_lo, l_hi), (w_lo, w_hi) = plan.l_range, plan.w_range
-    v = (L, W, *values.values())
-    extrapolated = not (l_lo <= L <= l_hi and w_lo <= W <= w_hi)
-    for value, (b_lo, b_hi) in zip(v[2:], plan.extra_ranges, strict=True):
-        extrapolated = extrapolated or not b_lo <= value <= b_hi
+    r1, r2, r3, r4, r5 = hypot(x1 + c, y1), hypot(x2 + c, y2), hypot(c, y3), hypot(c - x2, y2), hypot(c - x1, y1)
+    if not (lo <= r1 <= hi and lo <= r2 <= hi and lo <= r3 <= hi and lo <= r4 <= hi and lo <= r5 <= hi):
+        k, radius = next((k, r) for k, r in enumerate((r1, r2, r3, r4, r5)) if not lo <= r <= hi)
+        variables = dict(zip(plan.extra, values, strict=True))
+        raise UnreachableObstacleError(f"P{k + 1}", radius, plan.reach, size_m=(L, W), variables=variables)
+    v = (L, W, *values)
+    extrapolated = not (all(map(le, plan.lows, v)) and all(map(le, v, plan.highs)))  # lo <= value <= hi, each
     if extrapolated and out_of_range != "ignore":
-        extra = tuple((name, values[name], bounds) for name, bounds in zip(plan.extra, plan.extra_ranges, strict=True))
+        extra = tuple(zip(plan.extra, values, plan.extra_ranges, strict=True))
         _check_range(plan, L, W, out_of_range, extra)
     # T of the path at x = 0: the moved path is the same curve, moved rigidly.
     if x1 > x2 > 0.0:
@@ -509,12 +527,13 @@ def _generate_moved(
         centred = replace(scene, centre_x_m=0.0)
         duration = desired_path(Obstacle.in_scene(L, W, centred), centred).duration_s
     # The regression, as Coefficients.predict_free (pipeline.offline.regression.predict_points): same bits.
-    free = np.array([1.0, *v, *[v[i] * v[j] for i, j in plan.variables.pairs]]).dot(plan.matrix_t)
+    # Its basis: 1, v, then v_i v_j for i <= j in lexicographic order (Variables.pairs).
+    quadratic = starmap(mul, combinations_with_replacement(v, 2))
+    free = np.array([1.0, *v, *quadratic]).dot(plan.matrix_t)
     family = coefficients.family
-    size = v
     if family.uses_endpoint_context:
         start, end = (x1 + c, y1), (-x1 + c, y1)
-        full = _expand_with_endpoints(coefficients, free, start, end, duration, size, plan.variables.names)
+        full = _expand_with_endpoints(coefficients, free, start, end, duration, v, plan.variables.names)
     else:
         full = family.expand(free, None)
     parameters = tuple(full.tolist())
@@ -523,17 +542,9 @@ def _generate_moved(
     bounds = None
     if region_map is not None and not extrapolated and region_map.axes == plan.variables.names:
         bounds = region_map.bounds_at(*v)
-    return GeneratedTrajectory.trusted(
-        L,
-        W,
-        family,
-        scene,
-        JointTrajectory.trusted(parameters, duration),
-        extrapolated,
-        plan.reach,
-        bounds,
-        tuple(values.items()),
-    )
+    trajectory = JointTrajectory.trusted(parameters, duration)
+    variables = tuple(zip(plan.extra, values, strict=True))
+    return GeneratedTrajectory.trusted(L, W, family, scene, trajectory, extrapolated, plan.reach, bounds, variables)
 
 
 def generate_parameters(

@@ -24,7 +24,7 @@ from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.kinematics import inverse_kinematics
 from pipeline.motion.path import desired_path
 from pipeline.offline.coefficients import Coefficients
-from pipeline.offline.variables import Variables
+from pipeline.offline.variables import VOCABULARY, Variables
 from pipeline.online.batch import generate_batch
 from pipeline.online.generator import generate, generate_parameters
 from pipeline.online.repair import RepairConfig, generate_certified
@@ -245,3 +245,46 @@ def test_certify_batch_certifies_the_moved_obstacles(paper_x, arm) -> None:
         ).certified_clearance_m
         assert result.certified_clearance_m[i] == pytest.approx(moved, abs=1e-12)
         assert abs(moved - unmoved) > 1e-4
+
+
+@pytest.mark.parametrize("names", [("L", "W", "x"), ("L", "W", "d"), ("L", "W", "x", "d")])
+@pytest.mark.parametrize("start_y", [None, 0.5])
+def test_the_moved_route_answers_as_the_definitions_say(paper, names, start_y) -> None:
+    """Over any extra variables, with y1 = d or a fixed y1: the answer's scene is the
+    coefficients' scene with the values replaced (dataclasses.replace), its parameters the
+    regression at the values, T the centred path's, ``extrapolated`` the fitted box's verdict,
+    and NumPy numbers give the float's answer."""
+    variables = Variables(names)
+    position = {term: i for i, term in enumerate(variables.basis)}
+    keep = [position[term] for term in ("1", "L", "W", "L^2", "L*W", "W^2")]
+    rng = np.random.default_rng(3)
+    lifted = {}
+    for name, b in paper.parameters.items():
+        row = rng.normal(0.0, 0.02, variables.basis_size)
+        row[keep] = b
+        lifted[name] = tuple(row.tolist())
+    ranges = {"x": (-0.03, 0.03), "d": (0.54, 0.58)}
+    scene = replace(paper.scene, start_y_m=start_y)
+    coefficients = replace(
+        paper,
+        parameters=lifted,
+        fitted_range_m={**paper.fitted_range_m, **{name: ranges[name] for name in variables.extra}},
+        variables=variables,
+        scene=scene,
+        region_map=None,
+    )
+    fields = {name: VOCABULARY[name][1] for name in ("x", "d")}  # the Scene field each sets
+    for L, W, x, d in [(0.25, 0.1, 0.02, 0.57), (0.21, 0.085, -0.03, 0.54), (0.29, 0.121, 0.031, 0.575)]:
+        given = {name: value for name, value in (("x", x), ("d", d)) if name in variables.extra}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", OutOfFittedRangeWarning)
+            answer = generate(coefficients, L, W, **given)
+            numpy = generate(coefficients, np.float64(L), W, **{name: np.float64(v) for name, v in given.items()})
+        assert repr(numpy) == repr(answer) and numpy.variables == answer.variables
+        moved = replace(scene, **{fields[name]: value for name, value in given.items()})
+        assert answer.scene == moved and repr(answer.scene) == repr(moved)
+        assert answer.variables == tuple(given.items())
+        assert answer.trajectory.parameters == tuple(coefficients.predict_free(L, W, **given).tolist())
+        centred = generate(replace(paper, scene=replace(moved, centre_x_m=0.0)), L, W, out_of_range="ignore")
+        assert answer.duration_s == centred.duration_s
+        assert answer.extrapolated == (not coefficients.in_range(L, W, **given))
