@@ -298,7 +298,11 @@ def _size(value: object, size: tuple[object, object], name: str) -> float:
     return value
 
 
-def _check_range(plan: QueryPlan, length_m: float, width_m: float, policy: str, extra: tuple = ()) -> bool:
+def _check_range(
+    plan: QueryPlan, length_m: float, width_m: float, policy: str, extra: tuple = (), stacklevel: int = 3
+) -> bool:
+    """True if a value lies outside its fitted range; raises or warns (attributed ``stacklevel``
+    frames up: :func:`generate`'s caller) as ``policy`` says."""
     outside = False
     checks = (("L", length_m, plan.l_range), ("W", width_m, plan.w_range), *extra)
     for name, value, (lo, hi) in checks:
@@ -307,7 +311,8 @@ def _check_range(plan: QueryPlan, length_m: float, width_m: float, policy: str, 
             if policy == "error":
                 raise OutOfFittedRangeError(name, value, (lo, hi))
             if policy == "warn":
-                warnings.warn(str(OutOfFittedRangeError(name, value, (lo, hi))), OutOfFittedRangeWarning, stacklevel=3)
+                message = str(OutOfFittedRangeError(name, value, (lo, hi)))
+                warnings.warn(message, OutOfFittedRangeWarning, stacklevel=stacklevel)
     return outside
 
 
@@ -518,7 +523,7 @@ def _generate_moved(
     extrapolated = not (all(map(le, plan.lows, v)) and all(map(le, v, plan.highs)))  # lo <= value <= hi, each
     if extrapolated and out_of_range != "ignore":
         extra = tuple(zip(plan.extra, values, plan.extra_ranges, strict=True))
-        _check_range(plan, L, W, out_of_range, extra)
+        _check_range(plan, L, W, out_of_range, extra, stacklevel=4)  # one frame deeper than generate's own
     # T of the path at x = 0: the moved path is the same curve, moved rigidly.
     if x1 > x2 > 0.0:
         c4, c2, _ = symmetric_quartic(x1, y1, x2, y2, y3)

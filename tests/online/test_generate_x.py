@@ -288,3 +288,13 @@ def test_the_moved_route_answers_as_the_definitions_say(paper, names, start_y) -
         centred = generate(replace(paper, scene=replace(moved, centre_x_m=0.0)), L, W, out_of_range="ignore")
         assert answer.duration_s == centred.duration_s
         assert answer.extrapolated == (not coefficients.in_range(L, W, **given))
+
+
+def test_out_of_range_warnings_point_at_the_caller_on_both_routes(paper, paper_x) -> None:
+    """An extrapolated query warns from the line that called generate, over (L, W) and (L, W, x)."""
+    with pytest.warns(OutOfFittedRangeWarning) as flat:
+        generate(paper, 0.35, 0.1)
+    with pytest.warns(OutOfFittedRangeWarning) as moved:
+        generate(paper_x, 0.25, 0.1, x=0.05)
+    assert [w.filename for w in flat] == [__file__]
+    assert [w.filename for w in moved] == [__file__]
