@@ -393,23 +393,22 @@ class RegionMap:
         if self.extra_index is None or len(values) != len(self.axes):
             self._extra_values(values[2:])  # raises
         ranges, n, shift, coarse, lookup, children, width = self._kd_plan
-        cells = []
         key = 0
-        for value, (lo, hi) in zip(values, ranges, strict=True):
+        for value, (lo, hi) in zip(values, ranges, strict=False):  # lengths checked above
             if not lo <= value <= hi:
                 return None
             t = int((value - lo) / (hi - lo) * n)
-            if t >= n:
-                t = n - 1
-            cells.append(t)
-            key = (key << coarse) | (t >> shift)
+            key = (key << coarse) | ((t if t < n else n - 1) >> shift)
         leaf = lookup[key]
-        while leaf < 0:
-            shift -= 1
-            slot = 0
-            for t in cells:
-                slot = (slot << 1) | ((t >> shift) & 1)
-            leaf = children[(-leaf - 1) * width + slot]
+        if leaf < 0:  # below the coarse index: the deepest cells again, one level at a time
+            pairs = zip(values, ranges, strict=True)
+            cells = [min(int((value - lo) / (hi - lo) * n), n - 1) for value, (lo, hi) in pairs]
+            while leaf < 0:
+                shift -= 1
+                slot = 0
+                for t in cells:
+                    slot = (slot << 1) | ((t >> shift) & 1)
+                leaf = children[(-leaf - 1) * width + slot]
         return leaf
 
     def _leaf_indices_kd(self, length_m, width_m, extra: tuple) -> np.ndarray:
