@@ -138,3 +138,53 @@ def _coefficients_over_x(
         source_sha256="",
         region_map=None,
     )
+
+
+@pytest.fixture(scope="session")
+def over_xd():
+    """The function lifting (L, W) coefficients to (L, W, x, d) (:func:`_coefficients_over_xd`)."""
+    return _coefficients_over_xd
+
+
+def _coefficients_over_xd(
+    coefficients,
+    x_range_m: tuple[float, float] = (-0.03, 0.03),
+    d_range_m: tuple[float, float] = (0.55, 0.57),
+    seed: int = 1,
+    scale: float = 0.1,
+    d_scale: float = 1.0,
+):
+    """``coefficients`` (over (L, W)) lifted to (L, W, x, d): at d = d0 (the scene's ``top_y_m``)
+    the parameters are those of ``_coefficients_over_x(coefficients, x_range_m, seed, scale)``, and
+    each parameter gains random terms u, L u, W u, x u, u^2 in u = d - d0 of size ``d_scale``,
+    written out in the (L, W, x, d) basis (zero: the same trajectories for every d, moved obstacle
+    and end points aside)."""
+    from dataclasses import replace
+
+    from pipeline.offline.variables import Variables
+
+    lwx = _coefficients_over_x(coefficients, x_range_m, seed, scale)
+    basis = Variables(("L", "W", "x", "d")).basis
+    position = {term: i for i, term in enumerate(basis)}
+    d0 = float(coefficients.scene.top_y_m)
+    rng = np.random.default_rng(seed + 1000)
+    parameters = {}
+    for name, b in lwx.parameters.items():
+        lifted = np.zeros(len(basis))
+        for term, value in zip(lwx.variables.basis, b, strict=True):
+            lifted[position[term]] = value
+        c_u, c_lu, c_wu, c_xu, c_uu = rng.normal(0.0, d_scale, 5)
+        # c_u u + c_Lu L u + c_Wu W u + c_xu x u + c_uu u^2 with u = d - d0, expanded.
+        lifted[position["1"]] += -c_u * d0 + c_uu * d0 * d0
+        lifted[position["d"]] += c_u - 2.0 * c_uu * d0
+        lifted[position["d^2"]] += c_uu
+        for variable, c in (("L", c_lu), ("W", c_wu), ("x", c_xu)):
+            lifted[position[f"{variable}*d"]] += c
+            lifted[position[variable]] += -c * d0
+        parameters[name] = tuple(float(v) for v in lifted)
+    return replace(
+        lwx,
+        parameters=parameters,
+        fitted_range_m={**lwx.fitted_range_m, "d": tuple(d_range_m)},
+        variables=Variables(("L", "W", "x", "d")),
+    )

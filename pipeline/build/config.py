@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS
-from pipeline.certify.range_model import CERTIFIABLE_AXES
+from pipeline.certify.range_model import axes_refusal
 from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool, check_scheduler_address
 from pipeline.model.arm import DEFAULT_URDF
@@ -85,6 +85,10 @@ _SUB_NAMES = {
 VARY_NAMES: tuple[str, ...] = tuple(name for name in NAMES if name not in SIZE)
 # Other spellings of the variables -> the name (the scene fields they set, other cases).
 _ALIASES = {"X": "x", "D": "d", "centre_x_m": "x", "center_x_m": "x", "top_y_m": "d"}
+#: The variables the certifiable regression's rounds take: its constraint points move the obstacle
+#: by x only (``pipeline.certify.certifiable_regression``), so a build over d certifies its
+#: coefficients as regressed.
+_REFIT_VARIABLES = ("L", "W", "x")
 
 
 def _renamed(exc: InvalidParameterError, option: str) -> InvalidParameterError:
@@ -108,7 +112,8 @@ class BuildConfig:
             the obstacle's centre x, or d, its far edge y), as
             :class:`pipeline.offline.designs.Factor` objects or (name, min, max) [m]; () for the
             paper's (L, W). With any, the coefficients vary them too; the range certificate
-            covers (L, W, x) (with d, the build writes no region map).
+            covers them (d only with y1 = d, ``start_y_m`` None; otherwise the build writes no
+            region map), the certifiable regression's rounds only (L, W, x).
         design_kind: The design: a :class:`pipeline.offline.designs.ScaledDesign` subclass
             (:class:`~pipeline.offline.designs.FullFactorial`, the default,
             :class:`~pipeline.offline.designs.BoxBehnken`,
@@ -277,16 +282,19 @@ class BuildConfig:
 
     @property
     def certifiable_axes(self) -> bool:
-        """True if the range certificate covers the coefficients' variables (L, W and x)."""
-        return all(name in CERTIFIABLE_AXES for name in self.variables.names)
+        """True if the range certificate covers the coefficients' variables in the build's scene
+        (:func:`pipeline.certify.range_model.axes_refusal`: L, W, x and d, d only with y1 = d)."""
+        return axes_refusal(self.variables, self.scene) is None
 
     @property
     def certifiable_refit(self) -> bool:
         """True if the build runs the certifiable regression's rounds before the map (a range
-        map over certifiable axes, rounds > 0, the endpoint constraint, the paper family)."""
+        map over certifiable axes among L, W and x, rounds > 0, the endpoint constraint, the paper
+        family)."""
         return bool(
             self.range_map
             and self.certifiable_axes
+            and all(name in _REFIT_VARIABLES for name in self.variables.names)
             and self.clearance_rounds > 0
             and self.endpoint_tolerance_m is not None
             and self.family == PAPER

@@ -15,8 +15,9 @@ A build whose results miss the convergence thresholds writes nothing and raises
 DOE and coefficients are written, marked (``"converged": false`` and the reasons), without a
 region map, and :func:`pipeline.load_coefficients` warns whenever such a file is loaded.
 
-A build that varies a scene variable the range certificate does not cover (``BuildConfig.vary``;
-it covers L, W and the obstacle's centre x) writes no region map either
+A build that varies a scene variable the range certificate does not cover in its scene
+(``BuildConfig.vary``; it covers L, W, the obstacle's centre x and its far edge d, d only with
+y1 = d: :func:`pipeline.certify.range_model.axes_refusal`) writes no region map either
 (:attr:`BuildResult.range_map_skipped` says why a map is missing).
 
 Worker processes (``jobs`` other than 1) start with ``spawn`` and re-import the main script: a
@@ -35,6 +36,7 @@ from pathlib import Path
 from pipeline.build.config import OPTIONS, BuildConfig
 from pipeline.build.doe_fit import DoeFit, fit_doe
 from pipeline.build.range_stage import as_written, certify_coefficients
+from pipeline.certify.range_model import axes_refusal
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap
 from pipeline.exceptions import BuildNotConvergedError
 from pipeline.io.executor import check_executor
@@ -93,9 +95,10 @@ class BuildResult:
         """Why the build wrote no region map though ``range_map`` asked for one, or None."""
         if not self.config.range_map or self.region_map is not None:
             return None
-        if not self.config.certifiable_axes:
+        refusal = axes_refusal(self.config.variables, self.config.scene)
+        if refusal is not None:
             names = ", ".join(self.config.variables.names)
-            return f"the range certificate covers L, W and x only and these coefficients vary {names}"
+            return f"the range certificate takes {refusal}, and these coefficients vary {names}"
         return "the build did not converge"
 
 

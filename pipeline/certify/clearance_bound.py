@@ -1,11 +1,12 @@
 """Rigorous lower bounds on the clearance of both links over boxes of (v, s), v the coefficients'
-axes ((L, W), or (L, W, x) with the obstacle's centre x) and s = t / T(L, W).
+axes ((L, W), with the obstacle's centre x and / or its far edge y d if they vary them) and
+s = t / T(L, W).
 
 Geometry (``pipeline.obstacle``, ``pipeline.robot``): link k is a capsule, the segment
 S_k = [a_k, b_k] (link 1: base -> elbow, link 2: elbow -> tip) inflated by its radius r_k; the
-obstacle is the core rectangle R(L, W, x) = [x - (L/2 - r), x + L/2 - r] x [d - W + r, d - r]
+obstacle is the core rectangle R(L, W, x, d) = [x - (L/2 - r), x + L/2 - r] x [d - W + r, d - r]
 inflated by the corner radius r, i.e. footprint [x - L/2, x + L/2] x [d - W, d] (x = 0 without an
-x axis: the paper's scene). Because the arm and the
+x axis, d the scene's ``top_y_m`` without a d axis: the paper's scene). Because the arm and the
 box are straight prisms over the same plane (the box is taller than the capsules), the 3-D
 distance Coal computes is the planar one, and for positive clearance
 
@@ -41,10 +42,19 @@ is kept (each is valid everywhere, so their maximum is):
     (|e(x) - e(c)| = 2 l1 |sin(d theta1 / 2)|), link 2 by at most l1 |d theta1| + l2 |d(theta1 +
     theta2)| (the Hausdorff distance of two segments is at most the larger endpoint
     displacement), with |d theta| <= sum_i max_X |d theta / dp_i| r_i. The obstacle's core
-    rectangle moves by at most sqrt((r_L / 2 + r_x)^2 + r_W^2) in Hausdorff distance (its
-    bottom corners move by (dx +- dL / 2, dW); note this is the Euclidean, not the max, of the
-    two; r_x = 0 without an x axis) and the inflation by r does not increase that. So
-    c_k(p) >= c_k(c) - motion - obstacle motion
+    rectangle moves by at most sqrt((r_L / 2 + r_x)^2 + (r_W + r_d)^2) in Hausdorff distance
+    (r_x = 0 without an x axis, r_d = 0 without a d axis), and the inflation by r does not
+    increase that. Derivation: from the centre's (L, W, x, d) to (L + dL, W + dW, x + dx, d + dd)
+    the core's corners move by (dx +- dL / 2, dd) (top corners, y = d - r) and (dx +- dL / 2,
+    dd - dW) (bottom corners, y = d - W + r). Write each point of the first core bilinearly in
+    its corners, (1 - a)(1 - b) v_00 + a (1 - b) v_10 + (1 - a) b v_01 + a b v_11 with a, b in
+    [0, 1], and map it to the same combination of the moved corners: a bijection of the two
+    cores that moves every point by at most the largest corner displacement (the weights are
+    convex and the norm is convex), so the Hausdorff distance is at most that. With |dL| <= r_L, |dW| <= r_W,
+    |dx| <= r_x, |dd| <= r_d, the x component is at most r_x + r_L / 2 and the y component at
+    most max(|dd|, |dd - dW|) <= r_d + r_W, both reached at one corner (dx = r_x, dL = r_L,
+    dd = -r_d, dW = r_W at the bottom right), hence the Euclidean of the two, not their max.
+    So c_k(p) >= c_k(c) - motion - obstacle motion
     - distance error, with c_k(c) from the analytic route (``distance_error_m`` its bound) or
     from Coal (:data:`COAL_DISTANCE_ERROR_M`). This bound is first order; it guards the
     degenerate centres where (a) and (b) have no good direction.
@@ -84,12 +94,18 @@ class BoxBounds:
 
 
 def obstacle_motion_m(
-    radius_l_m: np.ndarray, radius_w_m: np.ndarray, radius_x_m: np.ndarray | None = None
+    radius_l_m: np.ndarray,
+    radius_w_m: np.ndarray,
+    radius_x_m: np.ndarray | None = None,
+    radius_d_m: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Hausdorff distance [m] by which the obstacle can move within L +- radius_l, W +- radius_w
-    (and its centre within x +- radius_x)."""
+    """Bound [m] on the Hausdorff distance by which the obstacle's core can move within
+    L +- radius_l, W +- radius_w [m] (and its centre within x +- radius_x, its far edge within
+    d +- radius_d [m]; None: fixed): sqrt((r_L / 2 + r_x)^2 + (r_W + r_d)^2) (module docstring, (c))."""
     half_l = 0.5 * np.asarray(radius_l_m)
-    return np.hypot(half_l if radius_x_m is None else half_l + np.asarray(radius_x_m), np.asarray(radius_w_m))
+    along_x = half_l if radius_x_m is None else half_l + np.asarray(radius_x_m)
+    along_y = np.asarray(radius_w_m) if radius_d_m is None else np.asarray(radius_w_m) + np.asarray(radius_d_m)
+    return np.hypot(along_x, along_y)
 
 
 def _geometry(model: RangeModel, center: np.ndarray, radius: np.ndarray) -> dict:
@@ -104,8 +120,12 @@ def _geometry(model: RangeModel, center: np.ndarray, radius: np.ndarray) -> dict
     L, W, n = jets[0], jets[1], len(jets)
     r, d = model.scene.corner_radius_m, model.scene.top_y_m
     half_x = L * 0.5 - r
-    bottom = W * (-1.0) + (d + r)
-    top = Jet.constant(np.full(center.shape[0], d - r), n)
+    if model.d_column is not None:  # the moved far edge: y in [d - W + r, d - r]
+        top_edge = jets[model.d_column]
+        bottom, top = top_edge + W * (-1.0) + r, top_edge - r
+    else:  # the scene's far edge
+        bottom = W * (-1.0) + (d + r)
+        top = Jet.constant(np.full(center.shape[0], d - r), n)
     if model.x_column is not None:  # the moved obstacle: [x - half_x, x + half_x]
         x = jets[model.x_column]
         right, left = x + half_x, x - half_x
@@ -158,7 +178,7 @@ def box_clearance_bounds(
 
     Args:
         model: The coefficients' range model.
-        center: Box centres (N, k + 1): the axes [m] (L, W[, x]), then s [-].
+        center: Box centres (N, k + 1): the axes [m] (L, W[, x][, d]), then s [-].
         radius: Half widths (N, k + 1), same units; boxes must lie in the fitted range and s in [0, 1].
         center_clearance_m: Per-link clearance (N, 2) [m] at each box centre's configuration
             and obstacle from another route (e.g. Coal through Pinocchio); default the analytic route.
@@ -172,13 +192,18 @@ def box_clearance_bounds(
     point = _geometry(model, center, np.zeros_like(radius))
     box = _geometry(model, center, radius)
     r_corner = model.scene.corner_radius_m
-    d = model.scene.top_y_m
-    x_col = model.x_column
+    x_col, d_col = model.x_column, model.d_column
     rect_x = np.zeros(center.shape[0]) if x_col is None else center[:, x_col]
+    d = model.scene.top_y_m if d_col is None else center[:, d_col]
     rect_center = np.stack([rect_x, d - center[:, 1] / 2], -1)
     rect_half = np.stack([center[:, 0] / 2 - r_corner, center[:, 1] / 2 - r_corner], -1)
     l1, l2 = model.link_lengths_m
-    hausdorff = obstacle_motion_m(radius[:, 0], radius[:, 1], None if x_col is None else radius[:, x_col])
+    hausdorff = obstacle_motion_m(
+        radius[:, 0],
+        radius[:, 1],
+        None if x_col is None else radius[:, x_col],
+        None if d_col is None else radius[:, d_col],
+    )
 
     link_lower = np.empty((center.shape[0], 2))
     centre_values = np.empty((center.shape[0], 2))

@@ -16,6 +16,8 @@ length is S = 2 int_0^X1 sqrt(1 + y'(x)^2) dx = 2 int_0^1 F(xi) dxi with
 F = sqrt(X1^2 + g(xi)^2), g = 2 alpha xi + 4 beta xi^3, and T = S / v. F is smooth in
 (xi, L, W); alpha, beta and X1 are rational in (L, W), so T and its derivatives are integrals
 of closed-form integrands, evaluated here with interval jets (``pipeline.certify.interval``).
+With y1 = d (``Scene.start_y_m`` None) H = W + a3: T depends on neither the obstacle's far edge d
+nor its centre x, so one table serves coefficients over (L, W, x, d) too (``range_model``).
 
 1. **T and grad T at a point c** by composite Gauss-Legendre (P panels of n nodes on [0, 1])
    applied to F and to its (L, W) derivatives (forward-mode jets at the point). The

@@ -1,7 +1,7 @@
 """Range certificates at the ends of the motion: an upper bound on the endpoint errors over
-cells of the coefficients' axes ((L, W), or (L, W, x) with the obstacle's centre x), and an
-infeasibility certificate for the margin at the endpoints. The sections below derive both over
-(L, W); the last one extends them to x.
+cells of the coefficients' axes ((L, W), with the obstacle's centre x and / or its far edge y d
+if they vary them), and an infeasibility certificate for the margin at the endpoints. The
+sections below derive both over (L, W); the last two extend them to x and to d.
 
 Endpoint errors
 ===============
@@ -109,6 +109,41 @@ offsets from it: P1 = (x + L/2 + dx1, y1), P5 = (x - (L/2 + dx1), y1). A cell is
   h_L >= 2 h_x and x otherwise, and counts a sub-cell as beyond help above
   margin + 4 (h_L + 2 h_x) (without x: margin + 4 h_L); a sub-cell without a bound (L* <= 2 r)
   is split further.
+
+With the obstacle's far edge d
+==============================
+
+With a d axis (only where y1 = d: ``RangeModel`` refuses d with a fixed ``start_y_m``) the
+footprint is [x - L/2, x + L/2] x [d - W, d] and P1..P5 keep their offsets from it vertically too:
+P1 = (x + L/2 + dx1, d), P5 = (x - (L/2 + dx1), d). A cell has half width h_d along d around d_c
+and spans [d0, d1] (d0 + d1 = 2 d_c, d1 - d0 = 2 h_d); without an x axis read x = 0, h_x = 0 below.
+
+* Endpoint errors: P1 and P5 take the jet d as their y coordinate (in place of the scene's y1),
+  and the mean-value form runs over the axes; the joint angles' jets carry d through the
+  regression's parameters (T does not depend on d).
+* The disc: P(L, x, d) - P(L_c, x_c, d_c) = (+-(L - L_c) / 2 + (x - x_c), d - d_c), of length at
+  most sqrt((h_L / 2 + h_x)^2 + h_d^2), so the tips form a subset of the disc of radius
+  rho = tol + sqrt((h_L / 2 + h_x)^2 + h_d^2) <= tol + h_L / 2 + h_x + h_d about P(centre).
+* The obstacle: for W >= W0 and d0 <= d <= d1 the core's y extent [d - W + r, d - r] contains
+  [d1 - W0 + r, d0 - r] (d - W + r <= d1 - W0 + r and d - r >= d0 - r); together with the x
+  extent above, every core of the cell contains
+  R* = [x1 - L0/2 + r, x0 + L0/2 - r] x [d1 - W0 + r, d0 - r], the core of the obstacle O* of
+  length L* = L0 - 2 h_x, width W* = W0 - 2 h_d and far edge d* = d0 = d_c - h_d (its y extent
+  [d* - W* + r, d* - r] = [d1 - W0 + r, d0 - r]; its footprint's centre d_c - W0 / 2 is that of
+  the obstacle of width W0 at the cell's d_c). As for x, inflation by the common r keeps the
+  inclusion, so c(q, O(L, W, x, d)) <= c(q, O*) for every obstacle of the cell and the bound is
+  taken against O* alone; R* is empty once L* < 2 r or W* < 2 r, and a cell with L* <= 2 r or
+  W* <= 2 r gets no bound (+inf: not infeasible). O* is formed from the cell's centre and half
+  widths in floating point, a few ulps (1e-17 m) from the exact rectangle; the float slack
+  covers it.
+* The witness is taken at the corner (L0, W0, x0, d0): a pose with its tip within tol of
+  P(L0, x0, d0) that clears the margin against O(L0, W0, x0, d0), an actual obstacle of the cell.
+  A pose with its tip in the disc clearing the margin against O* ends the end's branch and bound
+  as for x (the obstacles of the cell are not nested once d varies, whether x does or not).
+* Sub-cells: the bound exceeds U by about 2 h_d through d (the disc grows by up to h_d, and the
+  top and bottom sides of O* lie h_d inside those of the obstacle at d_c). Each sub-cell halves
+  the axis with the largest of h_L, 2 h_x and 2 h_d (the first on ties: L, then x, then d), and
+  a sub-cell counts as beyond help above margin + 4 (h_L + 2 h_x + 2 h_d).
 """
 
 from __future__ import annotations
@@ -150,14 +185,14 @@ def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.
 
     Args:
         model: The coefficients' range model.
-        center_m: Cell centres (N, k): the axes (L, W[, x]) [m].
+        center_m: Cell centres (N, k): the axes (L, W[, x][, d]) [m].
         radius_m: Half widths (N, k) [m].
     """
     center2, radius2 = _cells(model, center_m, radius_m)
     n = center2.shape[0]
     out = np.empty((n, 2))
     l1, l2 = model.link_lengths_m
-    moved = model.x_column is not None
+    xi, di = model.x_column, model.d_column
     for column, (s, side) in enumerate(((0.0, 1.0), (1.0, -1.0))):
         center = np.column_stack([center2, np.full(n, s)])
         radius = np.column_stack([radius2, np.zeros(n)])
@@ -167,10 +202,11 @@ def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.
             phi2 = theta1 + theta2
             jets = model.variables(center, r)
             px = (jets[0] * 0.5 + model.scene.start_dx_m) * side
-            if moved:  # P1 and P5 move with the obstacle's centre x (module docstring)
-                px = px + jets[model.x_column]
+            if xi is not None:  # P1 and P5 move with the obstacle's centre x (module docstring)
+                px = px + jets[xi]
+            py = model.scene.y1_m if di is None else jets[di]  # y1 = d with a d axis
             ex = theta1.cos() * l1 + phi2.cos() * l2 - px
-            ey = theta1.sin() * l1 + phi2.sin() * l2 - model.scene.y1_m
+            ey = theta1.sin() * l1 + phi2.sin() * l2 - py
             comps.append((ex, ey))
         (px_, py_), (bx_, by_) = comps
         mag_x = np.maximum(np.abs(lower_bound(px_, bx_, radius)), np.abs(upper_bound(px_, bx_, radius)))
@@ -209,8 +245,8 @@ def _pose_box_upper_bounds(
     the clearance and tip of each box's centre pose, and that pose's clearance against
     ``obstacle_lw``.
 
-    The obstacles are rows (n, 2) of L, W [m] (centred on x = 0) or (n, 3) of L, W and centre x
-    [m]. The centre pose's clearance (second value) is taken against ``witness_lw`` (same layout)
+    The obstacles are rows (n, 4) of L, W, centre x and far edge y d [m] (:func:`_cell_obstacles`).
+    The centre pose's clearance (second value) is taken against ``witness_lw`` (same layout)
     if given, else against ``obstacle_lw`` (the fourth value then is the same array).
     """
     l1, l2 = model.link_lengths_m
@@ -222,11 +258,10 @@ def _pose_box_upper_bounds(
     q_mid = np.stack([(t1_lo + t1_hi) / 2, (t2_lo + t2_hi) / 2], -1)
     d1, d2 = (t1_hi - t1_lo) / 2, (t2_hi - t2_lo) / 2
     elbow, tip = link_segments(q_mid, model.link_lengths_m)
-    r_corner, d = model.scene.corner_radius_m, model.scene.top_y_m
+    r_corner = model.scene.corner_radius_m
 
     def link_distances(obstacle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        centre_x = np.zeros(len(r_lo)) if obstacle.shape[1] == 2 else obstacle[:, 2]
-        rect_center = np.stack([centre_x, d - obstacle[:, 1] / 2], -1)
+        rect_center = np.stack([obstacle[:, 2], obstacle[:, 3] - obstacle[:, 1] / 2], -1)
         rect_half = np.stack([obstacle[:, 0] / 2 - r_corner, obstacle[:, 1] / 2 - r_corner], -1)
         c1 = segment_rectangle_distance(np.zeros_like(elbow), elbow, rect_center, rect_half) - model.link_radii_m[0]
         c2 = segment_rectangle_distance(elbow, tip, rect_center, rect_half) - model.link_radii_m[1]
@@ -243,6 +278,45 @@ def _pose_box_upper_bounds(
     upper = np.minimum(c1 + move1, c2 + move2) - r_corner
     upper = upper + ANALYTIC_DISTANCE_ERROR_M + FLOAT_SLACK_M
     return upper, centre_clearance, tip, bound_centre
+
+
+def _cell_obstacles(
+    model: RangeModel, center: np.ndarray, radius: np.ndarray
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """Per cell (centres, half widths (n, k) [m]): the obstacle every obstacle of the cell
+    contains, as rows (n, 4) of L, W, centre x and far edge y d [m]; the obstacle a witness must
+    clear (the cell's smallest corner's, same layout; None where it is the first one); and where
+    the first is empty (no bound). Without x and d the obstacles are nested and both are the
+    smallest corner's (L0, W0); with x or d, the first is O* of length L0 - 2 h_x, width
+    W0 - 2 h_d, centre x_c and far edge d_c - h_d (module docstring)."""
+    n = center.shape[0]
+    xi, di = model.x_column, model.d_column
+    corner = center - radius
+    zeros, top = np.zeros(n), np.full(n, model.scene.top_y_m)
+    if xi is None and di is None:
+        return np.column_stack([corner[:, 0], corner[:, 1], zeros, top]), None, np.zeros(n, dtype=bool)
+    length = corner[:, 0] if xi is None else corner[:, 0] - 2.0 * radius[:, xi]
+    width = corner[:, 1] if di is None else corner[:, 1] - 2.0 * radius[:, di]
+    common = np.column_stack(
+        [length, width, zeros if xi is None else center[:, xi], top if di is None else center[:, di] - radius[:, di]]
+    )
+    witness = np.column_stack(
+        [corner[:, 0], corner[:, 1], zeros if xi is None else corner[:, xi], top if di is None else corner[:, di]]
+    )
+    smallest = 2.0 * model.scene.corner_radius_m
+    return common, witness, ~((length > smallest) & (width > smallest))
+
+
+def _disc_radius(model: RangeModel, radius: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """rho [m] per cell (half widths (n, k) [m]): ``tolerance_m`` plus a bound on how far P1 (or
+    P5) of a point of the cell lies from that of its centre, |(+-dL / 2 + dx, dd)| (module
+    docstring): h_L / 2 (+ h_x) without d, the Euclidean sqrt((h_L / 2 + h_x)^2 + h_d^2) with it."""
+    xi, di = model.x_column, model.d_column
+    if di is None:
+        rho = tolerance_m + radius[:, 0] / 2
+        return rho if xi is None else rho + radius[:, xi]
+    along_x = radius[:, 0] / 2 if xi is None else radius[:, 0] / 2 + radius[:, xi]
+    return tolerance_m + np.hypot(along_x, radius[:, di])
 
 
 def _sector_distance(
@@ -269,7 +343,7 @@ def endpoint_clearance_upper_bounds(
 ) -> np.ndarray:
     """Upper bounds [m] on the clearance of every pose with its tip within ``tolerance_m`` of P1
     (column 0) or P5 (column 1), on the family's elbow branch, over cells of the model's axes
-    (centres and half widths (N, k): L, W[, x] [m]): shape (N, 2).
+    (centres and half widths (N, k): L, W[, x][, d] [m]): shape (N, 2).
 
     The branch and bound stops proving once a bound is below ``margin_m`` or a pose is found
     that clears it, so values at or above the margin only mean "not infeasible" (module docstring).
@@ -281,34 +355,27 @@ def _upper_bounds_and_witnesses(
     model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray, tolerance_m: float, margin_m: float, max_depth: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`endpoint_clearance_upper_bounds` (n, 2), and per cell and end whether a pose was
-    found at the cell's smallest corner (L0, W0[, x0]) with its tip within the tolerance of that
-    end and clearing the margin against that corner's obstacle (a witness: the end does not make
-    the corner infeasible), (n, 2)."""
+    found at the cell's smallest corner (L0, W0[, x0][, d0]) with its tip within the tolerance of
+    that end and clearing the margin against that corner's obstacle (a witness: the end does not
+    make the corner infeasible), (n, 2)."""
     center2, radius2 = _cells(model, center_m, radius_m)
     n = center2.shape[0]
     out = np.empty((n, 2))
     found = np.zeros((n, 2), dtype=bool)
-    xi = model.x_column
+    xi, di = model.x_column, model.d_column
+    moved = xi is not None or di is not None  # the obstacles of a cell are not nested
     corner = center2 - radius2
-    if xi is None:
-        # Every obstacle of the cell contains that of its smallest corner (L0, W0) (module docstring).
-        bound_lw, witness_lw = corner, None
-        degenerate = np.zeros(n, dtype=bool)
-    else:
-        # Every obstacle of the cell contains O* (length L0 - 2 h_x, width W0, centre x_c); a
-        # witness must clear an actual obstacle of the cell: the corner's (module docstring).
-        bound_lw = np.column_stack([corner[:, 0] - 2.0 * radius2[:, xi], corner[:, 1], center2[:, xi]])
-        witness_lw = np.column_stack([corner[:, 0], corner[:, 1], corner[:, xi]])
-        degenerate = ~(bound_lw[:, 0] > 2.0 * model.scene.corner_radius_m)
+    bound_lw, witness_lw, degenerate = _cell_obstacles(model, center2, radius2)
+    rho = _disc_radius(model, radius2, tolerance_m)
     for column, side in enumerate((1.0, -1.0)):
+        # P(centre) and P of the smallest corner (L0[, x0][, d0]), where a witness must end.
         px = side * (center2[:, 0] / 2 + model.scene.start_dx_m)
+        px0 = side * (corner[:, 0] / 2 + model.scene.start_dx_m)
         if xi is not None:  # P1, P5 move with the obstacle's centre x
-            px = px + center2[:, xi]
-        py = np.full(n, model.scene.y1_m)
+            px, px0 = px + center2[:, xi], px0 + corner[:, xi]
+        py = np.full(n, model.scene.y1_m) if di is None else center2[:, di]  # y1 = d with a d axis
+        py0 = py if di is None else corner[:, di]
         dist = np.hypot(px, py)
-        rho = tolerance_m + radius2[:, 0] / 2
-        if xi is not None:  # P(L, x) lies within h_L / 2 + h_x of P(centre)
-            rho = rho + radius2[:, xi]
         spread = np.arcsin(np.minimum(rho / dist, 1.0))
         psi = np.arctan2(py, px)
         # Active sub-boxes: owner cell, r and psi ranges.
@@ -318,28 +385,25 @@ def _upper_bounds_and_witnesses(
         if np.any(degenerate):  # no O*: no bound (+inf below), no sub-boxes
             owner, r_lo, r_hi, p_lo, p_hi = (a[~degenerate] for a in (owner, r_lo, r_hi, p_lo, p_hi))
         best = np.full(n, -np.inf)
-        px0 = side * (corner[:, 0] / 2 + model.scene.start_dx_m)
-        if xi is not None:
-            px0 = px0 + corner[:, xi]
-        # A witness: the pose with its tip exactly at P(L0[, x0]) clears the margin against
-        # O(L0, W0[, x0]).
-        dist0, psi0 = np.hypot(px0, py), np.arctan2(py, px0)
+        # A witness: the pose with its tip exactly at P(L0[, x0][, d0]) clears the margin against
+        # O(L0, W0[, x0][, d0]).
+        dist0, psi0 = np.hypot(px0, py0), np.arctan2(py0, px0)
         _, exact_c, _, _ = _pose_box_upper_bounds(model, dist0, dist0, psi0, psi0, bound_lw, witness_lw)
         witnessed = exact_c >= margin_m
-        floor = np.full(n, -np.inf)  # with x: the clearance against O* of a pose of the disc
+        floor = np.full(n, -np.inf)  # with x or d: the clearance against O* of a pose of the disc
         for depth in range(max_depth + 1):
             upper, centre_c, tip, bound_c = _pose_box_upper_bounds(
                 model, r_lo, r_hi, p_lo, p_hi, bound_lw[owner], None if witness_lw is None else witness_lw[owner]
             )
             # A witness needs its tip within the tolerance of P(L0), the corner's own end point.
-            in_set = np.hypot(tip[:, 0] - px0[owner], tip[:, 1] - py[owner]) <= tolerance_m
+            in_set = np.hypot(tip[:, 0] - px0[owner], tip[:, 1] - py0[owner]) <= tolerance_m
             hit = in_set & (centre_c >= margin_m)
             np.logical_or.at(witnessed, owner[hit], True)
             # Sub-boxes of the polar box that miss the disc hold no pose of the set.
             meets = _sector_distance(dist[owner], psi[owner], r_lo, r_hi, p_lo, p_hi) <= rho[owner] * (1 + 1e-12)
             upper = np.where(meets, upper, -np.inf)
             open_ = (upper >= margin_m) & ~witnessed[owner]
-            if xi is not None:
+            if moved:
                 # A pose with its tip in the disc that clears the margin against O* keeps the
                 # bound at or above the margin however far the sub-boxes are cut (module
                 # docstring): the end is not proven, and its sub-boxes are closed.
@@ -370,7 +434,7 @@ def _upper_bounds_and_witnesses(
                 np.stack([p_mid, p_hi, p_mid, p_hi], 1).ravel(),
             )
         out[:, column] = np.where(witnessed, np.maximum(best, margin_m), best)
-        if xi is not None:
+        if moved:
             out[:, column] = np.maximum(out[:, column], floor)
             out[degenerate, column] = np.inf
         found[:, column] = witnessed
@@ -388,15 +452,15 @@ def infeasibility_upper_bounds(
     polar_depth: int = 9,
 ) -> np.ndarray:
     """Upper bounds [m] on min(U(P1), U(P5)) over cells by sub-cells of their length (and, with
-    an x axis, of their x extent) (module docstring), shape (N,); +inf where the cell is not
-    proven infeasible (a sub-cell at or above the margin after ``levels`` halvings, or one that
-    clears the margin by more than its own length (and x extent) could explain: splitting it
-    further would not help).
+    an x or d axis, of their x or d extent) (module docstring), shape (N,); +inf where the cell is
+    not proven infeasible (a sub-cell at or above the margin after ``levels`` halvings, or one
+    that clears the margin by more than its own length (and x and d extents) could explain:
+    splitting it further would not help).
 
     Args:
         model: The coefficients' range model.
-        center_m, radius_m: Cell centres and half widths (N, k): L, W[, x] [m] (one cell may be
-            given as a vector of k).
+        center_m, radius_m: Cell centres and half widths (N, k): L, W[, x][, d] [m] (one cell
+            may be given as a vector of k).
         tolerance_m: Endpoint tolerance [m].
         margin_m: Clearance margin [m].
         levels: Halvings of the sub-cells (1: two sub-cells per cell) [count].
@@ -405,7 +469,8 @@ def infeasibility_upper_bounds(
     """
     k = model.k
     center2, radius2 = _cells(model, np.atleast_2d(center_m), np.atleast_2d(radius_m))
-    xi = model.x_column
+    # The axes beyond L that move the obstacle (x, d), each weighing 2 h against h_L (module docstring).
+    moving = [column for column in (model.x_column, model.d_column) if column is not None]
     n = center2.shape[0]
     worst = np.full(n, -np.inf)
     alive = np.ones(n, dtype=bool)
@@ -413,12 +478,13 @@ def infeasibility_upper_bounds(
     halves = np.array([[-0.5, 0.0], [0.5, 0.0]])
     for _ in range(levels):
         owner = np.repeat(owner, 2)
-        if xi is None:
+        if not moving:
             centre = (centre[:, None, :] + halves[None] * radius[:, None, :]).reshape(-1, 2)
             radius = np.repeat(radius * np.array([0.5, 1.0]), 2, axis=0)
-        else:  # halve the length where h_L >= 2 h_x, else x (module docstring)
+        else:  # halve the axis with the largest of h_L, 2 h_x, 2 h_d, the first on ties (module docstring)
             rows = np.arange(centre.shape[0])
-            axis = np.where(radius[:, 0] >= 2.0 * radius[:, xi], 0, xi)
+            weighed = np.column_stack([radius[:, 0], *(2.0 * radius[:, column] for column in moving)])
+            axis = np.array([0, *moving])[np.argmax(weighed, axis=1)]
             step = np.zeros_like(radius)
             step[rows, axis] = radius[rows, axis] / 2
             centre = np.stack([centre - step, centre + step], 1).reshape(-1, k)
@@ -431,10 +497,13 @@ def infeasibility_upper_bounds(
         # the end point's motion h_L, module docstring, with room to spare) has feasible poses
         # within reach, and one with a witness at both ends has a point (its corner) where both
         # end poses clear the margin: the cell is not infeasible, and no cut can prove it so.
-        if xi is None:
+        if not moving:
             beyond = upper >= margin_m + 4.0 * radius[:, 0]
-        else:  # the x terms too; a sub-cell without a bound (no O*) is split further
-            beyond = np.isfinite(upper) & (upper >= margin_m + 4.0 * (radius[:, 0] + 2.0 * radius[:, xi]))
+        else:  # the x and d terms too; a sub-cell without a bound (no O*) is split further
+            terms = radius[:, 0]
+            for column in moving:
+                terms = terms + 2.0 * radius[:, column]
+            beyond = np.isfinite(upper) & (upper >= margin_m + 4.0 * terms)
         hopeless = ~proven & (beyond | np.all(witnessed, axis=1))
         alive[owner[hopeless]] = False
         keep = ~proven & alive[owner]

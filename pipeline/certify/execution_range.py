@@ -1,13 +1,15 @@
 """Execution bounds over the range: per leaf of the region map, what every trajectory of the leaf
-does to the arm's limits, proven for every (L, W) of the leaf and all of [0, T].
+does to the arm's limits, proven for every point of the leaf (L, W, and x, d where the
+coefficients vary them) and all of [0, T].
 
-**Kinematic bounds (arm-independent).** Over a leaf X (an (L, W) box), the range model
-(:class:`pipeline.certify.range_model.RangeModel`) encloses each sinusoid parameter p(L, W) by
-its mean-value form intersected with its natural interval (interval jets), and the path duration
-T(L, W) by :class:`pipeline.certify.duration.DurationModel`. The path time t = s T, s in [0, 1],
-is cut into :data:`TIME_PIECES` pieces [s_k, s_k+1]; on each, the phase w t + phi lies in the
-interval w [s_k T_lo, s_k+1 T_hi] + phi (t >= 0), and the exact ranges of sin and cos over it
-give, in interval arithmetic (each result encloses every value taken):
+**Kinematic bounds (arm-independent).** Over a leaf X (a box of the coefficients' axes), the
+range model (:class:`pipeline.certify.range_model.RangeModel`) encloses each sinusoid parameter
+p(L, W[, x][, d]) by its mean-value form intersected with its natural interval (interval jets),
+and the path duration T(L, W) (independent of x and d) by
+:class:`pipeline.certify.duration.DurationModel`. The path time t = s T, s in [0, 1], is cut
+into :data:`TIME_PIECES` pieces [s_k, s_k+1]; on each, the phase w t + phi lies in the interval
+w [s_k T_lo, s_k+1 T_hi] + phi (t >= 0), and the exact ranges of sin and cos over it give, in
+interval arithmetic (each result encloses every value taken):
 
 * theta_i = A_i sin(.) + gamma_i: the angle range of the leaf, the hull over the pieces;
 * theta_i' = A_i w_i cos(.): its largest magnitude V_i, the paper timing's peak |dq_i|;
@@ -96,11 +98,11 @@ def _leaf_parameters(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray
 def kinematic_bounds(
     model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray, dynamics: PlanarDynamics
 ) -> dict[str, np.ndarray]:
-    """The bounds of the module docstring over (L, W) boxes, before any limit.
+    """The bounds of the module docstring over boxes of the model's axes, before any limit.
 
     Args:
         model: The range model of the coefficients.
-        centre_m, half_m: Box centres and half widths (n, 2), columns L, W [m].
+        centre_m, half_m: Box centres and half widths (n, k), columns the model's axes (L, W[, x][, d]) [m].
         dynamics: The arm's dynamics (for the torque terms G and K).
 
     Returns:
@@ -166,11 +168,11 @@ def _column(p: Interval) -> Interval:
 def execution_bounds(
     model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray, dynamics: PlanarDynamics, limits: ArmLimits
 ) -> ExecutionBounds:
-    """The execution bounds of (L, W) boxes (a region map's leaves) for one arm (module docstring).
+    """The execution bounds of boxes of the model's axes (a region map's leaves) for one arm (module docstring).
 
     Args:
         model: The range model of the coefficients.
-        centre_m, half_m: Leaf centres and half widths (n, 2), columns L, W [m].
+        centre_m, half_m: Leaf centres and half widths (n, k), columns the model's axes (L, W[, x][, d]) [m].
         dynamics: The arm's dynamics.
         limits: The arm's limits.
     """

@@ -66,7 +66,11 @@ DEFAULT_BOUNDARY_CELL = 1.0 / 64
 #: 8^d of them in the box, so the cells stop coarser (on the default (L, W, x) build's coefficients
 #: before its certifiable regression, the margin is kept on 81 % of the box with cells of 1/32,
 #: 91.8 % with 1/64 and 93.8 % with 1/128: python -m pipeline.certify_range C --min-cell ...).
-DEFAULT_CELLS: dict[int, tuple[float, float]] = {2: (DEFAULT_MIN_CELL, DEFAULT_BOUNDARY_CELL), 3: (1.0 / 128, 1.0 / 16)}
+DEFAULT_CELLS: dict[int, tuple[float, float]] = {
+    2: (DEFAULT_MIN_CELL, DEFAULT_BOUNDARY_CELL),
+    3: (1.0 / 128, 1.0 / 16),
+    4: (1.0 / 16, 1.0 / 8),  # (L, W, x, d): 16^4 = 65,536 cells; 1/32 would give about 1 M (some 230 MB of map)
+}
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
 #: within this of the margin [m].
 _INFEASIBILITY_REFINE_M = 1e-3

@@ -1,17 +1,36 @@
 """What the range certificate knows about one coefficients file: the family's parameter map
-v -> the 8 sinusoid parameters over the coefficients' axes v (their scene variables: (L, W),
-or (L, W, x) with the obstacle's centre x, ``pipeline.offline.variables``), the duration T, the
-arm and the scene, and the interval jets of the joint angles over boxes of (v, s),
-s = t / T in [0, 1].
+v -> the 8 sinusoid parameters over the coefficients' axes v (their scene variables: (L, W), or
+(L, W) with the obstacle's centre x and / or its far edge y d, ``pipeline.offline.variables``),
+the duration T, the arm and the scene, and the interval jets of the joint angles over boxes of
+(v, s), s = t / T in [0, 1].
 
 theta_i(v, s) = A_i(v) sin(w_i(v) s T(L, W) + phi_i(v)) + gamma_i(v).
 
 * ``paper`` family: all 8 parameters are the regression's quadratics in v, for (L, W)
   p(L, W) = b0 + b1 L + b2 W + b3 L^2 + b4 L W + b5 W^2 (the basis of
   :class:`pipeline.offline.variables.Variables`).
-* T does not depend on x: P1..P5 keep their offsets from the obstacle, so moving the obstacle
-  by x translates the five points and their quartic by (x, 0), which keeps its arc length.
-  The jets of T carry a zero derivative along x.
+* Offsets: an interval evaluation of a quadratic in its raw basis loses the cancellation
+  between terms that share a variable (b_L [L] + b_Ld [L] [d] encloses (b_L + b_Ld d) L with
+  the width of |b_L| + |b_Ld d| instead of |b_L + b_Ld d|); where a variable's range lies far
+  from 0 relative to its width, as d in [0.55, 0.57], that widens every enclosure downstream.
+  So the quadratics are evaluated in the offsets u_i = v_i - o_i of the extra axes from the
+  scene's own values o (the obstacle's displacement: o_x = ``centre_x_m``, 0 in every
+  coefficients file, so x is evaluated as it is; o_d = ``top_y_m``), L and W as they are. The
+  coefficients are re-expanded once: p = c0 + sum_i c_i u_i + sum_{i <= j} b_ij u_i u_j with
+  c0 = b0 + sum_i b_i o_i + sum_{i <= j} b_ij o_i o_j and c_i = b_i + sum_j b_ij o_j (2 b_ii o_i
+  for j = i), the quadratic terms unchanged. The re-expansion rounds: each c is a sum of m
+  products of up to three factors, off by at most (m + 1) eps (1 + O(eps)) sum |terms|
+  (eps = 2^-53; 2 (m + 3) eps sum |terms| is taken); so the free parameters' jets are widened by
+  that bound of c0 plus sum_i (that of c_i) max |u_i| in value and by that of c_i in the
+  derivative along u_i (= along v_i): they enclose the quadratics as written in the file (the
+  offsets u = v - o themselves are formed like every other operation, see
+  ``pipeline.certify.interval``). Axes with o = 0 (L, W, x) are evaluated exactly as without
+  offsets, to the bit.
+* T depends on neither x nor d: P1..P5 keep their offsets from the obstacle, so moving the
+  obstacle by (x, d - d_scene) translates the five points and their quartic by that vector, which
+  keeps its arc length. For d this needs y1 = d (``Scene.start_y_m`` None, the paper's scene):
+  with a fixed y1, P1 and P5 stay put while P2..P4 move, the path changes shape and T depends on
+  d, so an axis d is refused in that scene. The jets of T carry a zero derivative along x and d.
 * ``exact-endpoints`` family: (w1, phi1, A2, w2) are quadratics; A1, gamma1, phi2, gamma2
   follow from the inverse kinematics of P1, P5 and from T (``pipeline.motion.families.exact_endpoints``):
   A1 = (th1_e - th1_s) / (sin(w1 T + phi1) - sin(phi1)), gamma1 = th1_s - A1 sin(phi1),
@@ -39,9 +58,26 @@ from pipeline.motion.families.paper import PaperFamily
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.variables import DEFAULT_VARIABLES, Variables
 
+#: Unit roundoff of double precision.
+_EPS = 2.0**-53
 #: Axes the range certificate covers (the scene variables whose effect on the path, the obstacle
-#: and T the jets follow); d is not among them.
-CERTIFIABLE_AXES = ("L", "W", "x")
+#: and T the jets follow); d only where y1 = d (module docstring, :func:`axes_refusal`).
+CERTIFIABLE_AXES = ("L", "W", "x", "d")
+
+
+def axes_refusal(axes: Variables, scene: Scene) -> str | None:
+    """What the range certificate takes instead of ``axes`` in ``scene`` (the ``expected`` of the
+    InvalidParameterError :class:`RangeModel` raises), or None where it covers them: axes among
+    :data:`CERTIFIABLE_AXES`, and d only where y1 = d (``scene.start_y_m`` None; with a fixed y1
+    the path is no translate of the paper's and T depends on d, module docstring)."""
+    if any(name not in CERTIFIABLE_AXES for name in axes.names):
+        return f"axes among {', '.join(CERTIFIABLE_AXES)}"
+    if "d" in axes.names and scene.start_y_m is not None:
+        return (
+            f"d only where y1 = d (start_y_m None, here {scene.start_y_m!r} m: P1 and P5 stay put while "
+            "the obstacle moves with d)"
+        )
+    return None
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,6 +98,8 @@ class RangeModel:
             variables are these, then s.
         extra_ranges_m: The fitted range of each axis beyond L and W [m], in ``axes`` order.
         duration: Enclosures of T over the range.
+        origin_m: The reference o of each axis (module docstring, "Offsets") [m]: 0 for L and W,
+            the scene's value of each extra axis.
     """
 
     family: TrajectoryFamily
@@ -76,15 +114,18 @@ class RangeModel:
     axes: Variables = DEFAULT_VARIABLES
     extra_ranges_m: tuple[tuple[float, float], ...] = ()
     duration: DurationModel = field(init=False, repr=False)
+    origin_m: tuple[float, ...] = field(init=False, repr=False)
+    _offset_rows: np.ndarray = field(init=False, repr=False)
+    _offset_error: tuple[np.ndarray, np.ndarray] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if type(self.family) not in JET_EXPANSIONS:
             raise InvalidParameterError("family", self.family, f"a family with jets, one of {list(JET_EXPANSIONS)}")
         axes = Variables.of(self.axes)
         object.__setattr__(self, "axes", axes)
-        for name in axes.names:
-            if name not in CERTIFIABLE_AXES:
-                raise InvalidParameterError("axes", axes.names, f"axes among {', '.join(CERTIFIABLE_AXES)}")
+        refusal = axes_refusal(axes, self.scene)
+        if refusal is not None:
+            raise InvalidParameterError("axes", axes.names, refusal)
         if axes.extra and type(self.family) is not PaperFamily:
             raise InvalidParameterError(
                 "family", self.family.name, f"the paper family for axes {', '.join(axes.names)}"
@@ -100,6 +141,11 @@ class RangeModel:
             )
         coefficients.setflags(write=False)
         object.__setattr__(self, "coefficients", coefficients)
+        origin = (0.0, 0.0, *axes.values_of(self.scene).values())
+        object.__setattr__(self, "origin_m", origin)
+        rows, error = _offset_coefficients(coefficients, axes.pairs, origin)
+        object.__setattr__(self, "_offset_rows", rows)
+        object.__setattr__(self, "_offset_error", error)
         if self.elbow not in (1, -1):
             raise InvalidParameterError("elbow", self.elbow, "+1 or -1")
         if min(self.link_lengths_m) <= 0 or min(self.link_radii_m) < 0:
@@ -148,23 +194,46 @@ class RangeModel:
         n = self.k + 1
         return tuple(Jet.variable(center[:, i], radius[:, i], i, n) for i in range(n))
 
+    def column(self, name: str) -> int | None:
+        """Column of the axis ``name`` among the axes, or None if the coefficients do not vary it."""
+        return self.axes.names.index(name) if name in self.axes.names else None
+
     @property
     def x_column(self) -> int | None:
         """Column of the obstacle's centre x among the axes (None without an x axis: the
         obstacle stays at the scene's x = 0)."""
-        return self.axes.names.index("x") if "x" in self.axes.names else None
+        return self.column("x")
+
+    @property
+    def d_column(self) -> int | None:
+        """Column of the obstacle's far edge y, d, among the axes (None without a d axis: the
+        obstacle's far edge stays at the scene's ``top_y_m``, and P1, P5 at its ``y1_m``)."""
+        return self.column("d")
 
     def free_jets(self, *axes: Jet) -> list[Jet]:
         """Jets of the family's free parameters (quadratics in the axes, the basis of
-        :class:`pipeline.offline.variables.Variables`; for (L, W): 1, L, W, L^2, L W, W^2)."""
-        squares = [axes[i].square() if i == j else axes[i] * axes[j] for i, j in self.axes.pairs]
-        basis = (*axes, *squares)
+        :class:`pipeline.offline.variables.Variables`; for (L, W): 1, L, W, L^2, L W, W^2),
+        evaluated in the axes' offsets from :attr:`origin_m` (module docstring, "Offsets")."""
+        offsets = [axis if o == 0.0 else axis - o for axis, o in zip(axes, self.origin_m, strict=False)]
+        squares = [offsets[i].square() if i == j else offsets[i] * offsets[j] for i, j in self.axes.pairs]
+        basis = (*offsets, *squares)
         out = []
-        for row in self.coefficients:
+        for row in self._offset_rows:
             jet = basis[0] * row[1] + row[0]
             for term, b in zip(basis[1:], row[2:], strict=True):
                 jet = jet + term * b
             out.append(jet)
+        constant, linear = self._offset_error
+        if np.any(constant) or np.any(linear):  # the re-expansion's rounding (module docstring)
+            reach = np.stack([offset.value.mag() for offset in offsets], -1)  # max |u_i| per box
+            for n, jet in enumerate(out):
+                value = constant[n] + reach @ linear[n]
+                spread = np.zeros(jet.grad.shape)
+                spread[..., : len(offsets)] = linear[n]
+                out[n] = Jet(
+                    Interval(jet.value.lo - value, jet.value.hi + value),
+                    Interval(jet.grad.lo - spread, jet.grad.hi + spread),
+                )
         return out
 
     def parameter_jets(self, axes: tuple[Jet, ...], T: Jet) -> list[Jet]:
@@ -228,6 +297,42 @@ class RangeModel:
         theta1 = (p[1] * sT + p[2]).sin() * p[0] + p[3]
         theta2 = (p[5] * sT + p[6]).sin() * p[4] + p[7]
         return theta1, theta2
+
+
+def _offset_coefficients(
+    rows: np.ndarray, pairs: tuple[tuple[int, int], ...], origin: tuple[float, ...]
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """The quadratics' rows (n, basis) re-expanded in the offsets u = v - ``origin`` (module
+    docstring, "Offsets"), and bounds on the re-expansion's rounding: per row, of the constant
+    (n,) and of each linear coefficient (n, k). ``rows`` itself and zero bounds where the origin is 0."""
+    k = len(origin)
+    n = rows.shape[0]
+    if not any(origin):
+        return rows, (np.zeros(n), np.zeros((n, k)))
+    o = np.array(origin)
+    out = np.array(rows, dtype=float)
+    constant = [rows[:, 0]]  # the terms summed into each new coefficient
+    linear = [[rows[:, 1 + i]] for i in range(k)]
+    for b, (i, j) in zip(rows[:, 1 + k :].T, pairs, strict=True):
+        constant.append(b * (o[i] * o[j]))
+        if i == j:
+            linear[i].append(2.0 * o[i] * b)
+        else:
+            linear[i].append(o[j] * b)
+            linear[j].append(o[i] * b)
+    for i in range(k):
+        constant.append(rows[:, 1 + i] * o[i])
+    out[:, 0] = np.sum(constant, axis=0)
+    for i in range(k):
+        out[:, 1 + i] = np.sum(linear[i], axis=0)
+    out.setflags(write=False)
+
+    def rounding(terms: list[np.ndarray]) -> np.ndarray:
+        # m terms, each a product of up to three factors (two roundings), then m - 1 additions:
+        # off by at most (m + 1) eps (1 + O(eps)) sum |terms|; twice (m + 3) eps is generous.
+        return 2.0 * (len(terms) + 3) * _EPS * np.sum(np.abs(terms), axis=0)
+
+    return out, (rounding(constant), np.stack([rounding(terms) for terms in linear], -1))
 
 
 def _paper_jets(model: RangeModel, free: list[Jet], L: Jet, W: Jet, T: Jet) -> list[Jet]:

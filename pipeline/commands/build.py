@@ -149,8 +149,8 @@ def parser() -> Parser:
         help=f"vary a scene variable beside L and W over [MIN, MAX] [m] (repeatable): {', '.join(VARY_NAMES)} "
         "(x: the obstacle's centre x, d: its far edge y, default --top-y); a NAME alone takes its default range "
         f"({default_ranges}; |x| < 0.06 m keeps P1..P5 of every corner of the default (L, W) range in reach). "
-        "The coefficients then vary these too (python -m pipeline.generate --x); the region map covers L, W and x "
-        "(with d, none is written)",
+        "The coefficients then vary these too (python -m pipeline.generate --x); the region map covers them "
+        "(d only with y1 = d, i.e. without --start-y; otherwise none is written)",
     )
     p.add_argument(
         "--design",

@@ -145,8 +145,13 @@ def test_unsupported_axes_and_families_are_refused(eq9: Coefficients, over_x) ->
     with pytest.raises(InvalidParameterError, match="paper family"):
         RangeModel.from_coefficients(replace(lifted, family=family_from_name("exact-endpoints")))
     model = RangeModel.from_coefficients(lifted)
-    with pytest.raises(InvalidParameterError, match="axes"):
-        replace(model, axes=Variables(("L", "W", "d")), extra_ranges_m=((0.5, 0.6),))
+    with pytest.raises(InvalidParameterError, match="axes"):  # d with a fixed y1 (tests/certify/test_range_d.py)
+        replace(
+            model,
+            axes=Variables(("L", "W", "d")),
+            extra_ranges_m=((0.5, 0.6),),
+            scene=replace(model.scene, start_y_m=0.5),
+        )
 
 
 @pytest.fixture(scope="module")
