@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS
+from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS, REFIT_VARIABLES
 from pipeline.certify.range_model import axes_refusal
 from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool, check_scheduler_address
@@ -85,10 +85,6 @@ _SUB_NAMES = {
 VARY_NAMES: tuple[str, ...] = tuple(name for name in NAMES if name not in SIZE)
 # Other spellings of the variables -> the name (the scene fields they set, other cases).
 _ALIASES = {"X": "x", "D": "d", "centre_x_m": "x", "center_x_m": "x", "top_y_m": "d"}
-#: The variables the certifiable regression's rounds take: its constraint points move the obstacle
-#: by x only (``pipeline.certify.certifiable_regression``), so a build over d certifies its
-#: coefficients as regressed.
-_REFIT_VARIABLES = ("L", "W", "x")
 
 
 def _renamed(exc: InvalidParameterError, option: str) -> InvalidParameterError:
@@ -289,12 +285,14 @@ class BuildConfig:
     @property
     def certifiable_refit(self) -> bool:
         """True if the build runs the certifiable regression's rounds before the map (a range
-        map over certifiable axes among L, W and x, rounds > 0, the endpoint constraint, the paper
-        family)."""
+        map over certifiable axes among the regression's
+        :data:`~pipeline.certify.certifiable_regression.REFIT_VARIABLES`, rounds > 0, the endpoint
+        constraint, the paper family); over other axes (d) the coefficients are certified as
+        regressed."""
         return bool(
             self.range_map
             and self.certifiable_axes
-            and all(name in _REFIT_VARIABLES for name in self.variables.names)
+            and all(name in REFIT_VARIABLES for name in self.variables.names)
             and self.clearance_rounds > 0
             and self.endpoint_tolerance_m is not None
             and self.family == PAPER

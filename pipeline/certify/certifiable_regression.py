@@ -102,6 +102,10 @@ DEFAULT_CLEARANCE_ROUNDS = 1
 #: number of variables; the last round, whose map the build writes, uses the build's (finer)
 #: cells. The coarser cells keep the refit's points on the leaves that matter and the rounds fast.
 REFIT_MIN_CELLS: dict[int, float] = {2: 1.0 / 256, 3: 1.0 / 32}
+#: The variables the certifiable regression covers: its constraint points move the obstacle by x
+#: only (:func:`_centre_x`; the far edge d stays at the scene's), so coefficients over d are
+#: certified as regressed (``pipeline.build.config.BuildConfig.certifiable_refit``).
+REFIT_VARIABLES: tuple[str, ...] = ("L", "W", "x")
 
 
 @dataclass(frozen=True)

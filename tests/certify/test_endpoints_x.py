@@ -44,22 +44,6 @@ def eq9_x(eq9: Coefficients, over_x) -> Coefficients:
     return over_x(eq9)
 
 
-def random_cells(model: RangeModel, n: int, seed: int, depths=(0, 2, 4, 6, 8)) -> tuple[np.ndarray, np.ndarray]:
-    """n cells of the dyadic grids of the fitted box (L, W, x), each at a random depth."""
-    rng = np.random.default_rng(seed)
-    depth = rng.choice(depths, n)
-    half = model.range_size / 2.0 ** (depth[:, None] + 1)
-    index = np.floor(rng.uniform(0.0, 1.0, (n, 3)) * 2.0 ** depth[:, None])
-    return model.range_lo + (2 * index + 1) * half, half
-
-
-def points_in(center: np.ndarray, radius: np.ndarray, rng: np.random.Generator, extra: int) -> np.ndarray:
-    """The cell's 8 corners, its centre and ``extra`` random points, (9 + extra, 3)."""
-    signs = np.array([[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)] + [[0, 0, 0]], dtype=float)
-    signs = np.vstack([signs, rng.uniform(-1.0, 1.0, (extra, 3))])
-    return center + signs * radius
-
-
 def moved_obstacle(coefficients: Coefficients, L: float, W: float, x: float) -> Obstacle:
     return Obstacle.in_scene(L, W, replace(coefficients.scene, centre_x_m=x))
 
@@ -79,11 +63,13 @@ def best_end_clearance(coefficients: Coefficients, arm: PlanarArm, L: float, W: 
     return out
 
 
-def test_endpoint_error_bound_holds_at_the_generators_end_poses(eq9_x: Coefficients, arm: PlanarArm) -> None:
+def test_endpoint_error_bound_holds_at_the_generators_end_poses(
+    eq9_x: Coefficients, arm: PlanarArm, random_cells, points_in
+) -> None:
     """At the corners, centre and random points of random cells of (L, W, x), the distance from
     the tip (Pinocchio) at t = 0 and t = T to the moved P1 and P5 stays within the bound."""
     model = RangeModel.from_coefficients(eq9_x)
-    center, radius = random_cells(model, 24, seed=1)
+    center, radius = random_cells(model, 24, np.random.default_rng(1), depths=(0, 2, 4, 6, 8))
     bounds = endpoint_error_bounds(model, center, radius)
     assert bounds.shape == (24, 2) and np.all(np.isfinite(bounds))
     rng = np.random.default_rng(2)
@@ -148,7 +134,9 @@ def _band_cells(model: RangeModel, x_centres, x_half: float) -> tuple[np.ndarray
 
 
 @pytest.mark.parametrize("x_half", [0.06 / 512, 0.06 / 128])
-def test_infeasibility_bound_holds_against_sampled_end_poses(eq9_x: Coefficients, arm: PlanarArm, x_half) -> None:
+def test_infeasibility_bound_holds_against_sampled_end_poses(
+    eq9_x: Coefficients, arm: PlanarArm, x_half, points_in
+) -> None:
     """Where a cell's end is proven (bound below the margin), no sampled pose near that end's P
     clears more than the bound, at the corners, centre and random points of the cell, each
     against its own moved obstacle; where the sub-cell bound proves the cell, the smaller of the
@@ -177,11 +165,13 @@ def test_infeasibility_bound_holds_against_sampled_end_poses(eq9_x: Coefficients
     assert checked > 100
 
 
-def test_infeasibility_bound_holds_over_random_cells(eq9_x: Coefficients, arm: PlanarArm) -> None:
+def test_infeasibility_bound_holds_over_random_cells(
+    eq9_x: Coefficients, arm: PlanarArm, random_cells, points_in
+) -> None:
     """Random cells of the whole range (mostly feasible at their corners): the same check, and a
     cell where a sampled point keeps the margin at both ends is never proven infeasible."""
     model = RangeModel.from_coefficients(eq9_x)
-    center, radius = random_cells(model, 40, seed=4, depths=(3, 5, 7, 9))
+    center, radius = random_cells(model, 40, np.random.default_rng(4), depths=(3, 5, 7, 9))
     direct = endpoint_clearance_upper_bounds(model, center, radius, TOLERANCE_M, MARGIN_M)
     refined = infeasibility_upper_bounds(model, center, radius, TOLERANCE_M, MARGIN_M)
     rng = np.random.default_rng(5)

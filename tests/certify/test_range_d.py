@@ -80,32 +80,6 @@ def clearance_at(coefficients: Coefficients, arm: PlanarArm, point: np.ndarray, 
     return float(analytic_link_clearance(q, arm, obstacle).min())
 
 
-def random_boxes(model: RangeModel, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """n random boxes of (L, W, x, d, s) inside the fitted box, half widths up to 1/32 of each side."""
-    rng = np.random.default_rng(seed)
-    lo = np.append(model.range_lo, 0.0)
-    size = np.append(model.range_size, 1.0)
-    radius = rng.uniform(0.0, 1.0 / 32, (n, 5)) * size
-    center = lo + radius + rng.uniform(0.0, 1.0, (n, 5)) * (size - 2 * radius)
-    return center, radius
-
-
-def random_cells(model: RangeModel, n: int, seed: int, depths=(0, 2, 4, 6)) -> tuple[np.ndarray, np.ndarray]:
-    """n cells of the dyadic grids of the fitted box (L, W, x, d), each at a random depth."""
-    rng = np.random.default_rng(seed)
-    depth = rng.choice(depths, n)
-    half = model.range_size / 2.0 ** (depth[:, None] + 1)
-    index = np.floor(rng.uniform(0.0, 1.0, (n, 4)) * 2.0 ** depth[:, None])
-    return model.range_lo + (2 * index + 1) * half, half
-
-
-def points_in(center: np.ndarray, radius: np.ndarray, rng: np.random.Generator, extra: int) -> np.ndarray:
-    """Eight corners of the cell (alternating signs), its centre and ``extra`` random points."""
-    signs = np.array([[a, b, c, a * b * c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)] + [[0, 0, 0, 0]])
-    signs = np.vstack([signs, rng.uniform(-1.0, 1.0, (extra, 4))])
-    return center + signs * radius
-
-
 def best_end_clearance(coefficients: Coefficients, arm: PlanarArm, L: float, W: float, x: float, d: float):
     """Largest analytic clearance over poses (the coefficients' elbow) whose tip is within the
     tolerance of P1 (entry 0) and of P5 (entry 1) of the obstacle (L, W, x, d): a dense sampling."""
@@ -155,9 +129,9 @@ def test_the_path_moves_with_d_and_keeps_its_duration(eq9_xd: Coefficients) -> N
 
 @pytest.mark.parametrize("seed", [11, 12])
 def test_box_bounds_are_below_the_sampled_clearance(
-    eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm, seed: int
+    eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm, seed: int, random_boxes
 ) -> None:
-    center, radius = random_boxes(model_xd, 40, seed)
+    center, radius = random_boxes(model_xd, 40, np.random.default_rng(seed))
     bounds = box_clearance_bounds(model_xd, center, radius)
     rng = np.random.default_rng(seed + 100)
     corners = np.array([[-1, -1, -1, -1, -1], [1, 1, 1, 1, 1], [1, -1, 1, -1, 1], [-1, 1, -1, 1, -1]], dtype=float)
@@ -170,8 +144,8 @@ def test_box_bounds_are_below_the_sampled_clearance(
     assert np.mean(bounds.lower_m > 0.0) > 0.5  # not vacuous
 
 
-def test_box_bounds_hold_against_coal(eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm) -> None:
-    center, radius = random_boxes(model_xd, 30, 21)
+def test_box_bounds_hold_against_coal(eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm, random_boxes) -> None:
+    center, radius = random_boxes(model_xd, 30, np.random.default_rng(21))
     bounds = box_clearance_bounds(model_xd, center, radius).lower_m
     rng = np.random.default_rng(22)
     for k in range(center.shape[0]):
@@ -277,12 +251,12 @@ def test_over_length_width_and_d_the_bounds_are_those_at_x_zero(eq9_xd: Coeffici
 
 
 def test_endpoint_error_bound_holds_at_the_end_poses(
-    eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm
+    eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm, random_cells, points_in
 ) -> None:
     """At corners, centre and random points of random cells of (L, W, x, d), the distance from the
     tip (Pinocchio) at t = 0 and t = T to the moved P1 and P5 stays within the bound; on small
     cells the bound is tight."""
-    center, radius = random_cells(model_xd, 20, seed=1)
+    center, radius = random_cells(model_xd, 20, np.random.default_rng(1), depths=(0, 2, 4, 6))
     bounds = endpoint_error_bounds(model_xd, center, radius)
     assert bounds.shape == (20, 2) and np.all(np.isfinite(bounds))
     rng = np.random.default_rng(2)
@@ -318,7 +292,7 @@ def _band_cells(d_centres, d_half: float) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("d_half", [0.02 / 512, 0.02 / 64])
 def test_infeasibility_bound_holds_against_sampled_end_poses(
-    eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm, d_half
+    eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm, d_half, points_in
 ) -> None:
     """Where a cell's end is proven (bound below the margin), no sampled pose near that end's P
     clears more than the bound, at the corners, centre and random points of the cell, each

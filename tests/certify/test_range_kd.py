@@ -40,16 +40,6 @@ def clearance_at(coefficients: Coefficients, arm: PlanarArm, point: np.ndarray, 
     return float(analytic_link_clearance(q, arm, answer.obstacle).min())
 
 
-def random_boxes(model: RangeModel, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """n random boxes of (L, W, x, s) inside the fitted box, half widths up to 1/16 of each side."""
-    rng = np.random.default_rng(seed)
-    lo = np.append(model.range_lo, 0.0)
-    size = np.append(model.range_size, 1.0)
-    radius = rng.uniform(0.0, 1.0 / 32, (n, 4)) * size
-    center = lo + radius + rng.uniform(0.0, 1.0, (n, 4)) * (size - 2 * radius)
-    return center, radius
-
-
 def test_model_has_the_axes_and_box(eq9_x: Coefficients) -> None:
     model = RangeModel.from_coefficients(eq9_x)
     assert model.axes.names == ("L", "W", "x") and model.k == 3
@@ -58,9 +48,11 @@ def test_model_has_the_axes_and_box(eq9_x: Coefficients) -> None:
 
 
 @pytest.mark.parametrize("seed", [11, 12])
-def test_box_bounds_are_below_the_sampled_clearance(eq9_x: Coefficients, arm: PlanarArm, seed: int) -> None:
+def test_box_bounds_are_below_the_sampled_clearance(
+    eq9_x: Coefficients, arm: PlanarArm, seed: int, random_boxes
+) -> None:
     model = RangeModel.from_coefficients(eq9_x)
-    center, radius = random_boxes(model, 60, seed)
+    center, radius = random_boxes(model, 60, np.random.default_rng(seed))
     bounds = box_clearance_bounds(model, center, radius)
     rng = np.random.default_rng(seed + 100)
     lowest = np.full(center.shape[0], np.inf)
@@ -76,9 +68,9 @@ def test_box_bounds_are_below_the_sampled_clearance(eq9_x: Coefficients, arm: Pl
     assert np.mean(bounds.lower_m > 0.0) > 0.5
 
 
-def test_box_bounds_hold_against_coal(eq9_x: Coefficients, arm: PlanarArm) -> None:
+def test_box_bounds_hold_against_coal(eq9_x: Coefficients, arm: PlanarArm, random_boxes) -> None:
     model = RangeModel.from_coefficients(eq9_x)
-    center, radius = random_boxes(model, 40, 21)
+    center, radius = random_boxes(model, 40, np.random.default_rng(21))
     bounds = box_clearance_bounds(model, center, radius).lower_m
     rng = np.random.default_rng(22)
     for k in range(center.shape[0]):

@@ -1,0 +1,65 @@
+"""Fixtures of the certificate tests: the sampling of boxes, cells and points over a range
+model's k axes, shared by the tests over (L, W, x) and (L, W, x, d). Each fixture is the
+function below it; randomness comes only from the ``numpy.random.Generator`` passed in."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from pipeline.certify.range_model import RangeModel
+
+
+@pytest.fixture(scope="session")
+def random_boxes():
+    """The function drawing random boxes of (the model's axes, s) (:func:`_random_boxes`)."""
+    return _random_boxes
+
+
+def _random_boxes(model: RangeModel, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """n random boxes of (the model's k axes, s) inside the fitted box times s in [0, 1]: centres
+    and half widths, (n, k + 1) each ([m] on the model's axes, a fraction of T on s). Half widths
+    uniform in [0, 1/32) of each side, then centres uniform where the box fits."""
+    lo = np.append(model.range_lo, 0.0)
+    size = np.append(model.range_size, 1.0)
+    radius = rng.uniform(0.0, 1.0 / 32, (n, model.k + 1)) * size
+    center = lo + radius + rng.uniform(0.0, 1.0, (n, model.k + 1)) * (size - 2 * radius)
+    return center, radius
+
+
+@pytest.fixture(scope="session")
+def random_cells():
+    """The function drawing random cells of the model's dyadic grids (:func:`_random_cells`)."""
+    return _random_cells
+
+
+def _random_cells(
+    model: RangeModel, n: int, rng: np.random.Generator, depths: tuple[int, ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """n cells of the dyadic grids of the model's fitted box over its k axes: centres and half
+    widths [m], (n, k) each. Each cell's depth is drawn from ``depths`` (side / 2**depth on every
+    axis), then its index on each axis uniformly among the 2**depth."""
+    depth = rng.choice(depths, n)
+    half = model.range_size / 2.0 ** (depth[:, None] + 1)
+    index = np.floor(rng.uniform(0.0, 1.0, (n, model.k)) * 2.0 ** depth[:, None])
+    return model.range_lo + (2 * index + 1) * half, half
+
+
+@pytest.fixture(scope="session")
+def points_in():
+    """The function drawing corners, centre and random points of a cell (:func:`_points_in`)."""
+    return _points_in
+
+
+def _points_in(center: np.ndarray, radius: np.ndarray, rng: np.random.Generator, extra: int) -> np.ndarray:
+    """Points of the cell ``center`` +- ``radius`` (k,) [m], (2**min(k, 3) + 1 + extra, k): the
+    corners with every sign pattern on the first three axes and, on any further axis, the product
+    of those three signs (k = 3: the 8 corners; k = 4: the 8 of even parity), the centre, and
+    ``extra`` points uniform in the cell."""
+    k = center.shape[-1]
+    free = min(k, 3)
+    corners = [[*s, *[int(np.prod(s))] * (k - free)] for s in itertools.product((-1, 1), repeat=free)]
+    signs = np.vstack([np.array(corners, dtype=float), np.zeros((1, k)), rng.uniform(-1.0, 1.0, (extra, k))])
+    return center + signs * radius
