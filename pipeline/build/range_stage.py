@@ -124,6 +124,6 @@ def certify_coefficients(
     timing["range_certificate_s"] = region_map.seconds
     started = time.perf_counter()
     limits = ArmLimits.from_arm(arm, config.acceleration_limits_rad_s2)
-    region_map = with_execution_bounds(region_map, coefficients, identify_dynamics(arm), limits)
+    region_map = with_execution_bounds(region_map, coefficients, identify_dynamics(arm), limits, map_config.run_on)
     timing["execution_bounds_s"] = time.perf_counter() - started
     return CertifiedCoefficients(coefficients, text, region_map, region_map_text(region_map), report, timing)

@@ -50,11 +50,14 @@ own quadrature and rounding bounds.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from pipeline.certify.execution_bounds import ROUNDED_DOWN, ExecutionBounds, outward
 from pipeline.certify.interval import Interval
 from pipeline.certify.range_model import RangeModel
+from pipeline.io.executor import Executor, map_tasks
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.execution_certificate import FLOAT_SLACK_ABSOLUTE, FLOAT_SLACK_RELATIVE
@@ -96,7 +99,11 @@ def _leaf_parameters(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray
 
 
 def kinematic_bounds(
-    model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray, dynamics: PlanarDynamics
+    model: RangeModel,
+    centre_m: np.ndarray,
+    half_m: np.ndarray,
+    dynamics: PlanarDynamics,
+    executor: int | Executor = 1,
 ) -> dict[str, np.ndarray]:
     """The bounds of the module docstring over boxes of the model's axes, before any limit.
 
@@ -104,6 +111,9 @@ def kinematic_bounds(
         model: The range model of the coefficients.
         centre_m, half_m: Box centres and half widths (n, k), columns the model's axes (L, W[, x][, d]) [m].
         dynamics: The arm's dynamics (for the torque terms G and K).
+        executor: Where the chunks of :data:`_CHUNK` boxes run (:func:`pipeline.io.executor.map_tasks`:
+            a number of local processes or an executor); the chunks are fixed, so the bounds do not
+            depend on it.
 
     Returns:
         The columns ``duration_lo_s`` .. ``ramp_torque2_n_m_s`` of
@@ -111,11 +121,16 @@ def kinematic_bounds(
         the family's parameters are unbounded over the box).
     """
     centre_m, half_m = np.asarray(centre_m, dtype=float), np.asarray(half_m, dtype=float)
-    parts = [
-        _kinematic_chunk(model, centre_m[k : k + _CHUNK], half_m[k : k + _CHUNK], dynamics)
-        for k in range(0, centre_m.shape[0], _CHUNK)
-    ]
+    chunks = [(centre_m[k : k + _CHUNK], half_m[k : k + _CHUNK]) for k in range(0, centre_m.shape[0], _CHUNK)]
+    parts = map_tasks(executor, functools.partial(_kinematic_task, model, dynamics), chunks, chunk_size=1)
     return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+
+
+def _kinematic_task(
+    model: RangeModel, dynamics: PlanarDynamics, chunk: tuple[np.ndarray, np.ndarray]
+) -> dict[str, np.ndarray]:
+    """:func:`_kinematic_chunk` of one task's (centres, half widths)."""
+    return _kinematic_chunk(model, chunk[0], chunk[1], dynamics)
 
 
 def _kinematic_chunk(
@@ -166,7 +181,12 @@ def _column(p: Interval) -> Interval:
 
 
 def execution_bounds(
-    model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray, dynamics: PlanarDynamics, limits: ArmLimits
+    model: RangeModel,
+    centre_m: np.ndarray,
+    half_m: np.ndarray,
+    dynamics: PlanarDynamics,
+    limits: ArmLimits,
+    executor: int | Executor = 1,
 ) -> ExecutionBounds:
     """The execution bounds of boxes of the model's axes (a region map's leaves) for one arm (module docstring).
 
@@ -175,8 +195,10 @@ def execution_bounds(
         centre_m, half_m: Leaf centres and half widths (n, k), columns the model's axes (L, W[, x][, d]) [m].
         dynamics: The arm's dynamics.
         limits: The arm's limits.
+        executor: Where the kinematic bounds' chunks run (:func:`kinematic_bounds`); the bounds
+            do not depend on it.
     """
-    columns = kinematic_bounds(model, centre_m, half_m, dynamics)
+    columns = kinematic_bounds(model, centre_m, half_m, dynamics, executor)
 
     def pair(stem: str) -> np.ndarray:
         return np.stack([columns[stem.format(1)], columns[stem.format(2)]], -1)

@@ -53,16 +53,23 @@ def default_config(
 
 
 def with_execution_bounds(
-    region_map: RegionMap, coefficients: Coefficients, dynamics: PlanarDynamics, limits: ArmLimits
+    region_map: RegionMap,
+    coefficients: Coefficients,
+    dynamics: PlanarDynamics,
+    limits: ArmLimits,
+    executor: int | Executor = 1,
 ) -> RegionMap:
     """``region_map`` with the execution bounds of its leaves for the arm of ``dynamics`` and
-    ``limits`` (:mod:`pipeline.certify.execution_bounds`); a few seconds for the default build's map."""
+    ``limits`` (:mod:`pipeline.certify.execution_bounds`), computed in fixed chunks of leaves on
+    ``executor`` (a number of local processes or an executor, :mod:`pipeline.io.executor`; the
+    bounds do not depend on it)."""
     bounds = execution_bounds(
         RangeModel.from_coefficients(coefficients),
         region_map.leaf_centres_m(),
         region_map.leaf_sizes_m() / 2.0,
         dynamics,
         limits,
+        executor,
     )
     return replace(region_map, execution=bounds)
 

@@ -165,9 +165,8 @@ def _work(args: argparse.Namespace) -> int:
     arm = arm_for_cli(coefficients, None)
     with ProgressBars(enabled=not args.no_progress) as progress:
         region_map = certify_range(coefficients, config, progress)
-    region_map = with_execution_bounds(
-        region_map, coefficients, identify_dynamics(arm), ArmLimits.recorded(arm, coefficients.provenance)
-    )
+    limits = ArmLimits.recorded(arm, coefficients.provenance)
+    region_map = with_execution_bounds(region_map, coefficients, identify_dynamics(arm), limits, config.run_on)
     digest = save_region_map(region_map, output) if output is not None else None
     print("\n".join(summary_lines(region_map)))
     summary = region_map.summary()

@@ -60,12 +60,18 @@ K_ENDPOINT_GRID = (9, 21)
 #: SLSQP's precision goal of the endpoint-constrained fit over k > 2 variables (the (L, W) fit's
 #: 1e-12 is not reached within its iteration budget there: ``EndpointConstraint.ftol``).
 K_ENDPOINT_FTOL = 1e-9
-#: Headroom of the endpoint-constrained fit over k > 2 variables: the range certificate's cells
-#: over (L, W, x) are coarser (1/64 of each side) and its endpoint bound exceeds the errors by
-#: more. On the default (L, W, x) DOE (python -m pipeline.build --vary x -0.03 0.03), the map's
-#: endpoint bound is within 2 mm on 67.1 % of the box at 0.03, 93.7 % at 0.2, 99.95 % at 0.3 and
-#: 100 % at 0.35 (largest 1.993 mm), the margin on 91.5, 91.3, 91.6 and 91.8 %.
-K_ENDPOINT_HEADROOM = 0.35
+#: Headroom of the endpoint-constrained fit over k > 2 variables, per number of variables: the
+#: error between the grid points, and the range certificate's endpoint bound above the error over
+#: its cells, must stay within the headroom (the map cuts a leaf while its bound exceeds the
+#: tolerance, down to its smallest cell: ``range_certificate.DEFAULT_CELLS``). Each 0.01 costs the
+#: end poses about 0.0145 mm of room near W = 0.12 m, where the margin is lost.
+#: k = 3 (cells down to 1/256): on the default (L, W, x) build
+#: (python -m pipeline.build --vary x -0.03 0.03), with 0.1 the map's endpoint bound is within
+#: 2 mm on 100 % of the box (largest 2.000 mm) and the margin holds on 98.44 % of it; with 0.35
+#: (then with cells of 1/128) on 96.72 %, the end poses leaving room for the margin on
+#: 98.1 % of the box at 1.3 mm of endpoint error against 99.2 % at 2 mm (docs/results.md).
+#: k = 4 (cells of 1/16, whose endpoint bound exceeds 2 mm anyway): 0.35.
+K_ENDPOINT_HEADROOM: dict[int, float] = {3: 0.1, 4: 0.35}
 
 
 @dataclass(frozen=True)
@@ -114,8 +120,8 @@ class EndpointConstraint:
     def for_variables(self, variables: Variables) -> EndpointConstraint:
         """This constraint as a fit over ``variables`` runs it: itself over (L, W); over more
         variables on the coarser grids of :data:`K_ENDPOINT_GRID`, with the precision goal
-        :data:`K_ENDPOINT_FTOL` and the headroom :data:`K_ENDPOINT_HEADROOM` (or this
-        constraint's, where coarser or larger)."""
+        :data:`K_ENDPOINT_FTOL` and the headroom :data:`K_ENDPOINT_HEADROOM` of their number (the
+        largest one beyond the table; or this constraint's, where coarser or larger)."""
         if variables.is_size_only:
             return self
         grid, check = K_ENDPOINT_GRID
@@ -124,7 +130,7 @@ class EndpointConstraint:
             grid_points=min(grid, self.grid_points),
             check_points=min(check, self.check_points),
             ftol=max(K_ENDPOINT_FTOL, self.ftol),
-            headroom=max(K_ENDPOINT_HEADROOM, self.headroom),
+            headroom=max(K_ENDPOINT_HEADROOM.get(variables.k, max(K_ENDPOINT_HEADROOM.values())), self.headroom),
         )
 
     @property
