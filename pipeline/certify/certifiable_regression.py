@@ -421,8 +421,13 @@ def fit_certifiable(
         settings = final if round_index == config.max_rounds else config.certificate
         region_map = certify_range(current, settings, progress=_prefixed(progress, f"round {round_index}: "))
         summary = region_map.summary()
-        new_points, loose = worst_points(
-            current, region_map, config.points_per_round, config.feasible_slack_m, config.endpoint.fit_tolerance_m
+        last = round_index == config.max_rounds
+        new_points, loose = (  # the last round's map is the answer: no points to collect from it
+            (np.empty((0, collected.shape[1])), np.empty((0, collected.shape[1] - 1)))
+            if last
+            else worst_points(
+                current, region_map, config.points_per_round, config.feasible_slack_m, config.endpoint.fit_tolerance_m
+            )
         )
         rounds.append(
             {
@@ -435,8 +440,8 @@ def fit_certifiable(
                 **_cells(settings),
             }
         )
-        if (new_points.shape[0] == 0 and loose.shape[0] == 0) or round_index == config.max_rounds:
-            if round_index < config.max_rounds and final != config.certificate:  # clean early: final cells
+        if last or (new_points.shape[0] == 0 and loose.shape[0] == 0):
+            if not last and final != config.certificate:  # clean early: final cells
                 region_map = certify_range(current, final, progress=_prefixed(progress, f"round {round_index}: "))
                 rounds[-1]["final_area_fraction"] = region_map.summary()["area_fraction"]
                 rounds[-1]["final_cells"] = _cells(final)

@@ -99,11 +99,7 @@ def _leaf_parameters(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray
 
 
 def kinematic_bounds(
-    model: RangeModel,
-    centre_m: np.ndarray,
-    half_m: np.ndarray,
-    dynamics: PlanarDynamics,
-    executor: int | Executor = 1,
+    model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray, dynamics: PlanarDynamics
 ) -> dict[str, np.ndarray]:
     """The bounds of the module docstring over boxes of the model's axes, before any limit.
 
@@ -111,9 +107,6 @@ def kinematic_bounds(
         model: The range model of the coefficients.
         centre_m, half_m: Box centres and half widths (n, k), columns the model's axes (L, W[, x][, d]) [m].
         dynamics: The arm's dynamics (for the torque terms G and K).
-        executor: Where the chunks of :data:`_CHUNK` boxes run (:func:`pipeline.io.executor.map_tasks`:
-            a number of local processes or an executor); the chunks are fixed, so the bounds do not
-            depend on it.
 
     Returns:
         The columns ``duration_lo_s`` .. ``ramp_torque2_n_m_s`` of
@@ -121,16 +114,11 @@ def kinematic_bounds(
         the family's parameters are unbounded over the box).
     """
     centre_m, half_m = np.asarray(centre_m, dtype=float), np.asarray(half_m, dtype=float)
-    chunks = [(centre_m[k : k + _CHUNK], half_m[k : k + _CHUNK]) for k in range(0, centre_m.shape[0], _CHUNK)]
-    parts = map_tasks(executor, functools.partial(_kinematic_task, model, dynamics), chunks, chunk_size=1)
+    parts = [
+        _kinematic_chunk(model, centre_m[k : k + _CHUNK], half_m[k : k + _CHUNK], dynamics)
+        for k in range(0, centre_m.shape[0], _CHUNK)
+    ]
     return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
-
-
-def _kinematic_task(
-    model: RangeModel, dynamics: PlanarDynamics, chunk: tuple[np.ndarray, np.ndarray]
-) -> dict[str, np.ndarray]:
-    """:func:`_kinematic_chunk` of one task's (centres, half widths)."""
-    return _kinematic_chunk(model, chunk[0], chunk[1], dynamics)
 
 
 def _kinematic_chunk(
@@ -195,10 +183,24 @@ def execution_bounds(
         centre_m, half_m: Leaf centres and half widths (n, k), columns the model's axes (L, W[, x][, d]) [m].
         dynamics: The arm's dynamics.
         limits: The arm's limits.
-        executor: Where the kinematic bounds' chunks run (:func:`kinematic_bounds`); the bounds
-            do not depend on it.
+        executor: Where the chunks of :data:`_CHUNK` leaves run (:func:`pipeline.io.executor.map_tasks`:
+            a number of local processes or an executor); the chunks are fixed and every leaf's
+            bounds are its own, so the bounds do not depend on it.
     """
-    columns = kinematic_bounds(model, centre_m, half_m, dynamics, executor)
+    centre_m, half_m = np.asarray(centre_m, dtype=float), np.asarray(half_m, dtype=float)
+    chunks = [(centre_m[k : k + _CHUNK], half_m[k : k + _CHUNK]) for k in range(0, centre_m.shape[0], _CHUNK)]
+    task = functools.partial(_bounds_chunk, model, dynamics, limits)
+    parts = map_tasks(executor, task, chunks, chunk_size=1)
+    columns = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    return ExecutionBounds(limits, dynamics, columns)
+
+
+def _bounds_chunk(
+    model: RangeModel, dynamics: PlanarDynamics, limits: ArmLimits, chunk: tuple[np.ndarray, np.ndarray]
+) -> dict[str, np.ndarray]:
+    """The stored columns of one chunk of leaves (centres, half widths): the kinematic bounds,
+    the rest-to-rest timing (c, r) and the outward rounding (module docstring)."""
+    columns = _kinematic_chunk(model, chunk[0], chunk[1], dynamics)
 
     def pair(stem: str) -> np.ndarray:
         return np.stack([columns[stem.format(1)], columns[stem.format(2)]], -1)
@@ -208,10 +210,9 @@ def execution_bounds(
     finite = np.all(np.isfinite(np.concatenate([V, acc, G, K], 1)), 1) & np.isfinite(columns["duration_lo_s"])
     c, r = np.full(V.shape[0], np.nan), np.full(V.shape[0], np.nan)
     rows = np.flatnonzero(finite)
-    for k in range(0, rows.size, _CHUNK):
-        part = rows[k : k + _CHUNK]
-        c[part], r[part] = rest_to_rest_scales(
-            columns["duration_lo_s"][part], V[part], acc[part], dynamics, limits, torque_terms=(G[part], K[part])
+    if rows.size:
+        c[rows], r[rows] = rest_to_rest_scales(
+            columns["duration_lo_s"][rows], V[rows], acc[rows], dynamics, limits, torque_terms=(G[rows], K[rows])
         )
     columns["speed_scale"], columns["ramp_s"] = c, r
     columns = {key: outward(values, key in ROUNDED_DOWN) for key, values in columns.items()}
@@ -219,4 +220,4 @@ def execution_bounds(
     fits = columns["ramp_s"] * columns["speed_scale"] <= columns["duration_lo_s"]
     for key in ("speed_scale", "ramp_s"):
         columns[key] = np.where(fits, columns[key], np.nan)
-    return ExecutionBounds(limits, dynamics, columns)
+    return columns
