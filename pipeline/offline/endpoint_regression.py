@@ -63,13 +63,12 @@ K_ENDPOINT_FTOL = 1e-9
 #: Headroom of the endpoint-constrained fit over k > 2 variables, per number of variables: the
 #: error between the grid points, and the range certificate's endpoint bound above the error over
 #: its cells, must stay within the headroom (the map cuts a leaf while its bound exceeds the
-#: tolerance, down to its smallest cell: ``range_certificate.DEFAULT_CELLS``). Each 0.01 costs the
-#: end poses about 0.0145 mm of room near W = 0.12 m, where the margin is lost.
+#: tolerance, down to its smallest cell: ``range_certificate.DEFAULT_CELLS``). Headroom is room
+#: the end poses lose near W = 0.12 m, where the margin is lost.
 #: k = 3 (cells down to 1/256): on the default (L, W, x) build
 #: (python -m pipeline.build --vary x -0.03 0.03), with 0.1 the map's endpoint bound is within
 #: 2 mm on 100 % of the box (largest 2.000 mm) and the margin holds on 98.44 % of it; with 0.35
-#: (then with cells of 1/128) on 96.72 %, the end poses leaving room for the margin on
-#: 98.1 % of the box at 1.3 mm of endpoint error against 99.2 % at 2 mm (docs/results.md).
+#: (then with cells of 1/128) on 96.72 % (docs/results.md, "Over the obstacle's centre x").
 #: k = 4 (cells of 1/16, whose endpoint bound exceeds 2 mm anyway): 0.35.
 K_ENDPOINT_HEADROOM: dict[int, float] = {3: 0.1, 4: 0.35}
 
