@@ -227,3 +227,24 @@ def test_the_build_summary_names_the_share_where_the_paper_timing_breaks_a_limit
     line = summary_lines(slow_map)[-1]
     assert "speed 100.00 %" in line and "rest-to-rest within them on 100.00 %" in line
     assert math.isfinite(summary["rest_to_rest_duration_max_s"])
+
+
+def test_bounds_do_not_depend_on_the_workers(paper, arm: PlanarArm, limits: ArmLimits) -> None:
+    """Execution bounds of 5,000 random boxes (three chunks of leaves) computed on two worker
+    processes equal, bit for bit, those computed in this process, column by column."""
+    from pipeline.certify.execution_range import execution_bounds
+    from pipeline.certify.range_model import RangeModel
+
+    rng = np.random.default_rng(7)
+    n = 5_000
+    half = np.column_stack([rng.uniform(1e-4, 5e-3, n), rng.uniform(1e-4, 2e-3, n)])
+    lo, size = np.array([0.2, 0.08]), np.array([0.1, 0.04])
+    centre = lo + half + rng.uniform(0.0, 1.0, (n, 2)) * (size - 2 * half)  # boxes inside the range
+    model, dynamics = RangeModel.from_coefficients(paper), identify_dynamics(arm)
+    here = execution_bounds(model, centre, half, dynamics, limits, 1)
+    pooled = execution_bounds(model, centre, half, dynamics, limits, 2)
+    assert sorted(here.columns) == sorted(pooled.columns)
+    for key, values in here.columns.items():
+        assert values.shape == (n,)
+        np.testing.assert_array_equal(pooled.columns[key], values, err_msg=key)
+    assert np.isfinite(here.columns["speed_scale"]).any()
