@@ -200,7 +200,7 @@ def _bounds_chunk(
 ) -> dict[str, np.ndarray]:
     """The stored columns of one chunk of leaves (centres, half widths): the kinematic bounds,
     the rest-to-rest timing (c, r) and the outward rounding (module docstring)."""
-    columns = _kinematic_chunk(model, chunk[0], chunk[1], dynamics)
+    columns = kinematic_bounds(model, chunk[0], chunk[1], dynamics)
 
     def pair(stem: str) -> np.ndarray:
         return np.stack([columns[stem.format(1)], columns[stem.format(2)]], -1)
