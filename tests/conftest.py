@@ -188,3 +188,56 @@ def _coefficients_over_xd(
         fitted_range_m={**lwx.fitted_range_m, "d": tuple(d_range_m)},
         variables=Variables(("L", "W", "x", "d")),
     )
+
+
+_UNIT_ROUNDOFF = 2.0**-53
+
+
+def _gamma(n: int) -> float:
+    """gamma_n = n u / (1 - n u): the relative error bound of an n-term sum of products."""
+    return n * _UNIT_ROUNDOFF / (1.0 - n * _UNIT_ROUNDOFF)
+
+
+class RoundingBounds:
+    """How far the online generator's compiled core may differ from the NumPy route (the derivation
+    is in ``pipeline.online.kernel``): the regression's columns and T, recomputed here from their
+    inputs with NumPy."""
+
+    @staticmethod
+    def regression(coefficients, length_m: float, width_m: float, **values: float) -> np.ndarray:
+        """(free parameters by the NumPy route, bound on |compiled - NumPy| of each) at one point."""
+        from pipeline.offline.variables import quadratic_design
+
+        extra = coefficients.variables.take(values)
+        point = np.array([[length_m, width_m, *extra.values()]])
+        basis = quadratic_design(point, None)[0]
+        matrix = np.array([coefficients.parameters[name] for name in coefficients.family.free_parameter_names])
+        reference = coefficients.predict_free(length_m, width_m, **values)
+        return reference, 2.0 * _gamma(basis.size + 1) * (np.abs(matrix) @ np.abs(basis))
+
+    @staticmethod
+    def duration(scene, length_m: float, width_m: float, centre_x_m: float = 0.0) -> tuple[float, float]:
+        """(T [s] by the NumPy route, bound on |compiled - NumPy| [s]) for the even quartic's closed form."""
+        from pipeline.motion.path import (
+            LENGTH_RULE_POWERS,
+            LENGTH_RULE_WEIGHTS,
+            symmetric_quartic,
+            symmetric_quartic_length_m,
+        )
+
+        bottom = scene.top_y_m - width_m
+        x1, x2 = length_m / 2.0 + scene.start_dx_m, length_m / 2.0 + scene.approach_dx_m
+        c4, c2, _ = symmetric_quartic(x1, scene.y1_m, x2, bottom - scene.approach_dy_m, bottom - scene.apex_dy_m)
+        duration = symmetric_quartic_length_m(x1, c4, c2) / scene.speed_m_s
+        k1, k3 = 2.0 * c2 * x1, 4.0 * c4 * x1**3
+        signed = np.array([1.0, k1 * k1, 2.0 * k1 * k3, k3 * k3]) @ LENGTH_RULE_POWERS
+        absolute = np.array([1.0, k1 * k1, abs(2.0 * k1 * k3), k3 * k3]) @ LENGTH_RULE_POWERS
+        ratio = float(np.max(absolute / signed))
+        bound = 2.0 * (_gamma(5) * ratio + _gamma(LENGTH_RULE_WEIGHTS.size + 2)) * duration * (1.0 + _gamma(8))
+        return duration, bound
+
+
+@pytest.fixture(scope="session")
+def rounding() -> type[RoundingBounds]:
+    """The bounds within which the compiled online core equals the NumPy route (``pipeline.online.kernel``)."""
+    return RoundingBounds

@@ -56,6 +56,7 @@ import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -87,6 +88,32 @@ _COLUMNS = (
     "endpoint_clearance_upper_m",
     "status",
 )
+
+
+#: :attr:`LookupTables.mode` of a map over (L, W): a dense index of the deepest level, strips along W.
+LOOKUP_SIZE = 1
+#: :attr:`LookupTables.mode` of a map over k > 2 axes: a coarse dense index, then rows of 2^k children.
+LOOKUP_TREE = 2
+
+
+class LookupTables(NamedTuple):
+    """The scalar lookup of a map as three flat arrays (module docstring), for the online
+    generator's compiled core (``pipeline.online.kernel``), which finds the same leaves as
+    :meth:`RegionMap.leaf_indices`. The arrays are copies, writable only because Numba's dispatch
+    of a read-only array costs twice as much: do not modify them.
+
+    Attributes:
+        layout: int64 (mode, 2^D, D - C, C, row width, start of the rows in ``table``): the mode
+            (:data:`LOOKUP_SIZE` or :data:`LOOKUP_TREE`), D the deepest depth, C the dense index's
+            depth (D over (L, W)), and the entries per row: 2^E strips over (L, W), 2^k children
+            over k axes.
+        ranges: (k, 2) float64: the fitted range of every axis, in ``axes`` order [m].
+        table: int32: the dense index, flat, then the rows of strips or children, flat.
+    """
+
+    layout: np.ndarray
+    ranges: np.ndarray
+    table: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -338,6 +365,10 @@ class RegionMap:
             return None
         return self._leaf_bounds[self._leaf_at(length_m, width_m)]
 
+    def leaf_bounds(self, leaf: int) -> tuple[float, float, str]:
+        """(clearance bound [m], endpoint-error bound [m], status) of leaf number ``leaf``."""
+        return self._leaf_bounds[leaf]
+
     def leaf_at(self, length_m: float, width_m: float, *extra: float) -> int | None:
         """Leaf number of the point (L, W [m] and the extra axes' values in ``axes`` order), or
         None outside the fitted box (scalar lookup).
@@ -474,6 +505,15 @@ class RegionMap:
             memoryview(self._sub_index.reshape(-1)).cast("B").cast("i"),
             self._sub_index.shape[1],
         )
+
+    @cached_property
+    def lookup_tables(self) -> LookupTables:
+        """The scalar lookup as flat arrays (:class:`LookupTables`; copies, not to be modified)."""
+        top = int(self.depth.max())
+        mode, coarse = (LOOKUP_SIZE, top) if self.extra_index is None else (LOOKUP_TREE, self._coarse_depth)
+        layout = np.array([mode, 1 << top, top - coarse, coarse, self._sub_index.shape[1], self._index.size])
+        table = np.concatenate([self._index.reshape(-1), self._sub_index.reshape(-1)]).astype(np.int32)
+        return LookupTables(layout.astype(np.int64), np.array(self._ranges, dtype=float), table)
 
     @cached_property
     def _leaf_bounds(self) -> list[tuple[float, float, str]]:

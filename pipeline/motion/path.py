@@ -54,6 +54,9 @@ _LENGTH_U, _LENGTH_W = _half_span_rule(8, 20)
 _LENGTH_POWERS = np.stack([np.ones_like(_LENGTH_U), _LENGTH_U**2, _LENGTH_U**4, _LENGTH_U**6])
 for _array in (_LENGTH_U, _LENGTH_W, _LENGTH_POWERS):
     _array.setflags(write=False)
+#: The arc-length rule of :func:`symmetric_quartic_length_m`, for the online generator's compiled
+#: core (``pipeline.online.kernel``): rows 1, u^2, u^4, u^6 at the nodes (4, 160), and the weights (160,).
+LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS = _LENGTH_POWERS, _LENGTH_W
 
 
 def symmetric_quartic(

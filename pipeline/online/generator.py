@@ -35,13 +35,11 @@ import warnings
 import weakref
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from itertools import combinations_with_replacement, starmap
-from operator import le, mul
 from typing import NamedTuple
 
 import numpy as np
 
-from pipeline.certify.region_map import RegionMap
+from pipeline.certify.region_map import LookupTables, RegionMap
 from pipeline.exceptions import (
     InexactEndpointsWarning,
     InvalidParameterError,
@@ -55,10 +53,11 @@ from pipeline.model.kinematics import inverse_kinematics, reach_annulus_m
 from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.motion.families import EndpointContext, TrajectoryFamily
-from pipeline.motion.path import QuarticPath, desired_path, symmetric_quartic, symmetric_quartic_length_m
+from pipeline.motion.path import LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS, QuarticPath, desired_path
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.variables import Variables
+from pipeline.online.kernel import NO_TABLES, query_core
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
 #: The scene variables :func:`generate` takes by keyword, in the order of its arguments.
@@ -203,6 +202,7 @@ class QueryPlan(NamedTuple):
     y1_is_top: bool  # y1 = d (the scene's start_y_m is None): a value of d moves P1 and P5 too
     lows: tuple[float, ...]  # the fitted range of every variable (L, W, then ``extra``) [m]: lower ends
     highs: tuple[float, ...]  # ... upper ends
+    core: tuple  # the compiled core's arguments after the query's five numbers, before the map's tables
 
 
 #: The plans of the coefficients queried so far, kept while they live.
@@ -259,6 +259,7 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
         matrix = matrix.T
         variables = coefficients.variables
         ranges = [tuple(coefficients.fitted_range_m[name]) for name in variables.names]
+        core = _core_arguments(matrix, variables, scene, ranges, reach_annulus_m(coefficients.link_lengths_m))
         plan = QueryPlan(
             matrix_t=matrix,
             l_range=tuple(coefficients.fitted_range_m["L"]),
@@ -282,9 +283,36 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
             y1_is_top=scene.start_y_m is None,
             lows=tuple(lo for lo, _ in ranges),
             highs=tuple(hi for _, hi in ranges),
+            core=core,
         )
         _PLANS[coefficients] = plan
     return plan
+
+
+def _core_arguments(matrix_t: np.ndarray, variables: Variables, scene: Scene, ranges: list, reach: tuple) -> tuple:
+    """The arguments of :func:`pipeline.online.kernel.query_core` that every query of one
+    coefficients object shares: private arrays, writable only because Numba's dispatch of a
+    read-only array costs twice as much (one compiled core serves every plan)."""
+    codes = np.array([_GIVEN.index(name) for name in variables.extra], dtype=np.int64)
+    numbers = np.array(
+        [
+            *(scene.start_dx_m, scene.approach_dx_m, scene.approach_dy_m, scene.apex_dy_m, scene.speed_m_s, *reach),
+            *(lo for lo, _ in ranges),
+            *(hi for _, hi in ranges),
+        ],
+        dtype=float,
+    )
+    rule = np.vstack([LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS])
+    padded = np.zeros((matrix_t.shape[0], 8))
+    padded[:, : matrix_t.shape[1]] = matrix_t
+    return codes, numbers, rule, padded
+
+
+def _tables(region_map: RegionMap | None, plan: QueryPlan) -> LookupTables:
+    """The lookup tables of ``region_map`` if it is a map over the plan's variables, else none."""
+    if region_map is None or region_map.axes != plan.variables.names:
+        return NO_TABLES
+    return region_map.lookup_tables
 
 
 def _size(value: object, size: tuple[object, object], name: str) -> float:
@@ -384,38 +412,40 @@ def generate(
     if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
         L = _size(length_m, (length_m, width_m), "L")
         W = _size(width_m, (length_m, width_m), "W")
-    matrix_t, (l_lo, l_hi), (w_lo, w_hi), reach, top, y1 = plan[:6]
-    start_dx, approach_dx, approach_dy, apex_dy, speed = plan[6:11]
-    bottom = _checked_bottom(plan, L, W, top)
-    # P1, P2, P3 (P4, P5 mirror P2, P1: the same radii) and their distance from the base.
-    x1, x2 = L / 2.0 + start_dx, L / 2.0 + approach_dx
-    y2, y3 = bottom - approach_dy, bottom - apex_dy
-    lo, hi = reach
-    r1, r2, r3 = math.hypot(x1, y1), math.hypot(x2, y2), abs(y3)
-    if not (lo <= r1 <= hi and lo <= r2 <= hi and lo <= r3 <= hi):
-        name, radius = next((n, r) for n, r in (("P1", r1), ("P2", r2), ("P3", r3)) if not lo <= r <= hi)
-        raise UnreachableObstacleError(name, radius, reach, size_m=(L, W))
-    extrapolated = not (l_lo <= L <= l_hi and w_lo <= W <= w_hi)
+    top = plan.top
+    _checked_bottom(plan, L, W, top)
+    tables = NO_TABLES if region_map is None else region_map.lookup_tables
+    unreachable, radius, duration, inside, leaf, *columns = query_core(L, W, 0.0, top, plan.y1, *plan.core, *tables)
+    if unreachable >= 0:  # P4 and P5 mirror P2 and P1: the first of P1..P3 to fail is named
+        raise UnreachableObstacleError(f"P{unreachable + 1}", radius, plan.reach, size_m=(L, W))
+    extrapolated = not inside
     if extrapolated and out_of_range != "ignore":
         _check_range(plan, L, W, out_of_range)
-    if x1 > x2 > 0.0:
-        c4, c2, _ = symmetric_quartic(x1, y1, x2, y2, y3)
-        duration = symmetric_quartic_length_m(x1, c4, c2) / speed
-    else:  # approach_dx > start_dx: a scene the closed form does not cover
+    if duration != duration:  # NaN: approach_dx > start_dx, a scene the closed form does not cover
         duration = desired_path(Obstacle.in_scene(L, W, coefficients.scene), coefficients.scene).duration_s
-    # The regression: (1, L, W, L^2, LW, W^2) @ B^T, as pipeline.offline.regression.predict (same bits).
-    free = np.array([1.0, L, W, L * L, L * W, W * W]).dot(matrix_t)
     family = coefficients.family
-    if family.uses_endpoint_context:
-        full = _expand_with_endpoints(coefficients, free, (x1, y1), (-x1, y1), duration, (L, W))
+    if family.expands_to_itself:
+        parameters = tuple(columns)
     else:
-        full = family.expand(free, None)
-    parameters = tuple(full.tolist())
+        free = np.array(columns[: plan.matrix_t.shape[1]])
+        if family.uses_endpoint_context:
+            x1 = L / 2.0 + plan.start_dx
+            full = _expand_with_endpoints(coefficients, free, (x1, plan.y1), (-x1, plan.y1), duration, (L, W))
+        else:
+            full = family.expand(free, None)
+        parameters = tuple(full.tolist())
     if not all(map(math.isfinite, parameters)):
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
-    bounds = None if region_map is None or extrapolated else region_map.bounds_at(L, W)
+    bounds = None if leaf < 0 else region_map.leaf_bounds(leaf)
     return GeneratedTrajectory.trusted(
-        L, W, family, coefficients.scene, JointTrajectory.trusted(parameters, duration), extrapolated, reach, bounds
+        L,
+        W,
+        family,
+        coefficients.scene,
+        JointTrajectory.trusted(parameters, duration),
+        extrapolated,
+        plan.reach,
+        bounds,
     )
 
 
@@ -508,45 +538,35 @@ def _generate_moved(
     c = plan.centre_x if x is None else x
     top = plan.top if d is None else d
     y1 = top if plan.y1_is_top else plan.y1
-    bottom = _checked_bottom(plan, L, W, top)
-    # P1..P5 as pipeline.motion.path.constraint_points: the x of the centred path plus c.
-    x1, x2 = L / 2.0 + plan.start_dx, L / 2.0 + plan.approach_dx
-    y2, y3 = bottom - plan.approach_dy, bottom - plan.apex_dy
-    lo, hi = plan.reach
-    hypot = math.hypot
-    r1, r2, r3, r4, r5 = hypot(x1 + c, y1), hypot(x2 + c, y2), hypot(c, y3), hypot(c - x2, y2), hypot(c - x1, y1)
-    if not (lo <= r1 <= hi and lo <= r2 <= hi and lo <= r3 <= hi and lo <= r4 <= hi and lo <= r5 <= hi):
-        k, radius = next((k, r) for k, r in enumerate((r1, r2, r3, r4, r5)) if not lo <= r <= hi)
+    _checked_bottom(plan, L, W, top)
+    tables = _tables(region_map, plan)
+    unreachable, radius, duration, inside, leaf, *columns = query_core(L, W, c, top, y1, *plan.core, *tables)
+    if unreachable >= 0:
         variables = dict(zip(plan.extra, values, strict=True))
-        raise UnreachableObstacleError(f"P{k + 1}", radius, plan.reach, size_m=(L, W), variables=variables)
+        raise UnreachableObstacleError(f"P{unreachable + 1}", radius, plan.reach, size_m=(L, W), variables=variables)
     v = (L, W, *values)
-    extrapolated = not (all(map(le, plan.lows, v)) and all(map(le, v, plan.highs)))  # lo <= value <= hi, each
+    extrapolated = not inside
     if extrapolated and out_of_range != "ignore":
         extra = tuple(zip(plan.extra, values, plan.extra_ranges, strict=True))
         _check_range(plan, L, W, out_of_range, extra, stacklevel=4)  # one frame deeper than generate's own
-    # T of the path at x = 0: the moved path is the same curve, moved rigidly.
-    if x1 > x2 > 0.0:
-        c4, c2, _ = symmetric_quartic(x1, y1, x2, y2, y3)
-        duration = symmetric_quartic_length_m(x1, c4, c2) / plan.speed
-    else:
+    if duration != duration:  # NaN: the closed form does not cover this scene; T of the path at x = 0
         centred = replace(scene, centre_x_m=0.0)
         duration = desired_path(Obstacle.in_scene(L, W, centred), centred).duration_s
-    # The regression, as Coefficients.predict_free (pipeline.offline.regression.predict_points): same bits.
-    # Its basis: 1, v, then v_i v_j for i <= j in lexicographic order (Variables.pairs).
-    quadratic = starmap(mul, combinations_with_replacement(v, 2))
-    free = np.array([1.0, *v, *quadratic]).dot(plan.matrix_t)
     family = coefficients.family
-    if family.uses_endpoint_context:
-        start, end = (x1 + c, y1), (-x1 + c, y1)
-        full = _expand_with_endpoints(coefficients, free, start, end, duration, v, plan.variables.names)
+    if family.expands_to_itself:
+        parameters = tuple(columns)
     else:
-        full = family.expand(free, None)
-    parameters = tuple(full.tolist())
+        free = np.array(columns[: plan.matrix_t.shape[1]])
+        if family.uses_endpoint_context:
+            x1 = L / 2.0 + plan.start_dx
+            start, end = (x1 + c, y1), (-x1 + c, y1)
+            full = _expand_with_endpoints(coefficients, free, start, end, duration, v, plan.variables.names)
+        else:
+            full = family.expand(free, None)
+        parameters = tuple(full.tolist())
     if not all(map(math.isfinite, parameters)):
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
-    bounds = None
-    if region_map is not None and not extrapolated and region_map.axes == plan.variables.names:
-        bounds = region_map.bounds_at(*v)
+    bounds = None if leaf < 0 else region_map.leaf_bounds(leaf)
     trajectory = JointTrajectory.trusted(parameters, duration)
     variables = tuple(zip(plan.extra, values, strict=True))
     return GeneratedTrajectory.trusted(L, W, family, scene, trajectory, extrapolated, plan.reach, bounds, variables)

@@ -66,12 +66,15 @@ class TrajectoryFamily(ABC):
             (wherever :meth:`endpoints_exact` says so), so the end poses are fixed by the obstacle.
         uses_endpoint_context: True if :meth:`expand` needs the obstacle's
             :class:`EndpointContext` (else it accepts None).
+        expands_to_itself: True if :meth:`expand` returns the free parameters unchanged (all
+            eight free, no context): the online generator then skips it.
     """
 
     name: ClassVar[str]
     free_parameter_names: ClassVar[tuple[str, ...]]
     pins_endpoints: ClassVar[bool]
     uses_endpoint_context: ClassVar[bool]
+    expands_to_itself: ClassVar[bool] = False
 
     @property
     def free_count(self) -> int:

@@ -26,6 +26,7 @@ class PaperFamily(TrajectoryFamily):
     free_parameter_names: ClassVar[tuple[str, ...]] = PARAMETER_NAMES
     pins_endpoints: ClassVar[bool] = False
     uses_endpoint_context: ClassVar[bool] = False
+    expands_to_itself: ClassVar[bool] = True
 
     def expand(self, free: np.ndarray, context: EndpointContext | None) -> np.ndarray:
         return np.asarray(free, dtype=float)

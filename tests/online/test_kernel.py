@@ -1,0 +1,186 @@
+"""The compiled core of a query (pipeline.online.kernel) against the NumPy routes: T and the
+regression within the rounding bounds its docstring derives (bounds small enough for the
+certificate's slack), the region map's leaf exactly (random trees over 2, 3 and 4 axes, deeper
+than the dense index, strips along W, points on cell edges), and the first unreachable point."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pipeline.certify.interval import FLOAT_SLACK_M
+from pipeline.certify.region_map import RegionMap
+from pipeline.model.kinematics import reach_annulus_m
+from pipeline.model.obstacle import Obstacle
+from pipeline.motion.path import constraint_points
+from pipeline.offline.variables import Variables
+from pipeline.online.generator import generate, query_plan
+from pipeline.online.kernel import NO_TABLES, query_core
+
+X_RANGE = (-0.03, 0.03)
+D_RANGE = (0.55, 0.57)
+
+
+@pytest.fixture(scope="module")
+def paper_x(paper, over_x):
+    return over_x(paper, X_RANGE, seed=3, scale=0.05)
+
+
+@pytest.fixture(scope="module")
+def paper_xd(paper, over_xd):
+    return over_xd(paper, X_RANGE, D_RANGE, seed=3, scale=0.05)
+
+
+def core(coefficients, L, W, x=None, d=None, tables=NO_TABLES):
+    """query_core's answer for one query, its arguments made as the generator makes them."""
+    plan = query_plan(coefficients)
+    c = plan.centre_x if x is None else x
+    top = plan.top if d is None else d
+    y1 = top if plan.y1_is_top else plan.y1
+    return query_core(L, W, c, top, y1, *plan.core, *tables)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.2, 0.3), st.floats(0.08, 0.12), st.floats(*X_RANGE), st.floats(*D_RANGE))
+def test_t_and_the_regression_are_the_numpy_routes_to_rounding(paper, paper_x, paper_xd, rounding, L, W, x, d):
+    for coefficients, given_values in ((paper, {}), (paper_x, {"x": x}), (paper_xd, {"x": x, "d": d})):
+        answer = generate(coefficients, L, W, **given_values)
+        reference, bound = rounding.regression(coefficients, L, W, **given_values)
+        assert np.all(np.abs(np.subtract(answer.trajectory.parameters, reference)) <= bound)
+        duration, duration_bound = rounding.duration(answer.scene, L, W)
+        assert abs(answer.duration_s - duration) <= duration_bound
+        # Small enough for the certificate's slack (pipeline.online.kernel's docstring).
+        assert bound.max() < 1e-12 and duration_bound < 1e-12 < FLOAT_SLACK_M
+
+
+def random_tree(k: int, rng: np.random.Generator, deepest: int) -> tuple[np.ndarray, np.ndarray]:
+    """Leaves (depth (n,), index (n, k)) of a random 2^k-tree: a node is cut with probability
+    3 / 2^k (always above depth 2, and the first node of every level), down to ``deepest``."""
+    leaves, pending = [], [(0, (0,) * k)]
+    while pending:
+        depth, index = pending.pop()
+        if depth < deepest and (depth < 2 or not any(index) or rng.random() < 3.0 / 2**k):
+            for child in range(2**k):
+                bits = [(child >> (k - 1 - a)) & 1 for a in range(k)]
+                pending.append((depth + 1, tuple(2 * i + b for i, b in zip(index, bits, strict=True))))
+        else:
+            leaves.append((depth, index))
+    return np.array([d for d, _ in leaves]), np.array([i for _, i in leaves])
+
+
+def tree_map(coefficients, depth, index, split=None) -> RegionMap:
+    n, k = index.shape
+    axes = coefficients.variables.names
+    return RegionMap(
+        family=coefficients.family.name,
+        coefficients_source="test",
+        coefficients_sha256="ab" * 32,
+        length_range_m=tuple(coefficients.fitted_range_m["L"]),
+        width_range_m=tuple(coefficients.fitted_range_m["W"]),
+        margin_m=0.01,
+        endpoint_tolerance_m=0.002,
+        depth=depth,
+        index_l=index[:, 0],
+        index_w=index[:, 1],
+        clearance_bound_m=np.linspace(0.01, 0.02, n),
+        endpoint_bound_m=np.full(n, 1e-3),
+        endpoint_clearance_upper_m=np.full(n, 0.05),
+        status=np.zeros(n, dtype=int),
+        split_w=split,
+        axes=axes,
+        extra_ranges_m=tuple(tuple(coefficients.fitted_range_m[name]) for name in axes[2:]),
+        extra_index=index[:, 2:] if k > 2 else None,
+    )
+
+
+def strips(depth: np.ndarray, index: np.ndarray, rng: np.random.Generator):
+    """Cut some of the deepest quadtree leaves into 2 or 4 strips along W."""
+    top = depth.max()
+    rows, split = [], []
+    for d, (i, j) in zip(depth, index, strict=True):
+        e = int(rng.integers(0, 3)) if d == top else 0
+        for s in range(2**e):
+            rows.append((d, i, (j << e) + s))
+            split.append(e)
+    rows = np.array(rows)
+    return rows[:, 0], rows[:, 1:], np.array(split)
+
+
+def points_to_check(map_, rng: np.random.Generator, n: int) -> np.ndarray:
+    """Random points of the map's box, and points on the edges of its deepest cells and on the box's faces."""
+    ranges = np.array([map_.length_range_m, map_.width_range_m, *map_.extra_ranges_m])
+    lo, hi = ranges[:, 0], ranges[:, 1]
+    cells = 2 ** (int(map_.depth.max()) + int(map_.split_w.max()))
+    random = lo + (hi - lo) * rng.random((n, lo.size))
+    edges = lo + (hi - lo) * rng.integers(0, cells + 1, (n, lo.size)) / cells
+    return np.vstack([random, edges, lo, hi])
+
+
+@pytest.mark.parametrize("axes", [("L", "W"), ("L", "W", "x"), ("L", "W", "x", "d")])
+def test_the_leaf_is_the_maps(paper, paper_x, paper_xd, axes) -> None:
+    """Trees deeper than the dense index of k > 2 axes (depth 9 > 7 for k = 3, 6 > 5 for k = 4)."""
+    coefficients = {2: paper, 3: paper_x, 4: paper_xd}[len(axes)]
+    rng = np.random.default_rng(len(axes))
+    k = len(axes)
+    depth, index = random_tree(k, rng, {2: 7, 3: 9, 4: 6}[k])
+    assert depth.max() == {2: 7, 3: 9, 4: 6}[k]
+    split = None
+    if k == 2:
+        depth, index, split = strips(depth, index, rng)
+    map_ = tree_map(coefficients, depth, index, split)
+    points = points_to_check(map_, rng, 1500)
+    expected = map_.leaf_indices(*points.T)
+    assert np.all(expected >= 0)
+    tables = map_.lookup_tables
+    found = []
+    for point in points.tolist():
+        L, W, *rest = point
+        values = dict(zip(axes[2:], rest, strict=True))
+        found.append(core(coefficients, L, W, tables=tables, **values)[4])
+    np.testing.assert_array_equal(found, expected)
+    # Outside the box: no leaf, and the query is outside the fitted range.
+    L_hi = coefficients.fitted_range_m["L"][1]
+    outside = core(coefficients, math.nextafter(L_hi, 1.0), 0.1, *(0.0, 0.56)[: k - 2], tables=tables)
+    assert outside[3] is False and outside[4] == -1
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.05, 0.6), st.floats(0.05, 0.5), st.floats(-0.3, 0.3))
+def test_the_first_unreachable_point_is_the_path_modules(paper_x, L, W, x) -> None:
+    scene = replace(paper_x.scene, centre_x_m=x)
+    if W >= scene.top_y_m:
+        return  # refused before the core (the obstacle covers the base)
+    points = constraint_points(Obstacle.in_scene(L, W, scene), scene)
+    lo, hi = reach_annulus_m(paper_x.link_lengths_m)
+    radii = np.hypot(points[:, 0], points[:, 1])
+    outside = np.flatnonzero((radii < lo) | (radii > hi))
+    unreachable, radius = core(paper_x, L, W, x=x)[:2]
+    if outside.size == 0:
+        assert unreachable == -1 and math.isnan(radius)
+    else:
+        assert unreachable == outside[0]
+        assert radius == pytest.approx(radii[outside[0]], rel=1e-15)
+
+
+def test_variables_over_d_alone(paper) -> None:
+    """The code of d alone (the variables' order is L, W, then d): the core's inside test and
+    regression read d."""
+    lwd = Variables(("L", "W", "d"))
+    parameters = {}
+    for name, b in paper.parameters.items():
+        row = np.zeros(lwd.basis_size)
+        row[[0, 1, 2, 4, 5, 7]] = b
+        row[3] = 1.0  # + d
+        parameters[name] = tuple(row.tolist())
+    over_d = replace(paper, parameters=parameters, fitted_range_m={**paper.fitted_range_m, "d": D_RANGE}, variables=lwd)
+    for d in (0.55, 0.56, 0.57):
+        base = core(paper, 0.25, 0.1)
+        moved = core(over_d, 0.25, 0.1, d=d)
+        assert moved[3] is True
+        np.testing.assert_allclose(np.subtract(moved[5:], base[5:]), d, rtol=0, atol=1e-15)
+    assert core(over_d, 0.25, 0.1, d=0.571)[3] is False
