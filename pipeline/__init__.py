@@ -8,7 +8,7 @@ and its map) -> ``build`` (the whole offline build as one call) -> ``online`` (l
 generator, certify-or-repair).
 
 The online names (:func:`load_coefficients`, :func:`generate`, :func:`generate_batch`, the
-errors) need NumPy only; the others (the build, the arm, certify-or-repair) load Pinocchio and
+errors) need NumPy and Numba only; the others (the build, the arm, certify-or-repair) load Pinocchio and
 Coal on first use.
 """
 

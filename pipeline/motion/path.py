@@ -12,8 +12,8 @@ form (:func:`symmetric_quartic`). Its length is 2 * integral_0^a sqrt(1 + y'(x)^
 (a = x of P1) by a fixed composite Gauss-Legendre rule with precomputed nodes
 (:func:`symmetric_quartic_length_m`: 8 panels of 20 nodes; over every reachable obstacle of the
 paper's scene it agrees with a 64-panel, 10-node rule over the whole span to 1e-14 relative).
-The online generator calls these two functions directly; :class:`QuarticPath` uses them too,
-so both give the same T to the last bit.
+:class:`QuarticPath` and the batched generator use them; the online generator's compiled core
+(``pipeline.online.kernel``) evaluates the same rule, equal to rounding.
 
 Any other five points (x_c != 0) give a general quartic, solved from the 5 x 5 Vandermonde
 system; its length is the same fixed rule on each side of the apex P3, from P3 out to P1 and
@@ -179,8 +179,8 @@ class QuarticPath:
 
     @cached_property
     def length_m(self) -> float:
-        """Total arc length from P1 to P5 [m]: for the symmetric quartic the generator's closed-form
-        rule (the same T to the last bit), else the same rule on each side of P3
+        """Total arc length from P1 to P5 [m]: for the symmetric quartic the closed-form rule
+        (:func:`symmetric_quartic_length_m`), else the same rule on each side of P3
         (:func:`quartic_length_m`)."""
         if self._symmetric:
             return symmetric_quartic_length_m(self.start_x_m, self.coefficients[0], self.coefficients[2])

@@ -5,7 +5,8 @@ For sweeps (``verify.sweep`` and the like), where per-query Python overhead woul
 * :func:`generate_batch` gives, for n obstacles, the eight parameters (n, 8), T (n,) and the
   out-of-range flags in a handful of NumPy operations (paper family; a family that needs each
   obstacle's inverse kinematics is expanded per obstacle). The numbers equal :func:`generate`'s
-  (tests compare them); sizes :func:`generate` would refuse are reported per obstacle in
+  to rounding (its compiled core adds in another order: the bounds are in
+  ``pipeline.online.kernel``; tests compare them); sizes :func:`generate` would refuse are reported per obstacle in
   ``error`` instead of raising, so one bad case does not stop a sweep. Coefficients over more
   scene variables than (L, W) take their values by keyword, one per obstacle
   (``generate_batch(coefficients, L, W, x=xs)``), as :func:`generate` does, and carry the bounds

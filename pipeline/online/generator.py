@@ -1,31 +1,40 @@
 """The online generator: coefficients + (L, W) -> the trajectory, in microseconds.
 
-Evaluating the regression is a 6-term polynomial per parameter; the only other work is the
-path's duration T. Per query the generator does only what the answer needs, once:
+Per query the generator checks its arguments in Python, then does all the arithmetic in one call
+of a compiled core (:func:`pipeline.online.kernel.query_core`, Numba):
 
 1. check L and W (numbers, finite, positive, larger than the rounded corners, not covering
    the arm's base): one :class:`pipeline.exceptions.ObstacleSizeError` naming L and W otherwise;
-2. P1..P5 from the scene and their radii against the arm's reach annulus;
-3. the quartic's coefficients in closed form and T by the fixed Gauss-Legendre rule
+2. in the core: P1..P5 from the scene and their radii against the arm's reach annulus; the
+   quartic's coefficients in closed form and T by the path's fixed Gauss-Legendre rule
    (:func:`pipeline.motion.path.symmetric_quartic`, :func:`pipeline.motion.path.symmetric_quartic_length_m`);
-4. the regression (a precomputed (k, 6) matrix per coefficients object) and the family's expansion.
+   the regression (the basis times a precomputed matrix per coefficients object); and the
+   leaf of the region map holding the query;
+3. the family's expansion (the exact-endpoints family's inverse kinematics) and the answer.
+
+The core evaluates the NumPy routes' formulas; only the order of two sums differs, so T and
+the parameters equal those of :func:`pipeline.online.batch.generate_batch`,
+:meth:`pipeline.offline.coefficients.Coefficients.predict_free` and
+:class:`pipeline.motion.path.QuarticPath` to rounding, within the bounds that
+:mod:`pipeline.online.kernel` derives (about 1e-14 in the parameters and 1e-13 s in T), which
+the certificate's rounding slack covers. The leaf is the map's own, exactly.
 
 The answer's :class:`pipeline.model.obstacle.Obstacle` and :class:`pipeline.motion.path.QuarticPath`
-are built only when asked for (lazily, then cached); their T equals the answer's to the last bit.
-No URDF, Pinocchio or Coal is needed here: the arm's link lengths come from the coefficients file.
-The certified bounds come from the region map attached to the coefficients
-(:func:`pipeline.online.loading.load_coefficients`): a lookup in microseconds.
+are built only when asked for (lazily, then cached). No URDF, Pinocchio or Coal is needed here:
+the arm's link lengths come from the coefficients file. The certified bounds come from the region
+map attached to the coefficients (:func:`pipeline.online.loading.load_coefficients`): a lookup in
+the same call.
 
 Coefficients over more scene variables than (L, W) (:mod:`pipeline.offline.variables`) take their
 values by keyword: ``generate(coefficients, L, W, x=0.05)``. x moves the obstacle and its path
-rigidly: P1..P5 shift by x, T is the x = 0 path's (the even quartic's closed form, to the bit),
-the regression is evaluated at (L, W, x), the exact-endpoints family's inverse kinematics takes
-the shifted P1 and P5, and the answer's ``scene`` is the moved scene (its ``obstacle`` and
-``path`` follow it; that path's T, the general quartic's, agrees with the answer's to rounding).
-Their region map is one over the same variables (:mod:`pipeline.certify.region_map`, axes e.g.
+rigidly: P1..P5 shift by x, T is the x = 0 path's (the even quartic's closed form), the
+regression is evaluated at (L, W, x), the exact-endpoints family's inverse kinematics takes the
+shifted P1 and P5, and the answer's ``scene`` is the moved scene (its ``obstacle`` and ``path``
+follow it; that path's T, the general quartic's, agrees with the answer's to rounding). Their
+region map is one over the same variables (:mod:`pipeline.certify.region_map`, axes e.g.
 (L, W, x)): inside its box the answer carries the bounds of the leaf holding (L, W, x). The
 answer's ``variables`` keeps the values, for the messages of later refusals. Coefficients over
-(L, W) alone take the unchanged route.
+(L, W) alone take a route without the variables' checks.
 """
 
 from __future__ import annotations
@@ -253,7 +262,7 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
     if plan is None:
         scene = coefficients.scene
         names = coefficients.family.free_parameter_names
-        # The transposed view, as pipeline.offline.regression.predict uses: the same sums to the last bit.
+        # The transposed view (basis x free parameters), as pipeline.offline.regression.predict uses.
         matrix = np.array([coefficients.parameters[name] for name in names], dtype=float)
         matrix.setflags(write=False)
         matrix = matrix.T
@@ -481,7 +490,7 @@ def _region_map_of(region_map: object, coefficients: Coefficients, out_of_range:
     (the attached one, none, or a given one checked against the coefficients) and the policy."""
     if region_map is ATTACHED:
         region_map = coefficients.region_map
-    elif region_map is not None:
+    elif region_map is not None and region_map is not coefficients.region_map:  # the attached one is checked
         check_region_map(region_map, coefficients)
     if out_of_range not in OUT_OF_RANGE_POLICIES:
         raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
@@ -580,7 +589,7 @@ def generate_parameters(
     x: np.ndarray | None = None,
     d: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Batched generator: the 8 parameters (n, 8) for n obstacles, equal to :func:`generate`'s
+    """Batched generator: the 8 parameters (n, 8) for n obstacles, equal to :func:`generate`'s to rounding
     (``x``, ``d``: as there, one value per obstacle).
 
     Where the family's parameters are the regression's alone, this is the regression,

@@ -42,8 +42,10 @@ A sin(w t + phi) + gamma moves by at most |dA| + |A| (|dw| t + w |dt| + |dphi|) 
 the links' points by at most (l1 + l2) times the angles' change: with every d below 1e-12 and
 |A|, w, T of order 1 to 10, that is below 1e-10 m, under the slack.
 
-Numba caches the compiled function on disk (``cache=True``): the first query in a process
-loads it (or, the first time ever, compiles it, about a second and a half).
+The core is compiled for its one signature when this module is imported, and Numba caches the
+machine code on disk (``cache=True``): importing it loads the cache (or, the first time, compiles,
+about a second and a half), so even the first query of a process takes microseconds. Every
+array argument is C-contiguous, as the generator and :class:`LookupTables` make them.
 """
 
 from __future__ import annotations
@@ -70,7 +72,7 @@ def _no_tables() -> LookupTables:
 NO_TABLES = _no_tables()
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit("int64(float64[::1], int64[::1], float64[:, ::1], int32[::1])", cache=True, nogil=True)
 def _leaf(values: np.ndarray, layout: np.ndarray, ranges: np.ndarray, table: np.ndarray) -> int:
     """The leaf holding ``values``, as RegionMap.leaf_indices finds it; -1 outside the map's box."""
     for a in range(values.shape[0]):
@@ -106,7 +108,13 @@ def _leaf(values: np.ndarray, layout: np.ndarray, ranges: np.ndarray, table: np.
     return leaf
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(
+    "Tuple((int64, float64, float64, boolean, int64, float64, float64, float64, float64, float64, float64, float64,"
+    " float64))(float64, float64, float64, float64, float64, int64[::1], float64[::1], float64[:, ::1],"
+    " float64[:, ::1], int64[::1], float64[:, ::1], int32[::1])",
+    cache=True,
+    nogil=True,
+)
 def query_core(
     length_m: float, width_m: float, centre_x_m: float, top_y_m: float, start_y_m: float,
     variables: np.ndarray, numbers: np.ndarray, rule: np.ndarray, matrix: np.ndarray,

@@ -1,6 +1,7 @@
 """Fixtures of the certificate tests: the sampling of boxes, cells and points over a range
-model's k axes, shared by the tests over (L, W, x) and (L, W, x, d). Each fixture is the
-function below it; randomness comes only from the ``numpy.random.Generator`` passed in."""
+model's k axes, and the dense sampling of end poses, shared by the tests over (L, W, x) and
+(L, W, x, d). Each fixture is the function below it; randomness comes only from the
+``numpy.random.Generator`` passed in."""
 
 from __future__ import annotations
 
@@ -10,6 +11,9 @@ import numpy as np
 import pytest
 
 from pipeline.certify.range_model import RangeModel
+from pipeline.geometry.clearance import analytic_link_clearance
+from pipeline.model.kinematics import inverse_kinematics_batch
+from pipeline.motion.path import constraint_points
 
 
 @pytest.fixture(scope="session")
@@ -63,3 +67,25 @@ def _points_in(center: np.ndarray, radius: np.ndarray, rng: np.random.Generator,
     corners = [[*s, *[int(np.prod(s))] * (k - free)] for s in itertools.product((-1, 1), repeat=free)]
     signs = np.vstack([np.array(corners, dtype=float), np.zeros((1, k)), rng.uniform(-1.0, 1.0, (extra, k))])
     return center + signs * radius
+
+
+@pytest.fixture(scope="session")
+def end_pose_clearance():
+    """The function sampling the best end poses near P1 and P5 (:func:`_end_pose_clearance`)."""
+    return _end_pose_clearance
+
+
+def _end_pose_clearance(coefficients, arm, obstacle, scene, tolerance_m: float) -> np.ndarray:
+    """Largest analytic clearance [m] over poses (the coefficients' elbow) whose tip lies within
+    ``tolerance_m`` of P1 (entry 0) and of P5 (entry 1) of ``obstacle`` placed in ``scene``: a
+    dense sampling of each disc (6 radii x 40 angles), the independent check of the end poses'
+    upper bounds."""
+    points = constraint_points(obstacle, scene)
+    radii = np.linspace(0.0, tolerance_m, 6)
+    angles = np.linspace(0.0, 2 * np.pi, 40, endpoint=False)
+    disc = (radii[:, None, None] * np.stack([np.cos(angles), np.sin(angles)], -1)[None]).reshape(-1, 2)
+    out = np.empty(2)
+    for column, p in enumerate((points[0], points[-1])):
+        q = inverse_kinematics_batch(p + disc, arm.link_lengths_m, coefficients.elbow)
+        out[column] = analytic_link_clearance(q, arm, obstacle).min(axis=-1).max()
+    return out

@@ -48,19 +48,10 @@ def moved_obstacle(coefficients: Coefficients, L: float, W: float, x: float) -> 
     return Obstacle.in_scene(L, W, replace(coefficients.scene, centre_x_m=x))
 
 
-def best_end_clearance(coefficients: Coefficients, arm: PlanarArm, L: float, W: float, x: float) -> np.ndarray:
-    """Largest analytic clearance over poses (the coefficients' elbow) whose tip is within the
-    tolerance of P1 (entry 0) and of P5 (entry 1) of the obstacle (L, W, x): a dense sampling."""
-    obstacle = moved_obstacle(coefficients, L, W, x)
-    points = constraint_points(obstacle, replace(coefficients.scene, centre_x_m=x))
-    radii = np.linspace(0.0, TOLERANCE_M, 6)
-    angles = np.linspace(0.0, 2 * np.pi, 40, endpoint=False)
-    disc = (radii[:, None, None] * np.stack([np.cos(angles), np.sin(angles)], -1)[None]).reshape(-1, 2)
-    out = np.empty(2)
-    for column, p in enumerate((points[0], points[-1])):
-        q = inverse_kinematics_batch(p + disc, arm.link_lengths_m, coefficients.elbow)
-        out[column] = analytic_link_clearance(q, arm, obstacle).min(axis=-1).max()
-    return out
+def best_end_clearance(end_pose_clearance, coefficients: Coefficients, arm: PlanarArm, L: float, W: float, x: float):
+    """The shared dense end-pose sampling (``end_pose_clearance``) at the obstacle (L, W, x)."""
+    scene = replace(coefficients.scene, centre_x_m=x)
+    return end_pose_clearance(coefficients, arm, moved_obstacle(coefficients, L, W, x), scene, TOLERANCE_M)
 
 
 def test_endpoint_error_bound_holds_at_the_generators_end_poses(
@@ -135,7 +126,7 @@ def _band_cells(model: RangeModel, x_centres, x_half: float) -> tuple[np.ndarray
 
 @pytest.mark.parametrize("x_half", [0.06 / 512, 0.06 / 128])
 def test_infeasibility_bound_holds_against_sampled_end_poses(
-    eq9_x: Coefficients, arm: PlanarArm, x_half, points_in
+    eq9_x: Coefficients, arm: PlanarArm, x_half, points_in, end_pose_clearance
 ) -> None:
     """Where a cell's end is proven (bound below the margin), no sampled pose near that end's P
     clears more than the bound, at the corners, centre and random points of the cell, each
@@ -155,7 +146,7 @@ def test_infeasibility_bound_holds_against_sampled_end_poses(
         if not (proven[k] or np.any(direct[k] < MARGIN_M) or rng.uniform() < 0.1):
             continue  # the rest make no claim; a tenth of them is still sampled
         for L, W, x in points_in(center[k], radius[k], rng, 2):
-            sampled = best_end_clearance(eq9_x, arm, L, W, x)
+            sampled = best_end_clearance(end_pose_clearance, eq9_x, arm, L, W, x)
             for column in (0, 1):
                 if direct[k, column] < MARGIN_M:
                     assert sampled[column] <= direct[k, column] + 1e-12
@@ -166,7 +157,7 @@ def test_infeasibility_bound_holds_against_sampled_end_poses(
 
 
 def test_infeasibility_bound_holds_over_random_cells(
-    eq9_x: Coefficients, arm: PlanarArm, random_cells, points_in
+    eq9_x: Coefficients, arm: PlanarArm, random_cells, points_in, end_pose_clearance
 ) -> None:
     """Random cells of the whole range (mostly feasible at their corners): the same check, and a
     cell where a sampled point keeps the margin at both ends is never proven infeasible."""
@@ -178,14 +169,16 @@ def test_infeasibility_bound_holds_over_random_cells(
     feasible = 0
     for k in range(center.shape[0]):
         for L, W, x in points_in(center[k], radius[k], rng, 1):
-            sampled = best_end_clearance(eq9_x, arm, L, W, x)
+            sampled = best_end_clearance(end_pose_clearance, eq9_x, arm, L, W, x)
             assert np.all((direct[k] >= MARGIN_M) | (sampled <= direct[k] + 1e-12))
             assert sampled.min() <= refined[k] + 1e-12
             feasible += bool(sampled.min() >= MARGIN_M)
     assert feasible > 0
 
 
-def test_witnesses_clear_an_actual_obstacle_of_the_cell(eq9_x: Coefficients, arm: PlanarArm) -> None:
+def test_witnesses_clear_an_actual_obstacle_of_the_cell(
+    eq9_x: Coefficients, arm: PlanarArm, end_pose_clearance
+) -> None:
     """The early stop's witness is a pose near P(L0, x0) clearing the margin against the corner's
     own obstacle O(L0, W0, x0), not against the obstacle O* (length L0 - 2 h_x, centre x_c) that
     every obstacle of the cell contains: where one is reported, the sampling at the corner finds
@@ -200,7 +193,7 @@ def test_witnesses_clear_an_actual_obstacle_of_the_cell(eq9_x: Coefficients, arm
     misled = 0  # corners where a witness against O* would exist but none against the corner's obstacle
     for k in range(center.shape[0]):
         L0, W0, x0 = corners[k]
-        sampled = best_end_clearance(eq9_x, arm, L0, W0, x0)
+        sampled = best_end_clearance(end_pose_clearance, eq9_x, arm, L0, W0, x0)
         assert np.all(~found[k] | (sampled >= margin - 2e-4))
         p5 = np.array([x0 - (L0 / 2 + eq9_x.scene.start_dx_m), eq9_x.scene.y1_m])
         q = inverse_kinematics_batch(p5, arm.link_lengths_m, eq9_x.elbow)

@@ -31,7 +31,6 @@ from pipeline.certify.range_model import RangeModel
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
 from pipeline.model.arm import PlanarArm
-from pipeline.model.kinematics import inverse_kinematics_batch
 from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.motion.path import constraint_points, desired_path
@@ -78,22 +77,6 @@ def clearance_at(coefficients: Coefficients, arm: PlanarArm, point: np.ndarray, 
     if coal:
         return float(CoalClearance(arm, obstacle).link_clearance(q).min())
     return float(analytic_link_clearance(q, arm, obstacle).min())
-
-
-def best_end_clearance(coefficients: Coefficients, arm: PlanarArm, L: float, W: float, x: float, d: float):
-    """Largest analytic clearance over poses (the coefficients' elbow) whose tip is within the
-    tolerance of P1 (entry 0) and of P5 (entry 1) of the obstacle (L, W, x, d): a dense sampling."""
-    scene = moved_scene(coefficients, x, d)
-    obstacle = Obstacle.in_scene(L, W, scene)
-    points = constraint_points(obstacle, scene)
-    radii = np.linspace(0.0, TOLERANCE_M, 6)
-    angles = np.linspace(0.0, 2 * np.pi, 40, endpoint=False)
-    disc = (radii[:, None, None] * np.stack([np.cos(angles), np.sin(angles)], -1)[None]).reshape(-1, 2)
-    out = np.empty(2)
-    for column, p in enumerate((points[0], points[-1])):
-        q = inverse_kinematics_batch(p + disc, arm.link_lengths_m, coefficients.elbow)
-        out[column] = analytic_link_clearance(q, arm, obstacle).min(axis=-1).max()
-    return out
 
 
 def test_model_has_the_axes_and_box(model_xd: RangeModel) -> None:
@@ -292,7 +275,7 @@ def _band_cells(d_centres, d_half: float) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("d_half", [0.02 / 512, 0.02 / 64])
 def test_infeasibility_bound_holds_against_sampled_end_poses(
-    eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm, d_half, points_in
+    eq9_xd: Coefficients, model_xd: RangeModel, arm: PlanarArm, d_half, points_in, end_pose_clearance
 ) -> None:
     """Where a cell's end is proven (bound below the margin), no sampled pose near that end's P
     clears more than the bound, at the corners, centre and random points of the cell, each
@@ -310,7 +293,8 @@ def test_infeasibility_bound_holds_against_sampled_end_poses(
         if not (proven[k] or np.any(direct[k] < MARGIN_M) or rng.uniform() < 0.1):
             continue  # the rest make no claim; a tenth of them is still sampled
         for L, W, x, d in points_in(center[k], radius[k], rng, 1):
-            sampled = best_end_clearance(eq9_xd, arm, L, W, x, d)
+            scene = moved_scene(eq9_xd, x, d)
+            sampled = end_pose_clearance(eq9_xd, arm, Obstacle.in_scene(L, W, scene), scene, TOLERANCE_M)
             for column in (0, 1):
                 if direct[k, column] < MARGIN_M:
                     assert sampled[column] <= direct[k, column] + 1e-12
