@@ -456,10 +456,14 @@ def run_bench(
     # Build timing first (a missing or malformed file is reported before minutes of work).
     timing = read_build_timing(settings.build_timing) if settings.build_timing is not None else None
     config, pso_source = solver_config(coefficients, settings)
+    bench_map = None
+    if settings.region_map is not None:  # a named map costs one read: checked before everything else
+        bench_map = bench_region_map(coefficients, settings.region_map, log=log, progress=progress, arm=arm)
     if settings.run_x and coefficients_x is None:  # before minutes of work: a bad file is reported first
         path_x = over_x.coefficients_x_path(settings)
         coefficients_x = None if path_x is None else over_x.timed_load(path_x, arm, log)
-    bench_map = bench_region_map(coefficients, settings.region_map, log=log, progress=progress, arm=arm)
+    if bench_map is None:  # the map beside the coefficients, or certified in-process (minutes)
+        bench_map = bench_region_map(coefficients, None, log=log, progress=progress, arm=arm)
     methods, sweep_info, answers_a = _sweep_and_generator(ctx)
     methods.extend(_range_methods(ctx, bench_map, answers_a))
     methods.extend(_rest_to_rest_methods(ctx, bench_map))
