@@ -422,7 +422,8 @@ def generate(
         L = _size(length_m, (length_m, width_m), "L")
         W = _size(width_m, (length_m, width_m), "W")
     top = plan.top
-    _checked_bottom(plan, L, W, top)
+    if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
+        _checked_bottom(plan, L, W, top)
     tables = NO_TABLES if region_map is None else region_map.lookup_tables
     unreachable, radius, duration, inside, leaf, *columns = query_core(L, W, 0.0, top, plan.y1, *plan.core, *tables)
     if unreachable >= 0:  # P4 and P5 mirror P2 and P1: the first of P1..P3 to fail is named
@@ -547,7 +548,8 @@ def _generate_moved(
     c = plan.centre_x if x is None else x
     top = plan.top if d is None else d
     y1 = top if plan.y1_is_top else plan.y1
-    _checked_bottom(plan, L, W, top)
+    if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
+        _checked_bottom(plan, L, W, top)
     tables = _tables(region_map, plan)
     unreachable, radius, duration, inside, leaf, *columns = query_core(L, W, c, top, y1, *plan.core, *tables)
     if unreachable >= 0:
