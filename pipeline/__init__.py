@@ -8,8 +8,9 @@ and its map) -> ``build`` (the whole offline build as one call) -> ``online`` (l
 generator, certify-or-repair).
 
 The online names (:func:`load_coefficients`, :func:`generate`, :func:`generate_batch`, the
-errors) need NumPy and Numba only; the others (the build, the arm, certify-or-repair) load Pinocchio and
-Coal on first use.
+errors) need NumPy and Numba only; the others (the build, the arm, certify-or-repair) load
+Pinocchio and Coal. Every name but the errors and :func:`load_coefficients` is imported on
+first use.
 """
 
 from __future__ import annotations
@@ -34,12 +35,15 @@ from pipeline.exceptions import (
     UnreachableObstacleError,
     WorkerPoolError,
 )
-from pipeline.online.batch import GeneratedBatch, generate_batch
-from pipeline.online.generator import GeneratedTrajectory, generate
 from pipeline.online.loading import load_coefficients
 
-#: Public names whose modules need Pinocchio or Coal: imported on first access.
+#: Public names imported on first access: those whose modules need Pinocchio or Coal, and the
+#: generator's, whose compiled core (Numba) loads in about a second.
 _LAZY = {
+    "GeneratedTrajectory": "pipeline.online.generator",
+    "generate": "pipeline.online.generator",
+    "GeneratedBatch": "pipeline.online.batch",
+    "generate_batch": "pipeline.online.batch",
     "BuildConfig": "pipeline.build",
     "BuildResult": "pipeline.build",
     "run_build": "pipeline.build",
