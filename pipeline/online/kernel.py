@@ -44,8 +44,9 @@ the links' points by at most (l1 + l2) times the angles' change: with every d be
 
 The core is compiled for its one signature when this module is imported, and Numba caches the
 machine code on disk (``cache=True``): importing it loads the cache (or, the first time, compiles,
-about a second and a half), so even the first query of a process takes microseconds. Every
-array argument is C-contiguous, as the generator and :class:`LookupTables` make them.
+a few seconds), so no query compiles. The first query with a coefficients object
+and its map builds their tables once (0.1 s for the default (L, W) map). Every array argument is
+C-contiguous, as the generator and :class:`LookupTables` make them.
 """
 
 from __future__ import annotations
