@@ -1,4 +1,5 @@
-"""Fixtures of the online tests: the paper's Eq. 9 and a small exact-endpoints coefficient set."""
+"""Fixtures of the online tests: the paper's Eq. 9, a small exact-endpoints coefficient set, and
+region maps made from given leaves."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.certify.region_map import RegionMap
 from pipeline.motion.families import EXACT_ENDPOINTS
 from pipeline.offline.coefficients import Coefficients, fit_coefficients, paper_data_path
 from pipeline.offline.doe import DoeData, load_doe
@@ -38,3 +40,45 @@ def exact() -> Coefficients:
     coefficients, fit = fit_coefficients(doe)
     assert all(r > 0.999999 for r in fit.r_squared.values())  # the synthetic data are exactly quadratic
     return coefficients
+
+
+@pytest.fixture(scope="session")
+def leaf_map():
+    """The function making a region map from given leaves (:func:`_leaf_map`)."""
+    return _leaf_map
+
+
+def _leaf_map(
+    coefficients: Coefficients,
+    depth: np.ndarray,
+    index: np.ndarray,
+    clearance_bound_m: np.ndarray,
+    status: np.ndarray,
+    axes: tuple[str, ...],
+    extra_ranges_m: tuple[tuple[float, float], ...],
+    split_w: np.ndarray | None = None,
+) -> RegionMap:
+    """A map over the fitted (L, W) of ``coefficients`` and ``extra_ranges_m``, linked to their
+    sha256, with the leaves (``depth`` (n,), ``index`` (n, k)), the given clearance bounds and
+    statuses, an endpoint bound of 1 mm and an end-pose upper bound of 5 cm."""
+    n = depth.size
+    return RegionMap(
+        family=coefficients.family.name,
+        coefficients_source="test",
+        coefficients_sha256=coefficients.source_sha256,
+        length_range_m=tuple(coefficients.fitted_range_m["L"]),
+        width_range_m=tuple(coefficients.fitted_range_m["W"]),
+        margin_m=0.01,
+        endpoint_tolerance_m=0.002,
+        depth=depth,
+        index_l=index[:, 0],
+        index_w=index[:, 1],
+        clearance_bound_m=clearance_bound_m,
+        endpoint_bound_m=np.full(n, 1e-3),
+        endpoint_clearance_upper_m=np.full(n, 0.05),
+        status=status,
+        split_w=split_w,
+        axes=axes,
+        extra_ranges_m=extra_ranges_m,
+        extra_index=index[:, 2:] if len(axes) > 2 else None,
+    )

@@ -14,7 +14,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pipeline.certify.interval import FLOAT_SLACK_M
-from pipeline.certify.region_map import RegionMap
 from pipeline.model.kinematics import reach_annulus_m
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import constraint_points
@@ -73,31 +72,6 @@ def random_tree(k: int, rng: np.random.Generator, deepest: int) -> tuple[np.ndar
     return np.array([d for d, _ in leaves]), np.array([i for _, i in leaves])
 
 
-def tree_map(coefficients, depth, index, split=None) -> RegionMap:
-    n, k = index.shape
-    axes = coefficients.variables.names
-    return RegionMap(
-        family=coefficients.family.name,
-        coefficients_source="test",
-        coefficients_sha256="ab" * 32,
-        length_range_m=tuple(coefficients.fitted_range_m["L"]),
-        width_range_m=tuple(coefficients.fitted_range_m["W"]),
-        margin_m=0.01,
-        endpoint_tolerance_m=0.002,
-        depth=depth,
-        index_l=index[:, 0],
-        index_w=index[:, 1],
-        clearance_bound_m=np.linspace(0.01, 0.02, n),
-        endpoint_bound_m=np.full(n, 1e-3),
-        endpoint_clearance_upper_m=np.full(n, 0.05),
-        status=np.zeros(n, dtype=int),
-        split_w=split,
-        axes=axes,
-        extra_ranges_m=tuple(tuple(coefficients.fitted_range_m[name]) for name in axes[2:]),
-        extra_index=index[:, 2:] if k > 2 else None,
-    )
-
-
 def strips(depth: np.ndarray, index: np.ndarray, rng: np.random.Generator):
     """Cut some of the deepest quadtree leaves into 2 or 4 strips along W."""
     top = depth.max()
@@ -122,7 +96,7 @@ def points_to_check(map_, rng: np.random.Generator, n: int) -> np.ndarray:
 
 
 @pytest.mark.parametrize("axes", [("L", "W"), ("L", "W", "x"), ("L", "W", "x", "d")])
-def test_the_leaf_is_the_maps(paper, paper_x, paper_xd, axes) -> None:
+def test_the_leaf_is_the_maps(paper, paper_x, paper_xd, leaf_map, axes) -> None:
     """Trees deeper than the dense index of k > 2 axes (depth 9 > 7 for k = 3, 6 > 5 for k = 4)."""
     coefficients = {2: paper, 3: paper_x, 4: paper_xd}[len(axes)]
     rng = np.random.default_rng(len(axes))
@@ -132,7 +106,9 @@ def test_the_leaf_is_the_maps(paper, paper_x, paper_xd, axes) -> None:
     split = None
     if k == 2:
         depth, index, split = strips(depth, index, rng)
-    map_ = tree_map(coefficients, depth, index, split)
+    n = depth.size
+    extra = tuple(tuple(coefficients.fitted_range_m[name]) for name in axes[2:])
+    map_ = leaf_map(coefficients, depth, index, np.linspace(0.01, 0.02, n), np.zeros(n, int), axes, extra, split)
     points = points_to_check(map_, rng, 1500)
     expected = map_.leaf_indices(*points.T)
     assert np.all(expected >= 0)

@@ -36,7 +36,7 @@ def paper_x(paper, over_x) -> Coefficients:
     return replace(over_x(paper, X_RANGE, seed=1, scale=0.02), source_sha256=SHA)
 
 
-def octree(coefficients: Coefficients, axes: tuple[str, ...] = ("L", "W", "x")) -> RegionMap:
+def octree(leaf_map, coefficients: Coefficients, axes: tuple[str, ...] = ("L", "W", "x")) -> RegionMap:
     """The uniform octree of depth 2 over the fitted box with its node (1, 2, 3) cut in eight
     (71 leaves); leaf i has clearance bound 20 mm + 0.1 mm i, endpoint bound 1 mm, status margin
     for even i, collision_free for odd i."""
@@ -49,30 +49,13 @@ def octree(coefficients: Coefficients, axes: tuple[str, ...] = ("L", "W", "x")) 
     depth = np.array([d for d, _ in nodes])
     index = np.array([i for _, i in nodes])
     n = depth.size
-    return RegionMap(
-        family=coefficients.family.name,
-        coefficients_source="test",
-        coefficients_sha256=coefficients.source_sha256,
-        length_range_m=tuple(coefficients.fitted_range_m["L"]),
-        width_range_m=tuple(coefficients.fitted_range_m["W"]),
-        margin_m=0.01,
-        endpoint_tolerance_m=0.002,
-        depth=depth,
-        index_l=index[:, 0],
-        index_w=index[:, 1],
-        clearance_bound_m=0.02 + 1e-4 * np.arange(n),
-        endpoint_bound_m=np.full(n, 1e-3),
-        endpoint_clearance_upper_m=np.full(n, 0.05),
-        status=np.arange(n) % 2,
-        axes=axes,
-        extra_ranges_m=(X_RANGE,) if k > 2 else (),
-        extra_index=index[:, 2:] if k > 2 else None,
-    )
+    extra = (X_RANGE,) if k > 2 else ()
+    return leaf_map(coefficients, depth, index, 0.02 + 1e-4 * np.arange(n), np.arange(n) % 2, axes, extra)
 
 
 @pytest.fixture(scope="module")
-def map_x(paper_x) -> RegionMap:
-    return octree(paper_x)
+def map_x(paper_x, leaf_map) -> RegionMap:
+    return octree(leaf_map, paper_x)
 
 
 POINTS = [(0.25, 0.1, 0.02), (0.25, 0.1, -0.02), (0.21, 0.085, -0.03), (0.2, 0.12, 0.03), (0.235, 0.107, 0.019)]
@@ -124,8 +107,8 @@ def test_the_batch_reads_the_same_leaves(paper_x, map_x) -> None:
     assert generate_batch(paper_x, L, W, x=x, region_map=None).leaf is None
 
 
-def test_a_map_over_other_axes_is_refused(paper, paper_x, map_x) -> None:
-    over_lw = octree(paper_x, axes=("L", "W"))
+def test_a_map_over_other_axes_is_refused(paper, paper_x, map_x, leaf_map) -> None:
+    over_lw = octree(leaf_map, paper_x, axes=("L", "W"))
     with pytest.raises(RegionMapMismatchError):
         generate(paper_x, 0.25, 0.1, x=0.0, region_map=over_lw)
     with pytest.raises(RegionMapMismatchError):
