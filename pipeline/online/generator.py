@@ -302,6 +302,14 @@ def _core_arguments(matrix_t: np.ndarray, variables: Variables, scene: Scene, ra
     """The arguments of :func:`pipeline.online.kernel.query_core` that every query of one
     coefficients object shares: private arrays, writable only because Numba's dispatch of a
     read-only array costs twice as much (one compiled core serves every plan)."""
+    terms, count = matrix_t.shape
+    if terms != variables.basis_size or not 0 < count <= 8:  # the core reads exactly these sizes
+        names = ", ".join(variables.names)
+        raise InvalidParameterError(
+            "coefficients' parameters",
+            f"{count} parameters of {terms} terms",
+            f"1 to 8 parameters of {variables.basis_size} terms each (the quadratic basis in {names})",
+        )
     codes = np.array([_GIVEN.index(name) for name in variables.extra], dtype=np.int64)
     numbers = np.array(
         [

@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pipeline.certify.interval import FLOAT_SLACK_M
+from pipeline.exceptions import InvalidParameterError
 from pipeline.model.kinematics import reach_annulus_m
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import constraint_points
@@ -160,3 +161,12 @@ def test_variables_over_d_alone(paper) -> None:
         assert moved[3] is True
         np.testing.assert_allclose(np.subtract(moved[5:], base[5:]), d, rtol=0, atol=1e-15)
     assert core(over_d, 0.25, 0.1, d=0.571)[3] is False
+
+
+def test_coefficients_whose_terms_do_not_fit_their_variables_are_refused(paper, paper_x) -> None:
+    """The core reads the basis' terms by the variables' count: another count is refused in one
+    line before it runs."""
+    for coefficients, given_values in ((paper, {}), (paper_x, {"x": 0.0})):
+        short = replace(coefficients, parameters={name: v[:-1] for name, v in coefficients.parameters.items()})
+        with pytest.raises(InvalidParameterError, match=r"^coefficients' parameters = '8 parameters of \d+ terms'"):
+            generate(short, 0.25, 0.1, **given_values)
