@@ -109,11 +109,14 @@ class LookupTables(NamedTuple):
             over k axes.
         ranges: (k, 2) float64: the fitted range of every axis, in ``axes`` order [m].
         table: int32: the dense index, flat, then the rows of strips or children, flat.
+        leaves: (n, 3) float64: per leaf its clearance bound [m], endpoint-error bound [m] and
+            status (the index into :data:`STATUSES`, exact as a float).
     """
 
     layout: np.ndarray
     ranges: np.ndarray
     table: np.ndarray
+    leaves: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -365,10 +368,6 @@ class RegionMap:
             return None
         return self._leaf_bounds[self._leaf_at(length_m, width_m)]
 
-    def leaf_bounds(self, leaf: int) -> tuple[float, float, str]:
-        """(clearance bound [m], endpoint-error bound [m], status) of leaf number ``leaf``."""
-        return self._leaf_bounds[leaf]
-
     def leaf_at(self, length_m: float, width_m: float, *extra: float) -> int | None:
         """Leaf number of the point (L, W [m] and the extra axes' values in ``axes`` order), or
         None outside the fitted box (scalar lookup).
@@ -513,7 +512,8 @@ class RegionMap:
         mode, coarse = (LOOKUP_SIZE, top) if self.extra_index is None else (LOOKUP_TREE, self._coarse_depth)
         layout = np.array([mode, 1 << top, top - coarse, coarse, self._sub_index.shape[1], self._index.size])
         table = np.concatenate([self._index.reshape(-1), self._sub_index.reshape(-1)]).astype(np.int32)
-        return LookupTables(layout.astype(np.int64), np.array(self._ranges, dtype=float), table)
+        leaves = np.column_stack([self.clearance_bound_m, self.endpoint_bound_m, self.status.astype(float)])
+        return LookupTables(layout.astype(np.int64), np.array(self._ranges, dtype=float), table, leaves)
 
     @cached_property
     def _leaf_bounds(self) -> list[tuple[float, float, str]]:

@@ -29,8 +29,8 @@ Coefficients over more scene variables than (L, W) (:mod:`pipeline.offline.varia
 values by keyword: ``generate(coefficients, L, W, x=0.05)``. x moves the obstacle and its path
 rigidly: P1..P5 shift by x, T is the x = 0 path's (the even quartic's closed form), the
 regression is evaluated at (L, W, x), the exact-endpoints family's inverse kinematics takes the
-shifted P1 and P5, and the answer's ``scene`` is the moved scene (its ``obstacle`` and ``path``
-follow it; that path's T, the general quartic's, agrees with the answer's to rounding). Their
+shifted P1 and P5, and the answer's ``scene`` is the moved scene, built on first access (its
+``obstacle`` and ``path`` follow it; that path's T, the general quartic's, agrees with the answer's to rounding). Their
 region map is one over the same variables (:mod:`pipeline.certify.region_map`, axes e.g.
 (L, W, x)): inside its box the answer carries the bounds of the leaf holding (L, W, x). The
 answer's ``variables`` keeps the values, for the messages of later refusals. Coefficients over
@@ -42,13 +42,13 @@ from __future__ import annotations
 import math
 import warnings
 import weakref
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 
-from pipeline.certify.region_map import LookupTables, RegionMap
+from pipeline.certify.region_map import STATUSES, RegionMap
 from pipeline.exceptions import (
     InexactEndpointsWarning,
     InvalidParameterError,
@@ -122,9 +122,12 @@ class GeneratedTrajectory:
         reach_m: tuple[float, float] | None,
         bounds: tuple[float, float, str] | None = None,
         variables: tuple[tuple[str, float], ...] = (),
+        moved: bool = False,
     ) -> GeneratedTrajectory:
         """Build without the dataclass machinery, for :func:`generate`, which has checked everything
-        (``bounds``: clearance bound [m], endpoint bound [m] and status of the map's leaf, or None)."""
+        (``bounds``: clearance bound [m], endpoint bound [m] and status of the map's leaf, or None).
+        With ``moved`` ``scene`` is the coefficients' scene, and the answer's scene, with the
+        ``variables``' values in place, is built on first access."""
         if bounds is None:
             clearance = endpoint = source = status = None
         else:
@@ -147,7 +150,20 @@ class GeneratedTrajectory:
         )
         if variables:  # else the class default, ()
             answer.__dict__["variables"] = variables
+        if moved:
+            answer.__dict__["_unmoved_scene"] = answer.__dict__.pop("scene")
         return answer
+
+    def __getattr__(self, name: str):
+        """``scene`` of an answer built with ``moved`` (:meth:`trusted`), built on first access:
+        the coefficients' scene with the values of ``variables`` in place."""
+        fields = self.__dict__
+        if name == "scene" and "_unmoved_scene" in fields:
+            values = dict(fields["variables"])
+            scene = fields["_unmoved_scene"].with_checked(centre_x_m=values.get("x"), top_y_m=values.get("d"))
+            fields["scene"] = scene
+            return scene
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property
     def centre_x_m(self) -> float:
@@ -325,13 +341,6 @@ def _core_arguments(matrix_t: np.ndarray, variables: Variables, scene: Scene, ra
     return codes, numbers, rule, padded
 
 
-def _tables(region_map: RegionMap | None, plan: QueryPlan) -> LookupTables:
-    """The lookup tables of ``region_map`` if it is a map over the plan's variables, else none."""
-    if region_map is None or region_map.axes != plan.variables.names:
-        return NO_TABLES
-    return region_map.lookup_tables
-
-
 def _size(value: object, size: tuple[object, object], name: str) -> float:
     """``value`` as a finite positive float, else ObstacleSizeError naming L and W."""
     if type(value) is not float:
@@ -422,7 +431,12 @@ def generate(
         raise _refuse_coefficients(coefficients) from None
     if plan is None:  # a first query (or not a Coefficients: refused)
         plan = query_plan(coefficients)
-    region_map = _region_map_of(region_map, coefficients, out_of_range)
+    if region_map is ATTACHED or region_map is coefficients.region_map:  # checked when it was attached
+        region_map = coefficients.region_map
+        if out_of_range not in OUT_OF_RANGE_POLICIES:
+            raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
+    else:
+        region_map = _region_map_of(region_map, coefficients, out_of_range)
     if plan.extra or x is not None or d is not None:
         return _generate_moved(coefficients, plan, length_m, width_m, x, d, out_of_range, region_map)
     L, W = length_m, width_m
@@ -433,7 +447,9 @@ def generate(
     if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
         _checked_bottom(plan, L, W, top)
     tables = NO_TABLES if region_map is None else region_map.lookup_tables
-    unreachable, radius, duration, inside, leaf, *columns = query_core(L, W, 0.0, top, plan.y1, *plan.core, *tables)
+    unreachable, radius, duration, inside, leaf, clearance, endpoint, status, *columns = query_core(
+        L, W, 0.0, top, plan.y1, *plan.core, *tables
+    )
     if unreachable >= 0:  # P4 and P5 mirror P2 and P1: the first of P1..P3 to fail is named
         raise UnreachableObstacleError(f"P{unreachable + 1}", radius, plan.reach, size_m=(L, W))
     extrapolated = not inside
@@ -454,7 +470,7 @@ def generate(
         parameters = tuple(full.tolist())
     if not all(map(math.isfinite, parameters)):
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
-    bounds = None if leaf < 0 else region_map.leaf_bounds(leaf)
+    bounds = None if leaf < 0 else (clearance, endpoint, STATUSES[status])
     return GeneratedTrajectory.trusted(
         L,
         W,
@@ -552,24 +568,24 @@ def _generate_moved(
     if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
         L = _size(length_m, (length_m, width_m), "L")
         W = _size(width_m, (length_m, width_m), "W")
-    scene = coefficients.scene.with_checked(centre_x_m=x, top_y_m=d)
     c = plan.centre_x if x is None else x
     top = plan.top if d is None else d
     y1 = top if plan.y1_is_top else plan.y1
     if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
         _checked_bottom(plan, L, W, top)
-    tables = _tables(region_map, plan)
-    unreachable, radius, duration, inside, leaf, *columns = query_core(L, W, c, top, y1, *plan.core, *tables)
+    tables = NO_TABLES if region_map is None or region_map.axes != plan.variables.names else region_map.lookup_tables
+    unreachable, radius, duration, inside, leaf, clearance, endpoint, status, *columns = query_core(
+        L, W, c, top, y1, *plan.core, *tables
+    )
     if unreachable >= 0:
         variables = dict(zip(plan.extra, values, strict=True))
         raise UnreachableObstacleError(f"P{unreachable + 1}", radius, plan.reach, size_m=(L, W), variables=variables)
-    v = (L, W, *values)
     extrapolated = not inside
     if extrapolated and out_of_range != "ignore":
         extra = tuple(zip(plan.extra, values, plan.extra_ranges, strict=True))
         _check_range(plan, L, W, out_of_range, extra, stacklevel=4)  # one frame deeper than generate's own
     if duration != duration:  # NaN: the closed form does not cover this scene; T of the path at x = 0
-        centred = replace(scene, centre_x_m=0.0)
+        centred = coefficients.scene.with_checked(centre_x_m=0.0, top_y_m=d)
         duration = desired_path(Obstacle.in_scene(L, W, centred), centred).duration_s
     family = coefficients.family
     if family.expands_to_itself:
@@ -579,16 +595,19 @@ def _generate_moved(
         if family.uses_endpoint_context:
             x1 = L / 2.0 + plan.start_dx
             start, end = (x1 + c, y1), (-x1 + c, y1)
+            v = (L, W, *values)
             full = _expand_with_endpoints(coefficients, free, start, end, duration, v, plan.variables.names)
         else:
             full = family.expand(free, None)
         parameters = tuple(full.tolist())
     if not all(map(math.isfinite, parameters)):
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
-    bounds = None if leaf < 0 else region_map.leaf_bounds(leaf)
+    bounds = None if leaf < 0 else (clearance, endpoint, STATUSES[status])
     trajectory = JointTrajectory.trusted(parameters, duration)
-    variables = tuple(zip(plan.extra, values, strict=True))
-    return GeneratedTrajectory.trusted(L, W, family, scene, trajectory, extrapolated, plan.reach, bounds, variables)
+    variables = ((plan.extra[0], values[0]),) if len(values) == 1 else tuple(zip(plan.extra, values, strict=True))
+    return GeneratedTrajectory.trusted(
+        L, W, family, coefficients.scene, trajectory, extrapolated, plan.reach, bounds, variables, moved=True
+    )
 
 
 def generate_parameters(

@@ -65,7 +65,8 @@ NO_MAP = 0
 
 
 def _no_tables() -> LookupTables:
-    return LookupTables(np.array([NO_MAP, 1, 0, 0, 1, 0], dtype=np.int64), np.zeros((0, 2)), np.zeros(0, np.int32))
+    layout = np.array([NO_MAP, 1, 0, 0, 1, 0], dtype=np.int64)
+    return LookupTables(layout, np.zeros((0, 2)), np.zeros(0, np.int32), np.zeros((0, 3)))
 
 
 #: The lookup tables of a query without a region map: the arrays' types are a map's, so that
@@ -110,16 +111,16 @@ def _leaf(values: np.ndarray, layout: np.ndarray, ranges: np.ndarray, table: np.
 
 
 @numba.njit(
-    "Tuple((int64, float64, float64, boolean, int64, float64, float64, float64, float64, float64, float64, float64,"
-    " float64))(float64, float64, float64, float64, float64, int64[::1], float64[::1], float64[:, ::1],"
-    " float64[:, ::1], int64[::1], float64[:, ::1], int32[::1])",
+    "Tuple((int64, float64, float64, boolean, int64, float64, float64, int64, float64, float64, float64, float64,"
+    " float64, float64, float64, float64))(float64, float64, float64, float64, float64, int64[::1], float64[::1],"
+    " float64[:, ::1], float64[:, ::1], int64[::1], float64[:, ::1], int32[::1], float64[:, ::1])",
     cache=True,
     nogil=True,
 )
 def query_core(
     length_m: float, width_m: float, centre_x_m: float, top_y_m: float, start_y_m: float,
     variables: np.ndarray, numbers: np.ndarray, rule: np.ndarray, matrix: np.ndarray,
-    layout: np.ndarray, ranges: np.ndarray, table: np.ndarray,
+    layout: np.ndarray, ranges: np.ndarray, table: np.ndarray, leaves: np.ndarray,
 ):  # fmt: skip
     """One query's numbers (module docstring).
 
@@ -133,15 +134,17 @@ def query_core(
             variable (L, W, then ``variables``), then their upper ends [m].
         rule: The arc-length rule: rows 1, u^2, u^4, u^6 at its nodes, then its weights (5, m).
         matrix: The regression (basis, 8), columns past the family's free parameters zero.
-        layout, ranges, table: The region map's lookup tables
+        layout, ranges, table, leaves: The region map's lookup tables
             (:class:`pipeline.certify.region_map.LookupTables`; :data:`NO_TABLES` for none).
 
     Returns:
-        (unreachable, radius_m, duration_s, inside, leaf, p0, ..., p7): the number (0-4) of the
-        first of P1..P5 outside the reach annulus or -1, and its distance from the base [m] (NaN
-        if none); T [s] (NaN where the path's closed form does not apply: P2 not between the
-        centre and P1); True inside the fitted range; the map's leaf (-1 outside it or without a
-        map); the regression's eight columns.
+        (unreachable, radius_m, duration_s, inside, leaf, clearance_bound_m, endpoint_bound_m,
+        status, p0, ..., p7): the number (0-4) of the first of P1..P5 outside the reach annulus
+        or -1, and its distance from the base [m] (NaN if none); T [s] (NaN where the path's
+        closed form does not apply: P2 not between the centre and P1); True inside the fitted
+        range; the map's leaf (-1 outside it or without a map) with its two bounds [m] and its
+        status (index into ``STATUSES``; NaN, NaN, -1 without a leaf); the regression's eight
+        columns.
     """
     start_dx, approach_dx, approach_dy, apex_dy, speed, reach_lo, reach_hi = (
         numbers[0], numbers[1], numbers[2], numbers[3], numbers[4], numbers[5], numbers[6],
@@ -203,7 +206,12 @@ def query_core(
     for i in range(matrix.shape[0]):
         for col in range(8):
             p[col] += basis[i] * matrix[i, col]
-    leaf = -1
+    leaf, clearance, endpoint, status = -1, math.nan, math.nan, -1
     if layout[0] != NO_MAP and inside:
         leaf = _leaf(values, layout, ranges, table)
-    return unreachable, radius, duration, inside, leaf, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]
+        if leaf >= 0:
+            clearance, endpoint, status = leaves[leaf, 0], leaves[leaf, 1], int(leaves[leaf, 2])
+    return (
+        unreachable, radius, duration, inside, leaf, clearance, endpoint, status,
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7],
+    )  # fmt: skip

@@ -7,6 +7,7 @@ certify-or-repair certifies the moved obstacle."""
 from __future__ import annotations
 
 import math
+import pickle
 import warnings
 from dataclasses import replace
 
@@ -302,3 +303,15 @@ def test_out_of_range_warnings_point_at_the_caller_on_both_routes(paper, paper_x
         generate(paper_x, 0.25, 0.1, x=0.05)
     assert [w.filename for w in flat] == [__file__]
     assert [w.filename for w in moved] == [__file__]
+
+
+def test_the_moved_scene_is_built_on_first_access(paper_x) -> None:
+    """The answer over (L, W, x) keeps the coefficients' scene and x, and builds its scene when
+    read: the coefficients' scene with x in place, also after pickling."""
+    answer = generate(paper_x, 0.25, 0.1, x=0.02)
+    assert "scene" not in answer.__dict__
+    copy = pickle.loads(pickle.dumps(answer))
+    assert answer.scene == replace(paper_x.scene, centre_x_m=0.02) == copy.scene
+    assert answer.scene is answer.scene and answer.obstacle.centre_x_m == 0.02
+    with pytest.raises(AttributeError, match="no attribute 'sceen'"):
+        answer.sceen  # noqa: B018

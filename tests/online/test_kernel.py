@@ -109,21 +109,27 @@ def test_the_leaf_is_the_maps(paper, paper_x, paper_xd, leaf_map, axes) -> None:
         depth, index, split = strips(depth, index, rng)
     n = depth.size
     extra = tuple(tuple(coefficients.fitted_range_m[name]) for name in axes[2:])
-    map_ = leaf_map(coefficients, depth, index, np.linspace(0.01, 0.02, n), np.zeros(n, int), axes, extra, split)
+    clearance, status = rng.uniform(0.0, 0.02, n), rng.integers(0, 4, n)
+    map_ = leaf_map(coefficients, depth, index, clearance, status, axes, extra, split)
     points = points_to_check(map_, rng, 1500)
     expected = map_.leaf_indices(*points.T)
     assert np.all(expected >= 0)
     tables = map_.lookup_tables
-    found = []
+    found, bounds = [], []
     for point in points.tolist():
         L, W, *rest = point
         values = dict(zip(axes[2:], rest, strict=True))
-        found.append(core(coefficients, L, W, tables=tables, **values)[4])
+        answer = core(coefficients, L, W, tables=tables, **values)
+        found.append(answer[4])
+        bounds.append(answer[5:8])
     np.testing.assert_array_equal(found, expected)
+    # The leaf's bounds and status, as the map stores them.
+    stored = np.column_stack([map_.clearance_bound_m[expected], map_.endpoint_bound_m[expected], map_.status[expected]])
+    np.testing.assert_array_equal(np.array(bounds), stored)
     # Outside the box: no leaf, and the query is outside the fitted range.
     L_hi = coefficients.fitted_range_m["L"][1]
     outside = core(coefficients, math.nextafter(L_hi, 1.0), 0.1, *(0.0, 0.56)[: k - 2], tables=tables)
-    assert outside[3] is False and outside[4] == -1
+    assert outside[3] is False and outside[4] == -1 and outside[7] == -1 and math.isnan(outside[5])
 
 
 @settings(max_examples=200, deadline=None)
@@ -159,7 +165,7 @@ def test_variables_over_d_alone(paper) -> None:
         base = core(paper, 0.25, 0.1)
         moved = core(over_d, 0.25, 0.1, d=d)
         assert moved[3] is True
-        np.testing.assert_allclose(np.subtract(moved[5:], base[5:]), d, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(np.subtract(moved[8:], base[8:]), d, rtol=0, atol=1e-15)
     assert core(over_d, 0.25, 0.1, d=0.571)[3] is False
 
 
