@@ -23,16 +23,18 @@ differ from each other by at most twice that. For the regression with m basis te
     |p_k(core) - p_k(NumPy)| <= 2 gamma_(m+1) sum_i |b_i M_ik|,
 
 and for T, with Q_j = P_0j + k1^2 P_1j + 2 |k1 k3| P_2j + k3^2 P_3j and q_j >= 1 (q_j = 1 +
-u^2 (k1 + k3 u^2)^2 exactly), every sqrt(q_j) differs by at most (gamma_5 Q_j / q_j) sqrt(q_j)
-(the square root halves the relative error and adds one rounding) and the weighted sum
-(positive terms) adds 2 gamma_162 of its value, so
+u^2 (k1 + k3 u^2)^2 exactly), each route's sqrt(q_j) is within (gamma_5 Q_j / q_j) sqrt(q_j) of
+the exact one (the square root halves the relative error and adds one rounding), its weighted
+sum of positive terms and the last product and quotient add gamma_162 of the value, and the two
+routes differ by at most twice that:
 
-    |T(core) - T(NumPy)| <= (gamma_5 max_j Q_j / q_j + 2 gamma_162) T (1 + gamma_4).
+    |T(core) - T(NumPy)| <= 2 (gamma_5 max_j Q_j / q_j + gamma_162) T (1 + gamma_8).
 
 ``tests/online/test_kernel.py`` checks both bounds on random queries; on the fitted ranges they
 are about 1e-14 rad and 1e-13 s. The leaf is an integer found by the same floating-point
 operations as :meth:`RegionMap.leaf_indices` (a division, a product by a power of two, a
-truncation), so it is the same leaf.
+truncation), so it is the same leaf, and its bounds and status are read from the map's own
+columns (:attr:`pipeline.certify.region_map.LookupTables.leaves`).
 
 **Why the certificate covers either route.** The range certificate bounds the clearance and the
 endpoint error of the exact regression polynomial and the exact T at every point of a leaf, and
