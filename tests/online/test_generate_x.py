@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from pipeline.exceptions import (
+    InexactEndpointsWarning,
     InvalidParameterError,
     NoCertifiedTrajectoryError,
     OutOfFittedRangeError,
@@ -23,6 +24,7 @@ from pipeline.exceptions import (
 )
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.kinematics import inverse_kinematics
+from pipeline.motion.families.exact_endpoints import ExactEndpointsFamily
 from pipeline.motion.path import desired_path
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.variables import VOCABULARY, Variables
@@ -315,3 +317,18 @@ def test_the_moved_scene_is_built_on_first_access(paper_x) -> None:
     assert answer.scene is answer.scene and answer.obstacle.centre_x_m == 0.02
     with pytest.raises(AttributeError, match="no attribute 'sceen'"):
         answer.sceen  # noqa: B018
+
+
+class _NeverExact(ExactEndpointsFamily):
+    """The exact-endpoints family, reporting that it could not pin the tip (A1 clamped)."""
+
+    def endpoints_exact(self, free, context):
+        return np.zeros(np.shape(free)[:-1], dtype=bool)
+
+
+def test_the_inexact_endpoints_warning_points_at_the_caller_on_both_routes(exact, exact_x) -> None:
+    for coefficients, given_values in ((exact, {}), (exact_x, {"x": 0.01})):
+        never = replace(coefficients, family=_NeverExact())
+        with pytest.warns(InexactEndpointsWarning) as caught:
+            generate(never, 0.25, 0.1, **given_values)
+        assert [w.filename for w in caught] == [__file__]
