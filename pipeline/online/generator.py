@@ -225,8 +225,6 @@ class QueryPlan(NamedTuple):
     given_types: tuple[type, type]  # type(x), type(d) of a query that gives exactly the variables, as floats
     centre_x: float  # the scene's centre x [m], for coefficients that do not vary x
     y1_is_top: bool  # y1 = d (the scene's start_y_m is None): a value of d moves P1 and P5 too
-    lows: tuple[float, ...]  # the fitted range of every variable (L, W, then ``extra``) [m]: lower ends
-    highs: tuple[float, ...]  # ... upper ends
     core: tuple  # the compiled core's arguments after the query's five numbers, before the map's tables
 
 
@@ -306,8 +304,6 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
             given_types=tuple(float if name in variables.extra else type(None) for name in _GIVEN),
             centre_x=float(scene.centre_x_m),
             y1_is_top=scene.start_y_m is None,
-            lows=tuple(lo for lo, _ in ranges),
-            highs=tuple(hi for _, hi in ranges),
             core=core,
         )
         _PLANS[coefficients] = plan
@@ -433,10 +429,10 @@ def generate(
         plan = query_plan(coefficients)
     if region_map is ATTACHED or region_map is coefficients.region_map:  # checked when it was attached
         region_map = coefficients.region_map
-        if out_of_range not in OUT_OF_RANGE_POLICIES:
-            raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
-    else:
-        region_map = _region_map_of(region_map, coefficients, out_of_range)
+    elif region_map is not None:
+        check_region_map(region_map, coefficients)
+    if out_of_range not in OUT_OF_RANGE_POLICIES:
+        raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
     if plan.extra or x is not None or d is not None:
         return _generate_moved(coefficients, plan, length_m, width_m, x, d, out_of_range, region_map)
     L, W = length_m, width_m
@@ -461,13 +457,7 @@ def generate(
     if family.expands_to_itself:
         parameters = tuple(columns)
     else:
-        free = np.array(columns[: plan.matrix_t.shape[1]])
-        if family.uses_endpoint_context:
-            x1 = L / 2.0 + plan.start_dx
-            full = _expand_with_endpoints(coefficients, free, (x1, plan.y1), (-x1, plan.y1), duration, (L, W))
-        else:
-            full = family.expand(free, None)
-        parameters = tuple(full.tolist())
+        parameters = _expanded(coefficients, plan, columns, duration, 0.0, plan.y1, (L, W), ("L", "W"))
     if not all(map(math.isfinite, parameters)):
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
     bounds = None if leaf < 0 else (clearance, endpoint, STATUSES[status])
@@ -505,21 +495,33 @@ def _expand_with_endpoints(
             f"{where}: the {family.name} family could not pin "
             "the tip to P1 and P5 for these parameters (A1 clamped); endpoints are approximate",
             InexactEndpointsWarning,
-            stacklevel=4 if len(names) > 2 else 3,
+            stacklevel=5 if len(names) > 2 else 4,  # generate, (_generate_moved,) _expanded, this
         )
     return full
 
 
-def _region_map_of(region_map: object, coefficients: Coefficients, out_of_range: str) -> RegionMap | None:
-    """The arguments' checks of :func:`generate` (both routes): the map to read bounds from
-    (the attached one, none, or a given one checked against the coefficients) and the policy."""
-    if region_map is ATTACHED:
-        region_map = coefficients.region_map
-    elif region_map is not None and region_map is not coefficients.region_map:  # the attached one is checked
-        check_region_map(region_map, coefficients)
-    if out_of_range not in OUT_OF_RANGE_POLICIES:
-        raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
-    return region_map
+def _expanded(
+    coefficients: Coefficients,
+    plan: QueryPlan,
+    columns: list[float],
+    duration: float,
+    centre_x: float,
+    y1: float,
+    values: tuple[float, ...],
+    names: tuple[str, ...],
+) -> tuple[float, ...]:
+    """The 8 parameters of a family whose :meth:`expand` is not the identity, from the core's
+    ``columns``: with the inverse kinematics of P1 and P5 (at ``centre_x`` +- x1, height ``y1``
+    [m]) and T where the family needs them (``values`` of the variables ``names``, for the warning)."""
+    family = coefficients.family
+    free = np.array(columns[: plan.matrix_t.shape[1]])
+    if family.uses_endpoint_context:
+        x1 = values[0] / 2.0 + plan.start_dx
+        start, end = (x1 + centre_x, y1), (-x1 + centre_x, y1)
+        full = _expand_with_endpoints(coefficients, free, start, end, duration, values, names)
+    else:
+        full = family.expand(free, None)
+    return tuple(full.tolist())
 
 
 def _variable(value: object, name: str) -> float:
@@ -591,15 +593,7 @@ def _generate_moved(
     if family.expands_to_itself:
         parameters = tuple(columns)
     else:
-        free = np.array(columns[: plan.matrix_t.shape[1]])
-        if family.uses_endpoint_context:
-            x1 = L / 2.0 + plan.start_dx
-            start, end = (x1 + c, y1), (-x1 + c, y1)
-            v = (L, W, *values)
-            full = _expand_with_endpoints(coefficients, free, start, end, duration, v, plan.variables.names)
-        else:
-            full = family.expand(free, None)
-        parameters = tuple(full.tolist())
+        parameters = _expanded(coefficients, plan, columns, duration, c, y1, (L, W, *values), plan.variables.names)
     if not all(map(math.isfinite, parameters)):
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
     bounds = None if leaf < 0 else (clearance, endpoint, STATUSES[status])
