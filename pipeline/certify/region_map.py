@@ -97,7 +97,7 @@ LOOKUP_TREE = 2
 
 
 class LookupTables(NamedTuple):
-    """The scalar lookup of a map as three flat arrays (module docstring), for the online
+    """The scalar lookup of a map as four flat arrays (module docstring), for the online
     generator's compiled core (``pipeline.online.kernel``), which finds the same leaves as
     :meth:`RegionMap.leaf_indices`. The arrays are copies, writable only because Numba's dispatch
     of a read-only array costs twice as much: do not modify them.
