@@ -90,33 +90,34 @@ _COLUMNS = (
 )
 
 
-#: :attr:`LookupTables.mode` of a map over (L, W): a dense index of the deepest level, strips along W.
+#: The lookup's mode (``LookupTables.index[0]``) of a map over (L, W): a dense index of the deepest
+#: level, strips along W.
 LOOKUP_SIZE = 1
-#: :attr:`LookupTables.mode` of a map over k > 2 axes: a coarse dense index, then rows of 2^k children.
+#: The lookup's mode of a map over k > 2 axes: a coarse dense index, then rows of 2^k children.
 LOOKUP_TREE = 2
+#: The length of ``LookupTables.index``'s header.
+LOOKUP_HEADER = 6
 
 
 class LookupTables(NamedTuple):
-    """The scalar lookup of a map as four flat arrays (module docstring), for the online
+    """The scalar lookup of a map as two flat arrays (module docstring), for the online
     generator's compiled core (``pipeline.online.kernel``), which finds the same leaves as
     :meth:`RegionMap.leaf_indices`. The arrays are copies, writable only because Numba's dispatch
     of a read-only array costs twice as much: do not modify them.
 
     Attributes:
-        layout: int64 (mode, 2^D, D - C, C, row width, start of the rows in ``table``): the mode
-            (:data:`LOOKUP_SIZE` or :data:`LOOKUP_TREE`), D the deepest depth, C the dense index's
-            depth (D over (L, W)), and the entries per row: 2^E strips over (L, W), 2^k children
-            over k axes.
-        ranges: (k, 2) float64: the fitted range of every axis, in ``axes`` order [m].
-        table: int32: the dense index, flat, then the rows of strips or children, flat.
-        leaves: (n, 3) float64: per leaf its clearance bound [m], endpoint-error bound [m] and
-            status (the index into :data:`STATUSES`, exact as a float).
+        index: int32: a header of :data:`LOOKUP_HEADER` (mode, 2^D, D - C, C, row width, start
+            of the rows), then the dense index, flat, then the rows of strips or children, flat.
+            The mode is :data:`LOOKUP_SIZE` or :data:`LOOKUP_TREE`, D the deepest depth, C the
+            dense index's depth (D over (L, W)); a row holds 2^E strips over (L, W), 2^k
+            children over k axes. An entry >= 0 is a leaf, -r - 1 the r-th row.
+        bounds: float64: the fitted range (lo, hi) of every axis, in ``axes`` order [m], then per
+            leaf its clearance bound [m], endpoint-error bound [m] and status (the index into
+            :data:`STATUSES`, exact as a float).
     """
 
-    layout: np.ndarray
-    ranges: np.ndarray
-    table: np.ndarray
-    leaves: np.ndarray
+    index: np.ndarray
+    bounds: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -507,13 +508,15 @@ class RegionMap:
 
     @cached_property
     def lookup_tables(self) -> LookupTables:
-        """The scalar lookup as flat arrays (:class:`LookupTables`; copies, not to be modified)."""
+        """The scalar lookup as two flat arrays (:class:`LookupTables`; copies, not to be modified)."""
         top = int(self.depth.max())
         mode, coarse = (LOOKUP_SIZE, top) if self.extra_index is None else (LOOKUP_TREE, self._coarse_depth)
-        layout = np.array([mode, 1 << top, top - coarse, coarse, self._sub_index.shape[1], self._index.size])
-        table = np.concatenate([self._index.reshape(-1), self._sub_index.reshape(-1)]).astype(np.int32)
+        rows = LOOKUP_HEADER + self._index.size
+        header = [mode, 1 << top, top - coarse, coarse, self._sub_index.shape[1], rows]
+        index = np.concatenate([header, self._index.reshape(-1), self._sub_index.reshape(-1)]).astype(np.int32)
         leaves = np.column_stack([self.clearance_bound_m, self.endpoint_bound_m, self.status.astype(float)])
-        return LookupTables(layout.astype(np.int64), np.array(self._ranges, dtype=float), table, leaves)
+        bounds = np.concatenate([np.array(self._ranges, dtype=float).reshape(-1), leaves.reshape(-1)])
+        return LookupTables(index, bounds)
 
     @cached_property
     def _leaf_bounds(self) -> list[tuple[float, float, str]]:

@@ -66,7 +66,7 @@ from pipeline.motion.path import LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS, Quarti
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.variables import Variables
-from pipeline.online.kernel import NO_TABLES, query_core
+from pipeline.online.kernel import NO_TABLES, VARIES_D, VARIES_X, plan_numbers, query_core
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
 #: The scene variables :func:`generate` takes by keyword, in the order of its arguments.
@@ -322,19 +322,12 @@ def _core_arguments(matrix_t: np.ndarray, variables: Variables, scene: Scene, ra
             f"{count} parameters of {terms} terms",
             f"1 to 8 parameters of {variables.basis_size} terms each (the quadratic basis in {names})",
         )
-    codes = np.array([_GIVEN.index(name) for name in variables.extra], dtype=np.int64)
-    numbers = np.array(
-        [
-            *(scene.start_dx_m, scene.approach_dx_m, scene.approach_dy_m, scene.apex_dy_m, scene.speed_m_s, *reach),
-            *(lo for lo, _ in ranges),
-            *(hi for _, hi in ranges),
-        ],
-        dtype=float,
-    )
-    rule = np.vstack([LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS])
+    varies = sum(bit for name, bit in zip(_GIVEN, (VARIES_X, VARIES_D), strict=True) if name in variables.extra)
     padded = np.zeros((matrix_t.shape[0], 8))
     padded[:, : matrix_t.shape[1]] = matrix_t
-    return codes, numbers, rule, padded
+    scene_numbers = (scene.start_dx_m, scene.approach_dx_m, scene.approach_dy_m, scene.apex_dy_m, scene.speed_m_s)
+    rule = np.vstack([LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS])
+    return varies, plan_numbers((*scene_numbers, *reach), np.array(ranges, dtype=float), padded, rule)
 
 
 def _size(value: object, size: tuple[object, object], name: str) -> float:
@@ -443,9 +436,8 @@ def generate(
     if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
         _checked_bottom(plan, L, W, top)
     tables = NO_TABLES if region_map is None else region_map.lookup_tables
-    unreachable, radius, duration, inside, leaf, clearance, endpoint, status, *columns = query_core(
-        L, W, 0.0, top, plan.y1, *plan.core, *tables
-    )
+    result = query_core(L, W, 0.0, top, plan.y1, *plan.core, *tables)
+    unreachable, radius, duration, inside, leaf, clearance, endpoint, status = result[:8]
     if unreachable >= 0:  # P4 and P5 mirror P2 and P1: the first of P1..P3 to fail is named
         raise UnreachableObstacleError(f"P{unreachable + 1}", radius, plan.reach, size_m=(L, W))
     extrapolated = not inside
@@ -455,10 +447,11 @@ def generate(
         duration = desired_path(Obstacle.in_scene(L, W, coefficients.scene), coefficients.scene).duration_s
     family = coefficients.family
     if family.expands_to_itself:
-        parameters = tuple(columns)
+        parameters, finite = result[8:16], result[16]
     else:
-        parameters = _expanded(coefficients, plan, columns, duration, 0.0, plan.y1, (L, W), ("L", "W"))
-    if not all(map(math.isfinite, parameters)):
+        parameters = _expanded(coefficients, plan, result[8:16], duration, 0.0, plan.y1, (L, W), ("L", "W"))
+        finite = all(map(math.isfinite, parameters))
+    if not finite:
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
     bounds = None if leaf < 0 else (clearance, endpoint, STATUSES[status])
     return GeneratedTrajectory.trusted(
@@ -503,7 +496,7 @@ def _expand_with_endpoints(
 def _expanded(
     coefficients: Coefficients,
     plan: QueryPlan,
-    columns: list[float],
+    columns: tuple[float, ...],
     duration: float,
     centre_x: float,
     y1: float,
@@ -576,9 +569,8 @@ def _generate_moved(
     if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
         _checked_bottom(plan, L, W, top)
     tables = NO_TABLES if region_map is None or region_map.axes != plan.variables.names else region_map.lookup_tables
-    unreachable, radius, duration, inside, leaf, clearance, endpoint, status, *columns = query_core(
-        L, W, c, top, y1, *plan.core, *tables
-    )
+    result = query_core(L, W, c, top, y1, *plan.core, *tables)
+    unreachable, radius, duration, inside, leaf, clearance, endpoint, status = result[:8]
     if unreachable >= 0:
         variables = dict(zip(plan.extra, values, strict=True))
         raise UnreachableObstacleError(f"P{unreachable + 1}", radius, plan.reach, size_m=(L, W), variables=variables)
@@ -591,10 +583,11 @@ def _generate_moved(
         duration = desired_path(Obstacle.in_scene(L, W, centred), centred).duration_s
     family = coefficients.family
     if family.expands_to_itself:
-        parameters = tuple(columns)
+        parameters, finite = result[8:16], result[16]
     else:
-        parameters = _expanded(coefficients, plan, columns, duration, c, y1, (L, W, *values), plan.variables.names)
-    if not all(map(math.isfinite, parameters)):
+        parameters = _expanded(coefficients, plan, result[8:16], duration, c, y1, (L, W, *values), plan.variables.names)
+        finite = all(map(math.isfinite, parameters))
+    if not finite:
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
     bounds = None if leaf < 0 else (clearance, endpoint, STATUSES[status])
     trajectory = JointTrajectory.trusted(parameters, duration)

@@ -34,7 +34,7 @@ routes differ by at most twice that:
 are about 1e-14 rad and 1e-13 s. The leaf is an integer found by the same floating-point
 operations as :meth:`RegionMap.leaf_indices` (a division, a product by a power of two, a
 truncation), so it is the same leaf, and its bounds and status are read from the map's own
-columns (:attr:`pipeline.certify.region_map.LookupTables.leaves`).
+columns (:class:`pipeline.certify.region_map.LookupTables`).
 
 **Why the certificate covers either route.** The range certificate bounds the clearance and the
 endpoint error of the exact regression polynomial and the exact T at every point of a leaf, and
@@ -44,11 +44,16 @@ A sin(w t + phi) + gamma moves by at most |dA| + |A| (|dw| t + w |dt| + |dphi|) 
 the links' points by at most (l1 + l2) times the angles' change: with every d below 1e-12 and
 |A|, w, T of order 1 to 10, that is below 1e-10 m, under the slack.
 
-The core is compiled for its one signature when this module is imported, and Numba caches the
-machine code on disk (``cache=True``): importing it loads the cache (or, the first time, compiles,
-a few seconds), so no query compiles. The first query with a coefficients object
-and its map builds their tables once (0.1 s for the default (L, W) map). Every array argument is
-C-contiguous, as the generator and :class:`LookupTables` make them.
+**Its arguments.** Five numbers of the query, a bit set naming the regression's variables
+beyond L and W, and three flat arrays: the plan of the coefficients (:func:`plan_numbers`) and
+the map's two lookup arrays (:class:`pipeline.certify.region_map.LookupTables`; :data:`NO_TABLES`
+without a map). A Numba call costs about 0.1 us per array it is given, so the arrays are few and
+packed; the core allocates nothing, so its time is its arithmetic. It is compiled for its one
+signature when this module is imported, and Numba caches the machine code on disk
+(``cache=True``): importing it loads the cache (or, the first time, compiles, a few seconds), so
+no query compiles. The first query with a coefficients object and its map builds their arrays
+once (0.1 s for the default (L, W) map). Every array is C-contiguous and writable (Numba's
+dispatch of a read-only array costs twice as much).
 """
 
 from __future__ import annotations
@@ -58,71 +63,121 @@ import math
 import numba
 import numpy as np
 
-from pipeline.certify.region_map import LOOKUP_SIZE, LookupTables
+from pipeline.certify.region_map import LOOKUP_HEADER, LOOKUP_SIZE, LookupTables
 
-__all__ = ["NO_MAP", "NO_TABLES", "query_core"]
+__all__ = ["NO_MAP", "NO_TABLES", "VARIES_D", "VARIES_X", "plan_numbers", "query_core"]
 
 #: The map mode of a query without a region map (the lookup arrays are then not read).
 NO_MAP = 0
+#: Bits of ``varies``: the regression's variables beyond L and W (x before d, the canonical order).
+VARIES_X = 1
+VARIES_D = 2
+
+#: Where the plan's numbers start (:func:`plan_numbers`): the scene's and the reach's seven, then
+#: the fitted range's (lo, hi) of each of the k variables, then the regression, then the rule.
+_RANGES = 7
+
+
+def plan_numbers(
+    scene_numbers: tuple[float, ...], ranges: np.ndarray, matrix: np.ndarray, rule: np.ndarray
+) -> np.ndarray:
+    """The plan of one coefficients object, as the core reads it: one flat float64 array.
+
+    Args:
+        scene_numbers: start_dx, approach_dx, approach_dy, apex_dy [m], speed [m/s], and the reach
+            annulus' inner and outer radii [m].
+        ranges: (k, 2): the fitted range of every variable, L, W, then x and d where varied [m].
+        matrix: (1 + k + k(k+1)/2, 8): the regression, basis -> parameters, columns past the
+            family's free parameters zero.
+        rule: (5, m): the arc-length rule: rows 1, u^2, u^4, u^6 at its nodes, then its weights.
+    """
+    parts = (np.asarray(scene_numbers, float), ranges, matrix, rule)
+    return np.ascontiguousarray(np.concatenate([np.asarray(part, float).reshape(-1) for part in parts]))
 
 
 def _no_tables() -> LookupTables:
-    layout = np.array([NO_MAP, 1, 0, 0, 1, 0], dtype=np.int64)
-    return LookupTables(layout, np.zeros((0, 2)), np.zeros(0, np.int32), np.zeros((0, 3)))
+    header = np.zeros(LOOKUP_HEADER, dtype=np.int32)
+    header[0] = NO_MAP
+    return LookupTables(header, np.zeros(0))
 
 
-#: The lookup tables of a query without a region map: the arrays' types are a map's, so that
+#: The lookup arrays of a query without a region map: the arrays' types are a map's, so that
 #: one compiled core serves both.
 NO_TABLES = _no_tables()
 
 
-@numba.njit("int64(float64[::1], int64[::1], float64[:, ::1], int32[::1])", cache=True, nogil=True)
-def _leaf(values: np.ndarray, layout: np.ndarray, ranges: np.ndarray, table: np.ndarray) -> int:
-    """The leaf holding ``values``, as RegionMap.leaf_indices finds it; -1 outside the map's box."""
-    for a in range(values.shape[0]):
-        if not (ranges[a, 0] <= values[a] <= ranges[a, 1]):
+@numba.njit(cache=True, nogil=True)
+def _value(a: int, length_m: float, width_m: float, centre_x_m: float, top_y_m: float, varies: int) -> float:
+    """The a-th variable's value: L, W, then x and d where ``varies`` names them."""
+    if a == 0:
+        return length_m
+    if a == 1:
+        return width_m
+    if a == 2 and (varies & VARIES_X) != 0:
+        return centre_x_m
+    return top_y_m
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell(value: float, lo: float, hi: float, n: int) -> int:
+    """The cell (0 .. n - 1) of ``value`` in [lo, hi] cut into n, as RegionMap.leaf_indices finds it."""
+    return min(int((value - lo) / (hi - lo) * n), n - 1)
+
+
+@numba.njit(cache=True, nogil=True)
+def _leaf(
+    length_m: float, width_m: float, centre_x_m: float, top_y_m: float, varies: int, k: int,
+    index: np.ndarray, bounds: np.ndarray,
+) -> int:  # fmt: skip
+    """The leaf holding the query, as RegionMap.leaf_indices finds it; -1 outside the map's box."""
+    for a in range(k):
+        value = _value(a, length_m, width_m, centre_x_m, top_y_m, varies)
+        if not (bounds[2 * a] <= value <= bounds[2 * a + 1]):
             return -1
-    mode, n, shift, coarse, width, rows = layout[0], layout[1], layout[2], layout[3], layout[4], layout[5]
+    mode, n, shift, coarse, width, rows = index[0], index[1], index[2], index[3], index[4], index[5]
     if mode == LOOKUP_SIZE:
-        i = int((values[0] - ranges[0, 0]) / (ranges[0, 1] - ranges[0, 0]) * n)
-        v = (values[1] - ranges[1, 0]) / (ranges[1, 1] - ranges[1, 0]) * n
-        j = int(v)
-        i = min(i, n - 1)
-        j = min(j, n - 1)
-        leaf = table[i * n + j]
+        i = _cell(length_m, bounds[0], bounds[1], n)
+        v = (width_m - bounds[2]) / (bounds[3] - bounds[2]) * n
+        j = min(int(v), n - 1)
+        leaf = index[LOOKUP_HEADER + i * n + j]
         if leaf >= 0:
             return leaf
         slot = min(max(int(v * width) - j * width, 0), width - 1)
-        return table[rows + (-leaf - 1) * width + slot]
-    k = values.shape[0]
-    cells = np.empty(k, dtype=np.int64)
+        return index[rows + (-leaf - 1) * width + slot]
     key = 0
     for a in range(k):
-        t = int((values[a] - ranges[a, 0]) / (ranges[a, 1] - ranges[a, 0]) * n)
-        t = min(t, n - 1)
-        cells[a] = t
-        key = (key << coarse) | (t >> shift)
-    leaf = table[key]
+        cell = _cell(_value(a, length_m, width_m, centre_x_m, top_y_m, varies), bounds[2 * a], bounds[2 * a + 1], n)
+        key = (key << coarse) | (cell >> shift)
+    leaf = index[LOOKUP_HEADER + key]
     while leaf < 0:
         shift -= 1
         slot = 0
         for a in range(k):
-            slot = (slot << 1) | ((cells[a] >> shift) & 1)
-        leaf = table[rows + (-leaf - 1) * width + slot]
+            value = _value(a, length_m, width_m, centre_x_m, top_y_m, varies)
+            slot = (slot << 1) | ((_cell(value, bounds[2 * a], bounds[2 * a + 1], n) >> shift) & 1)
+        leaf = index[rows + (-leaf - 1) * width + slot]
     return leaf
+
+
+@numba.njit(cache=True, nogil=True)
+def _add_row(p, b: float, plan: np.ndarray, row: int):
+    """The eight sums ``p`` plus b times the regression's row starting at ``plan[row]``."""
+    return (
+        p[0] + b * plan[row], p[1] + b * plan[row + 1], p[2] + b * plan[row + 2], p[3] + b * plan[row + 3],
+        p[4] + b * plan[row + 4], p[5] + b * plan[row + 5], p[6] + b * plan[row + 6], p[7] + b * plan[row + 7],
+    )  # fmt: skip
 
 
 @numba.njit(
     "Tuple((int64, float64, float64, boolean, int64, float64, float64, int64, float64, float64, float64, float64,"
-    " float64, float64, float64, float64))(float64, float64, float64, float64, float64, int64[::1], float64[::1],"
-    " float64[:, ::1], float64[:, ::1], int64[::1], float64[:, ::1], int32[::1], float64[:, ::1])",
+    " float64, float64, float64, float64, boolean))(float64, float64, float64, float64, float64, int64,"
+    " float64[::1], int32[::1], float64[::1])",
     cache=True,
     nogil=True,
 )
 def query_core(
-    length_m: float, width_m: float, centre_x_m: float, top_y_m: float, start_y_m: float,
-    variables: np.ndarray, numbers: np.ndarray, rule: np.ndarray, matrix: np.ndarray,
-    layout: np.ndarray, ranges: np.ndarray, table: np.ndarray, leaves: np.ndarray,
+    length_m: float, width_m: float, centre_x_m: float, top_y_m: float, start_y_m: float, varies: int,
+    plan: np.ndarray, index: np.ndarray, bounds: np.ndarray,
 ):  # fmt: skip
     """One query's numbers (module docstring).
 
@@ -130,26 +185,22 @@ def query_core(
         length_m, width_m: L, W [m], finite and positive, checked by the caller.
         centre_x_m, top_y_m, start_y_m: The obstacle's centre x, far edge d and the height of P1
             and P5 [m] of this query.
-        variables: Codes of the regression's variables beyond L and W, in order (0 = x, 1 = d).
-        numbers: start_dx, approach_dx, approach_dy, apex_dy [m], speed [m/s], the reach
-            annulus' inner and outer radii [m], then the fitted range's lower ends of every
-            variable (L, W, then ``variables``), then their upper ends [m].
-        rule: The arc-length rule: rows 1, u^2, u^4, u^6 at its nodes, then its weights (5, m).
-        matrix: The regression (basis, 8), columns past the family's free parameters zero.
-        layout, ranges, table, leaves: The region map's lookup tables
-            (:class:`pipeline.certify.region_map.LookupTables`; :data:`NO_TABLES` for none).
+        varies: The regression's variables beyond L and W (:data:`VARIES_X`, :data:`VARIES_D`).
+        plan: The coefficients' plan (:func:`plan_numbers`).
+        index, bounds: The region map's lookup arrays (:class:`LookupTables`; :data:`NO_TABLES`
+            for none).
 
     Returns:
         (unreachable, radius_m, duration_s, inside, leaf, clearance_bound_m, endpoint_bound_m,
-        status, p0, ..., p7): the number (0-4) of the first of P1..P5 outside the reach annulus
-        or -1, and its distance from the base [m] (NaN if none); T [s] (NaN where the path's
-        closed form does not apply: P2 not between the centre and P1); True inside the fitted
-        range; the map's leaf (-1 outside it or without a map) with its two bounds [m] and its
-        status (index into ``STATUSES``; NaN, NaN, -1 without a leaf); the regression's eight
-        columns.
+        status, p0, ..., p7, finite): the number (0-4) of the first of P1..P5 outside the reach
+        annulus or -1, and its distance from the base [m] (NaN if none); T [s] (NaN where the
+        path's closed form does not apply: P2 not between the centre and P1); True inside the
+        fitted range; the map's leaf (-1 outside it or without a map) with its two bounds [m]
+        and its status (index into ``STATUSES``; NaN, NaN, -1 without a leaf); the regression's
+        eight columns; True if all eight are finite.
     """
     start_dx, approach_dx, approach_dy, apex_dy, speed, reach_lo, reach_hi = (
-        numbers[0], numbers[1], numbers[2], numbers[3], numbers[4], numbers[5], numbers[6],
+        plan[0], plan[1], plan[2], plan[3], plan[4], plan[5], plan[6],
     )  # fmt: skip
     bottom = top_y_m - width_m
     x1 = length_m / 2.0 + start_dx
@@ -162,10 +213,14 @@ def query_core(
         math.hypot(c - x2, y2), math.hypot(c - x1, start_y_m),
     )  # fmt: skip
     unreachable, radius = -1, math.nan
-    for p in range(5):
-        if not (reach_lo <= radii[p] <= reach_hi):
-            unreachable, radius = p, radii[p]
+    for point in range(5):
+        if not (reach_lo <= radii[point] <= reach_hi):
+            unreachable, radius = point, radii[point]
             break
+    k = 2 + (varies & VARIES_X) + (varies & VARIES_D) // VARIES_D
+    terms = 1 + k + k * (k + 1) // 2
+    rule = _RANGES + 2 * k + 8 * terms
+    nodes = (plan.shape[0] - rule) // 5
     duration = math.nan
     if x1 > x2 > 0.0:  # pipeline.motion.path.symmetric_quartic, then its length
         ua = x1 * x1
@@ -178,42 +233,38 @@ def query_core(
         k3 = 4.0 * c4 * x1 * x1 * x1
         f1, f2, f3 = k1 * k1, 2.0 * k1 * k3, k3 * k3
         total = 0.0
-        for j in range(rule.shape[1]):
-            q = rule[0, j] + f1 * rule[1, j]
-            q = q + f2 * rule[2, j]
-            q = q + f3 * rule[3, j]
-            total += math.sqrt(q) * rule[4, j]
+        for j in range(rule, rule + nodes):
+            q = plan[j] + f1 * plan[j + nodes]
+            q = q + f2 * plan[j + 2 * nodes]
+            q = q + f3 * plan[j + 3 * nodes]
+            total += math.sqrt(q) * plan[j + 4 * nodes]
         duration = 2.0 * x1 * total / speed
-    k = 2 + variables.shape[0]
-    values = np.empty(k)
-    values[0] = length_m
-    values[1] = width_m
-    for a in range(variables.shape[0]):
-        values[2 + a] = centre_x_m if variables[a] == 0 else top_y_m
     inside = True
     for a in range(k):
-        if not (numbers[7 + a] <= values[a] <= numbers[7 + k + a]):
+        value = _value(a, length_m, width_m, centre_x_m, top_y_m, varies)
+        if not (plan[_RANGES + 2 * a] <= value <= plan[_RANGES + 2 * a + 1]):
             inside = False
-    basis = np.empty(matrix.shape[0])
-    basis[0] = 1.0
-    m = 1
+    row = _RANGES + 2 * k
+    p = _add_row((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), 1.0, plan, row)
     for a in range(k):
-        basis[m] = values[a]
-        m += 1
+        row += 8
+        p = _add_row(p, _value(a, length_m, width_m, centre_x_m, top_y_m, varies), plan, row)
     for a in range(k):
+        va = _value(a, length_m, width_m, centre_x_m, top_y_m, varies)
         for b in range(a, k):
-            basis[m] = values[a] * values[b]
-            m += 1
-    p = np.zeros(8)
-    for i in range(matrix.shape[0]):
-        for col in range(8):
-            p[col] += basis[i] * matrix[i, col]
+            row += 8
+            p = _add_row(p, va * _value(b, length_m, width_m, centre_x_m, top_y_m, varies), plan, row)
+    finite = True
+    for col in range(8):
+        if not math.isfinite(p[col]):
+            finite = False
     leaf, clearance, endpoint, status = -1, math.nan, math.nan, -1
-    if layout[0] != NO_MAP and inside:
-        leaf = _leaf(values, layout, ranges, table)
+    if index[0] != NO_MAP and inside:
+        leaf = _leaf(length_m, width_m, centre_x_m, top_y_m, varies, k, index, bounds)
         if leaf >= 0:
-            clearance, endpoint, status = leaves[leaf, 0], leaves[leaf, 1], int(leaves[leaf, 2])
+            at = 2 * k + 3 * leaf
+            clearance, endpoint, status = bounds[at], bounds[at + 1], int(bounds[at + 2])
     return (
         unreachable, radius, duration, inside, leaf, clearance, endpoint, status,
-        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7],
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], finite,
     )  # fmt: skip
