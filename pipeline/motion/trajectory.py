@@ -145,7 +145,9 @@ class JointTrajectory:
         """Build without re-validating: for callers that have checked already (8 finite Python
         floats and a finite T > 0), e.g. the online generator, which validates once at its entry."""
         trajectory = object.__new__(cls)
-        trajectory.__dict__.update(parameters=parameters, duration_s=duration_s)
+        fields = trajectory.__dict__
+        fields["parameters"] = parameters
+        fields["duration_s"] = duration_s
         return trajectory
 
     @classmethod

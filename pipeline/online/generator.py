@@ -128,30 +128,20 @@ class GeneratedTrajectory:
         (``bounds``: clearance bound [m], endpoint bound [m] and status of the map's leaf, or None).
         With ``moved`` ``scene`` is the coefficients' scene, and the answer's scene, with the
         ``variables``' values in place, is built on first access."""
-        if bounds is None:
-            clearance = endpoint = source = status = None
-        else:
-            (clearance, endpoint, status), source = bounds, RANGE_SOURCE
         answer = object.__new__(cls)
-        answer.__dict__.update(
-            {
-                "length_m": length_m,
-                "width_m": width_m,
-                "family": family,
-                "scene": scene,
-                "trajectory": trajectory,
-                "extrapolated": extrapolated,
-                "reach_m": reach_m,
-                "certified_clearance_m": clearance,
-                "endpoint_error_bound_m": endpoint,
-                "certificate_source": source,
-                "range_status": status,
-            }
-        )
-        if variables:  # else the class default, ()
-            answer.__dict__["variables"] = variables
-        if moved:
-            answer.__dict__["_unmoved_scene"] = answer.__dict__.pop("scene")
+        fields = answer.__dict__  # fields left out keep their class defaults (None, ())
+        fields["length_m"] = length_m
+        fields["width_m"] = width_m
+        fields["family"] = family
+        fields["_unmoved_scene" if moved else "scene"] = scene
+        fields["trajectory"] = trajectory
+        fields["extrapolated"] = extrapolated
+        fields["reach_m"] = reach_m
+        if bounds is not None:
+            fields["certified_clearance_m"], fields["endpoint_error_bound_m"], fields["range_status"] = bounds
+            fields["certificate_source"] = RANGE_SOURCE
+        if variables:
+            fields["variables"] = variables
         return answer
 
     def __getattr__(self, name: str):
@@ -228,8 +218,10 @@ class QueryPlan(NamedTuple):
     core: tuple  # the compiled core's arguments after the query's five numbers, before the map's tables
 
 
-#: The plans of the coefficients queried so far, kept while they live.
-_PLANS: weakref.WeakKeyDictionary[Coefficients, QueryPlan] = weakref.WeakKeyDictionary()
+#: The plans of the coefficients queried so far, by ``id``, each removed when its coefficients die
+#: (a plain dict by ``id`` is looked up several times faster than a ``WeakKeyDictionary``, which
+#: makes a weak reference per lookup; an entry's id is always a live Coefficients').
+_PLANS: dict[int, QueryPlan] = {}
 
 
 class _Attached:
@@ -272,7 +264,7 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
     """
     if not isinstance(coefficients, Coefficients):
         raise _refuse_coefficients(coefficients)
-    plan = _PLANS.get(coefficients)
+    plan = _PLANS.get(id(coefficients))
     if plan is None:
         scene = coefficients.scene
         names = coefficients.family.free_parameter_names
@@ -306,7 +298,8 @@ def query_plan(coefficients: Coefficients) -> QueryPlan:
             y1_is_top=scene.start_y_m is None,
             core=core,
         )
-        _PLANS[coefficients] = plan
+        _PLANS[id(coefficients)] = plan
+        weakref.finalize(coefficients, _PLANS.pop, id(coefficients), None)
     return plan
 
 
@@ -414,10 +407,7 @@ def generate(
         OutOfFittedRangeError: outside the fitted range with ``out_of_range="error"``.
         RegionMapMismatchError: ``region_map`` was made for other coefficients.
     """
-    try:
-        plan = _PLANS.get(coefficients)
-    except TypeError:  # not weak-referenceable: not a Coefficients
-        raise _refuse_coefficients(coefficients) from None
+    plan = _PLANS.get(id(coefficients))
     if plan is None:  # a first query (or not a Coefficients: refused)
         plan = query_plan(coefficients)
     if region_map is ATTACHED or region_map is coefficients.region_map:  # checked when it was attached
