@@ -5,7 +5,10 @@ outside [0, T] unless asked to clamp."""
 
 from __future__ import annotations
 
+import gc
 import math
+import pickle
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -26,6 +29,7 @@ from pipeline.motion.families import EndpointContext
 from pipeline.motion.path import constraint_points, desired_path
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
+from pipeline.online import generator
 from pipeline.online.generator import generate
 
 
@@ -167,3 +171,22 @@ def test_times_outside_the_motion_are_refused_or_clamped(paper: Coefficients) ->
     )
     with pytest.raises(InvalidParameterError):
         JointTrajectory((0.1,) * 8, 2.0).q("soon")
+
+
+def test_the_plan_of_coefficients_lives_as_long_as_they_do(paper: Coefficients) -> None:
+    """The generator keeps one precomputed plan per coefficients object (by id), and drops it
+    when they die: no plan outlives its coefficients, and a new object never finds a stale one."""
+    copy = replace(paper, source="a copy")  # another object, its own plan
+    answer = generate(copy, 0.25, 0.1)
+    key = id(copy)
+    assert generator._PLANS[key] is generator.query_plan(copy)
+    assert generator._PLANS[key] is not generator.query_plan(paper)
+    del copy
+    gc.collect()
+    assert key not in generator._PLANS
+    # The answer made with the dead coefficients' plan stays whole; without a map its bounds are
+    # the fields' defaults, also after a pickle.
+    for kept in (answer, pickle.loads(pickle.dumps(answer))):
+        assert kept.length_m == 0.25 and kept.trajectory == answer.trajectory
+        assert kept.certified_clearance_m is None and kept.certificate_source is None and kept.range_status is None
+        assert kept.variables == ()
