@@ -67,7 +67,14 @@ def _add_method_options(parser: argparse.ArgumentParser, defaults: BenchSettings
         "--repeats",
         type=int,
         default=defaults.repeats,
-        help="timed passes over the obstacles for (a), (a'), (a*) and (a*') [passes]",
+        help="timed passes over the obstacles of the per-query rows (a), (a*) and (a*) over (L, W, x), interleaved: "
+        "one pass of each in turn, so that they sample the same stretches of the machine's time [passes]",
+    )
+    parser.add_argument(
+        "--batch-repeats",
+        type=int,
+        default=defaults.batch_repeats,
+        help="timed passes of the batched rows (a'), (a*') and (r*') [passes]",
     )
     parser.add_argument(
         "--region-map",
@@ -217,6 +224,7 @@ def settings_from_args(args: argparse.Namespace) -> BenchSettings:
         n=args.n,
         seed=args.seed,
         repeats=args.repeats,
+        batch_repeats=args.batch_repeats,
         batch_size=args.batch_size,
         slow_repeats=args.slow_repeats,
         pso_cases=args.pso_cases,

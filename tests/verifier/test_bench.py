@@ -39,6 +39,7 @@ from verify.benchmark import ompl_planner as planner
 from verify.benchmark import range_map as bench_range_map
 from verify.benchmark import results as bench_results
 from verify.benchmark import run as bench_run
+from verify.benchmark.per_query import PerQueryRow, time_side_by_side
 
 
 def coarse_config(coefficients: Coefficients) -> RangeCertificateConfig:
@@ -68,6 +69,8 @@ TINY = [
     "3",
     "--repeats",
     "3",
+    "--batch-repeats",
+    "2",
     "--slow-repeats",
     "1",
     "--pso-cases",
@@ -196,7 +199,7 @@ def test_tiny_run_prints_the_table_and_writes_the_json_schema(tiny_run: tuple[in
     a, b = methods["a"], methods["b"]
     assert math.isclose(a["ratio_to_a"], 1.0) and math.isclose(b["ratio_to_b"], 1.0)
     assert a["timed_runs"] == 3 * 3  # 3 passes over 3 obstacles
-    assert methods["a_range"]["timed_runs"] == 3 * 3 and methods["a_range_batch"]["timed_runs"] == 3
+    assert methods["a_range"]["timed_runs"] == 3 * 3 and methods["a_range_batch"]["timed_runs"] == 2  # --batch-repeats
     c = methods["c"]
     assert c["obstacles"] == 1 and c["extra"]["pso"]["swarm_size"] == 4 and c["extra"]["polish"] is False
     # (b) answers only with a certificate that keeps the margin.
@@ -250,7 +253,9 @@ def test_a_range_answers_are_the_generators_with_the_maps_bounds(built: Path) ->
     coefficients = load_coefficients(built)
     region_map = load_region_map(built.with_name(DEFAULT_MAP_NAME))
     cases = sample_cases(SweepRange.from_fitted(coefficients.fitted_range_m), 20, 3)
-    _, answers = bench_methods.bench_generator(coefficients, cases, 1, region_map)
+    row = PerQueryRow(coefficients, cases, region_map)
+    time_side_by_side([row], 1)
+    answers = row.answers
     _, batch = bench_methods.bench_range_batched(coefficients, cases, region_map, 1)
     for i, (length, width) in enumerate(cases):
         plain = generate(coefficients, float(length), float(width))
@@ -337,7 +342,8 @@ def test_a_named_region_map_replaces_the_one_beside_unread_and_the_arm_is_the_re
     source = tmp_path / "coefficients.json"
     source.write_bytes(built.read_bytes())  # the same coefficients: the built map certifies them
     (tmp_path / DEFAULT_MAP_NAME).write_text("{not json")
-    common = ["--coefficients", str(source), "--n", "2", "--repeats", "2", "--slow-repeats", "1"]
+    common = ["--coefficients", str(source), "--n", "2", "--repeats", "2", "--batch-repeats", "2"]
+    common += ["--slow-repeats", "1"]
     common += ["--pso-cases", "0", "--no-ompl", "--build-timing", str(tmp_path / "none.json")]
     named = ["--region-map", str(built.with_name(DEFAULT_MAP_NAME))]
     status, out, err = run_main(capsys, *common, *named, "--no-progress", "--json", str(tmp_path / "b.json"))
@@ -358,6 +364,8 @@ def test_missing_ompl_skips_d_with_a_clear_line(
         "--n",
         "2",
         "--repeats",
+        "2",
+        "--batch-repeats",
         "2",
         "--slow-repeats",
         "1",
@@ -385,6 +393,7 @@ def test_missing_ompl_skips_d_with_a_clear_line(
         (["--ompl-time", "nan"], "--ompl-time"),
         (["--ompl-margin", "-0.001"], "--ompl-margin"),
         (["--repeats", "0"], "--repeats"),
+        (["--batch-repeats", "0"], "--batch-repeats"),
         (["--pso-swarm-size", "1"], "--pso-swarm-size"),
         (["--n", "three"], "--n"),
         (["--run-build", "2"], "--run-build"),

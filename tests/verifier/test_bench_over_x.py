@@ -25,6 +25,7 @@ from verify.bench import main
 from verify.benchmark import methods as bench_methods
 from verify.benchmark import ompl_planner as planner
 from verify.benchmark import over_x as bench_over_x
+from verify.benchmark.per_query import PerQueryRow, time_side_by_side
 from verify.benchmark.results import MAKE_COEFFICIENTS_X
 
 
@@ -60,7 +61,8 @@ def run_main(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, 
 
 
 #: Tiny settings without (c): 3 obstacles, 2 passes of the cheap rows, 1 of the slow ones.
-TINY = ["--n", "3", "--repeats", "2", "--slow-repeats", "1", "--pso-cases", "0", "--ompl-time", "0.5", "--quiet"]
+TINY = ["--n", "3", "--repeats", "2", "--batch-repeats", "2", "--slow-repeats", "1", "--pso-cases", "0"]
+TINY += ["--ompl-time", "0.5", "--quiet"]
 
 
 def test_row_over_x_answers_with_the_map_and_ompl_plans_around_the_moved_obstacles(
@@ -125,7 +127,10 @@ def test_row_over_x_is_the_generators_answer_with_the_maps_bounds(built_x: Path)
     region_map = coefficients.region_map
     assert region_map is not None and region_map.axes == ("L", "W", "x")
     cases = bench_over_x.sample_cases_x(coefficients, 12, 5)
-    _, answers = bench_methods.bench_generator_x(coefficients, cases, 1, region_map)
+    row = PerQueryRow(coefficients, cases, region_map)
+    time_side_by_side([row], 1)
+    answers = row.answers
+    assert len(row.times_s) == len(cases)
     for (length, width, x), answer in zip(cases, answers, strict=True):
         assert answer.centre_x_m == x and answer.obstacle.centre_x_m == x
         assert answer.certificate_source == RANGE_SOURCE

@@ -1,6 +1,7 @@
-"""The methods the benchmark times side by side: (a) the generator, (a') batched, (a*) the generator with
-the range certificate (per query and batched, and over (L, W, x)), (b) certify-or-repair, (c) PSO
-online, (d) OMPL RRT-Connect (also on moved obstacles), and the sweep rate and build time."""
+"""The methods the benchmark times beside the per-query rows (:mod:`verify.benchmark.per_query`): (a')
+the generator batched, (a*') the generator with the range certificate batched, (r*) rest-to-rest,
+(b) certify-or-repair, (c) PSO online, (d) OMPL RRT-Connect (also on moved obstacles), and the
+sweep rate and build time."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ from pipeline.motion.trajectory import PARAMETER_NAMES, JointTrajectory
 from pipeline.offline.experiment import SolverConfig, solve_experiment
 from pipeline.online.batch import GeneratedBatch, generate_batch
 from pipeline.online.batch_execution import ExecutionBatch, execution_batch
-from pipeline.online.generator import RANGE_SOURCE, generate, generate_parameters
+from pipeline.online.generator import RANGE_SOURCE, generate_parameters
 from pipeline.online.repair import generate_certified
 from verify.acceptance.metrics import MeasureSettings
 from verify.acceptance.run import run_cases
@@ -49,55 +50,6 @@ def _timed(function: Callable[[], Any]) -> tuple[float, Any]:
     started = time.perf_counter()
     value = function()
     return time.perf_counter() - started, value
-
-
-def bench_generator(
-    coefficients: Any, cases: np.ndarray, repeats: int, region_map: RegionMap | None = None
-) -> tuple[list[float], list[Any]]:
-    """(a), and (a*) with ``region_map``: time ``generate`` one query at a time, ``repeats`` passes over the cases.
-
-    Returns:
-        (time of every call [s], the generated trajectories of the last pass, None where it raised).
-    """
-    for _ in range(WARMUP_CALLS):
-        generate(coefficients, float(cases[0, 0]), float(cases[0, 1]), region_map=region_map)
-    times: list[float] = []
-    answers: list[Any] = [None] * len(cases)
-    clock = time.perf_counter
-    for _ in range(repeats):
-        for i, (length, width) in enumerate(cases):
-            started = clock()
-            try:
-                answers[i] = generate(coefficients, float(length), float(width), region_map=region_map)
-            except PipelineError:
-                answers[i] = None
-            times.append(clock() - started)
-    return times, answers
-
-
-def bench_generator_x(
-    coefficients: Any, cases: np.ndarray, repeats: int, region_map: RegionMap | None
-) -> tuple[list[float], list[Any]]:
-    """(a*) over (L, W, x): time ``generate(coefficients, L, W, x=x, region_map=region_map)`` one query
-    at a time, ``repeats`` passes over the cases (shape (n, 3): L, W, x [m]); as :func:`bench_generator`.
-
-    Returns:
-        (time of every call [s], the answers of the last pass, None where it raised).
-    """
-    for _ in range(WARMUP_CALLS):
-        generate(coefficients, float(cases[0, 0]), float(cases[0, 1]), x=float(cases[0, 2]), region_map=region_map)
-    times: list[float] = []
-    answers: list[Any] = [None] * len(cases)
-    clock = time.perf_counter
-    for _ in range(repeats):
-        for i, (length, width, x) in enumerate(cases):
-            started = clock()
-            try:
-                answers[i] = generate(coefficients, float(length), float(width), x=float(x), region_map=region_map)
-            except PipelineError:
-                answers[i] = None
-            times.append(clock() - started)
-    return times, answers
 
 
 def bench_batched(coefficients: Any, cases: np.ndarray, repeats: int) -> tuple[list[float], np.ndarray]:
@@ -200,8 +152,8 @@ class RangeCounts:
 
 
 def range_counts(answers: Sequence[Any], margin_m: float) -> RangeCounts:
-    """Count (a*)'s answers (from :func:`bench_generator` with a region map; None where it raised)
-    by their range certificate: in range, certified collision-free, keeping ``margin_m`` [m]."""
+    """Count (a*)'s answers (a :class:`verify.benchmark.per_query.PerQueryRow`'s with a region map;
+    None where it raised) by their range certificate: in range, certified collision-free, keeping ``margin_m`` [m]."""
     in_range = [a for a in answers if a is not None and not a.extrapolated]
     clearances = [
         a.certified_clearance_m

@@ -1,8 +1,9 @@
 """The benchmark's rows over (L, W, x): coefficients that also vary the obstacle's centre x.
 
-**(a*) over (L, W, x)** times ``generate(coefficients, L, W, x=x, region_map=m)`` one query at a time
-on random (L, W, x) uniform in the coefficients' fitted box (seeded; its (L, W) columns are drawn
-as the bench's (L, W) obstacles are), with the map over (L, W, x) that the build wrote beside
+**(a*) over (L, W, x)** times ``generate(coefficients, L, W, x=x, region_map=m)`` one query at a time,
+side by side with (a) and (a*) (:mod:`verify.benchmark.per_query`), on random (L, W, x) uniform
+in the coefficients' fitted box (seeded; its (L, W) columns are drawn as the bench's (L, W)
+obstacles are), with the map over (L, W, x) that the build wrote beside
 them: the answer carries the certified clearance and endpoint bounds of the leaf holding (L, W, x).
 **(d) over (L, W, x)** and **(d+)** run OMPL's RRT-Connect (:mod:`verify.benchmark.ompl_planner`) on
 the same moved obstacles: each query plans around ``Obstacle.in_scene(L, W, scene)`` in the
@@ -31,7 +32,8 @@ from pipeline.online.loading import map_path_beside
 from verify.acceptance.metrics import check_arm_matches
 
 from . import ompl_planner as planner
-from .methods import bench_generator_x, bench_ompl, range_counts
+from .methods import bench_ompl, range_counts
+from .per_query import PerQueryRow
 from .results import DEFAULT_COEFFICIENTS_X, MAKE_COEFFICIENTS_X, BenchSettings, MethodResult
 
 #: The variables the rows take.
@@ -100,7 +102,7 @@ def moved_scene(coefficients: Coefficients, case: np.ndarray, answer: Any) -> Sc
 
 
 def x_methods(
-    coefficients: Coefficients,
+    timed: PerQueryRow,
     arm: PlanarArm,
     settings: BenchSettings,
     *,
@@ -108,20 +110,20 @@ def x_methods(
     skipped: dict[str, str],
     ompl_margin_m: float | None = None,
 ) -> tuple[list[MethodResult], dict[str, Any]]:
-    """(a*) over (L, W, x), then OMPL (d) and (d+) on the same moved obstacles if it runs.
+    """(a*) over (L, W, x) from its ``timed`` row, then OMPL (d) and (d+) on the same moved obstacles if it runs.
 
     Args:
-        coefficients: Over (L, W, x), with their region map attached (:func:`load_coefficients_x`).
+        timed: The row of (a*) over (L, W, x), timed side by side with (a) and (a*)
+            (:mod:`verify.benchmark.per_query`): coefficients over (L, W, x) with their region map
+            attached (:func:`load_coefficients_x`) on :func:`sample_cases_x`'s obstacles.
         ompl_margin_m: Validity margin of OMPL [m] (None: the coefficients' scene margin).
         skipped: Why OMPL's rows over (L, W, x) were left out goes here (key "d_x").
 
     Returns:
         (the rows, the report's ``over_x``: coefficients, map and obstacles).
     """
-    region_map, margin = coefficients.region_map, coefficients.scene.margin_m
-    cases = sample_cases_x(coefficients, settings.n, settings.seed)
-    log(f"timing {NAME}: the generator with the map over (L, W, x), one query at a time ...")
-    times, answers = bench_generator_x(coefficients, cases, settings.repeats, region_map)
+    coefficients, cases, times, answers = timed.coefficients, timed.cases, timed.times_s, timed.answers
+    region_map, margin = timed.region_map, coefficients.scene.margin_m
     counts = range_counts(answers, margin)
     answered = [a for a in answers if a is not None]
     row = MethodResult(
@@ -134,8 +136,9 @@ def x_methods(
         certified=counts.certified,
         keeps_margin=counts.keeps_margin,
         note=f"generate(coefficients_x, L, W, x=x, region_map=m), each call timed, on random (L, W, x) in the "
-        f"fitted box; passes: {settings.repeats}; {counts.certified} of {counts.in_range} in-range queries "
-        f"answered with a certified clearance > 0, {counts.keeps_margin} >= the margin",
+        f"fitted box; passes: {settings.repeats}, interleaved with (a)'s and (a*)'s; {counts.certified} of "
+        f"{counts.in_range} in-range queries answered with a certified clearance > 0, {counts.keeps_margin} >= "
+        "the margin",
         extra={"in_range_queries": counts.in_range, "certified_clearance_min_m": counts.clearance_min_m},
     )
     methods = [row]

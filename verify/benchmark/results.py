@@ -21,7 +21,10 @@ DEFAULT_COEFFICIENTS_X = "results-x/coefficients.json"
 MAKE_COEFFICIENTS_X = "python -m pipeline.build --vary x -0.03 0.03 --out results-x"
 DEFAULT_N = 50
 DEFAULT_SEED = 0
-DEFAULT_REPEATS = 200
+#: Interleaved timed passes of the per-query rows (a), (a*) and (a*) over (L, W, x) [passes].
+DEFAULT_REPEATS = 1000
+#: Timed passes of the batched rows (a'), (a*') and (r*') [passes].
+DEFAULT_BATCH_REPEATS = 200
 #: Obstacles per call of the batched rows (a') and (a*') [obstacles]: the bench's obstacles, cycled.
 DEFAULT_BATCH_SIZE = 1000
 DEFAULT_SLOW_REPEATS = 3
@@ -112,7 +115,9 @@ class BenchSettings:
     Attributes:
         n: Random obstacles [cases].
         seed: Seed of the obstacle sampler, the PSO and OMPL.
-        repeats: Timed passes over all obstacles for (a) and (a').
+        repeats: Interleaved timed passes over all obstacles of the per-query rows (a), (a*) and
+            (a*) over (L, W, x) (:mod:`verify.benchmark.per_query`).
+        batch_repeats: Timed passes of the batched rows (a'), (a*') and (r*').
         batch_size: Obstacles per call of the batched rows (a') and (a*'): the n obstacles cycled to
             this many (at least n), so that a call's fixed cost is spread as a batch user's is.
         slow_repeats: Timed passes over all obstacles for (b) and (d).
@@ -140,6 +145,7 @@ class BenchSettings:
     n: int = DEFAULT_N
     seed: int = DEFAULT_SEED
     repeats: int = DEFAULT_REPEATS
+    batch_repeats: int = DEFAULT_BATCH_REPEATS
     batch_size: int = DEFAULT_BATCH_SIZE
     slow_repeats: int = DEFAULT_SLOW_REPEATS
     pso_cases: int = DEFAULT_PSO_CASES
@@ -163,6 +169,7 @@ class BenchSettings:
         check_positive_int("--n", self.n)
         check_positive_int("--seed", self.seed, minimum=0)
         check_positive_int("--repeats", self.repeats)
+        check_positive_int("--batch-repeats", self.batch_repeats)
         check_positive_int("--batch-size", self.batch_size)
         check_positive_int("--slow-repeats", self.slow_repeats)
         check_positive_int("--pso-cases", self.pso_cases, minimum=0)

@@ -33,7 +33,8 @@ and the sweep rate of :func:`verify.acceptance.run.run_cases` with and without t
 
 The figures are ratios measured in one run on one machine, never absolute claims: times use
 ``time.perf_counter``, every method is warmed up first, and the cheap methods are repeated many
-times so their medians are stable.
+times so their medians are stable; the per-query rows (a), (a*) and (a*) over (L, W, x) in
+interleaved passes, so that they sample the same stretches of a shared machine's time.
 """
 
 from __future__ import annotations
@@ -71,7 +72,6 @@ from .methods import (
     batch_range_counts,
     bench_batched,
     bench_certified,
-    bench_generator,
     bench_ompl,
     bench_pso,
     bench_range_batched,
@@ -83,6 +83,7 @@ from .methods import (
     read_build_timing,
     run_reduced_build,
 )
+from .per_query import PerQueryRow, time_side_by_side
 from .range_map import BenchRegionMap, bench_region_map
 from .results import BenchReport, BenchSettings, MethodResult
 
@@ -161,11 +162,11 @@ class _Context:
     log: Callable[[str], None]
 
 
-def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, Any], list[Any]]:
-    """(a), (a') and the sweep rate (whose certified pass also certifies (a)'s answers); and (a)'s answers."""
+def _sweep_and_generator(ctx: _Context, timed: PerQueryRow) -> tuple[list[MethodResult], dict[str, Any], list[Any]]:
+    """(a) from its ``timed`` row, (a') and the sweep rate (whose certified pass also certifies
+    (a)'s answers); and (a)'s answers."""
     cases, margin, settings = ctx.cases, ctx.margin_m, ctx.settings
-    ctx.log("timing (a) the regression generator, one query at a time ...")
-    times_a, answers = bench_generator(ctx.coefficients, cases, settings.repeats)
+    times_a, answers = timed.times_s, timed.answers
     ctx.log("timing the sweep with and without the certificate (and certifying (a)'s answers) ...")
     sweep_info, certified_cases = bench_sweep(ctx.source, ctx.coefficients, ctx.arm, cases)
     clearances_a = [c.certified_clearance_m for c in certified_cases if c.certified_clearance_m is not None]
@@ -180,11 +181,12 @@ def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, A
         answered=answered_a,
         certified=certified_a,
         keeps_margin=keeps_a,
-        note=f"generate(coefficients, L, W), each call timed; passes over the obstacles: {settings.repeats}",
+        note=f"generate(coefficients, L, W), each call timed; passes over the obstacles: {settings.repeats}, "
+        "interleaved with (a*)'s",
     )
     ctx.log("timing (a') the regression generator, batched ...")
     batch_cases = _batch_cases(cases, settings.batch_size)
-    times_batch, parameters = bench_batched(ctx.coefficients, batch_cases, settings.repeats)
+    times_batch, parameters = bench_batched(ctx.coefficients, batch_cases, settings.batch_repeats)
     parameters = parameters[: len(cases)]
     same = _same_parameters(list(parameters), answers)
     if same:
@@ -205,6 +207,26 @@ def _sweep_and_generator(ctx: _Context) -> tuple[list[MethodResult], dict[str, A
         extra={"same_parameters_as_a": same},
     )
     return [method_a, method_batch], sweep_info, answers
+
+
+def _time_per_query(
+    ctx: _Context, bench_map: BenchRegionMap, coefficients_x: Coefficients | None
+) -> dict[str, PerQueryRow]:
+    """Time the per-query rows side by side (:mod:`verify.benchmark.per_query`): (a), (a*) and, with
+    ``coefficients_x``, (a*) over (L, W, x) on their random obstacles; the rows by key."""
+    settings = ctx.settings
+    rows = {
+        "a": PerQueryRow(ctx.coefficients, ctx.cases),
+        "a_range": PerQueryRow(ctx.coefficients, ctx.cases, bench_map.region_map),
+    }
+    names = "(a), (a*)"
+    if coefficients_x is not None:
+        cases_x = over_x.sample_cases_x(coefficients_x, settings.n, settings.seed)
+        rows[over_x.KEY] = PerQueryRow(coefficients_x, cases_x, coefficients_x.region_map)
+        names += f" and {over_x.NAME}"
+    ctx.log(f"timing {names} one query at a time, side by side ({settings.repeats} interleaved passes) ...")
+    time_side_by_side(list(rows.values()), settings.repeats)
+    return rows
 
 
 def _batch_cases(cases: np.ndarray, batch_size: int) -> np.ndarray:
@@ -230,11 +252,12 @@ def _same_parameters(rows: Any, answers_a: list[Any]) -> bool:
     )
 
 
-def _range_methods(ctx: _Context, bench_map: BenchRegionMap, answers_a: list[Any]) -> list[MethodResult]:
-    """(a*) per query and batched: the generator with the range certificate's bounds."""
+def _range_methods(
+    ctx: _Context, bench_map: BenchRegionMap, answers_a: list[Any], timed: PerQueryRow
+) -> list[MethodResult]:
+    """(a*) per query (from its ``timed`` row) and batched: the generator with the range certificate's bounds."""
     cases, margin, settings, region_map = ctx.cases, ctx.margin_m, ctx.settings, bench_map.region_map
-    ctx.log("timing (a*) the generator with the range certificate, one query at a time ...")
-    times, answers = bench_generator(ctx.coefficients, cases, settings.repeats, region_map)
+    times, answers = timed.times_s, timed.answers
     counts = range_counts(answers, margin)
     same = _same_parameters([None if a is None else a.trajectory.array for a in answers], answers_a)
     common = {"obstacles": len(cases), "queries": len(cases), "answered": sum(a is not None for a in answers)}
@@ -244,7 +267,8 @@ def _range_methods(ctx: _Context, bench_map: BenchRegionMap, answers_a: list[Any
         times_s=tuple(times),
         certified=counts.certified,
         keeps_margin=counts.keeps_margin,
-        note=f"generate(coefficients, L, W, region_map=m), each call timed; passes: {settings.repeats}; "
+        note=f"generate(coefficients, L, W, region_map=m), each call timed; passes: {settings.repeats}, interleaved "
+        "with (a)'s; "
         f"{counts.certified} of {counts.in_range} in-range queries answered with a certified clearance > 0, "
         f"{counts.keeps_margin} >= the margin; parameters " + ("equal (a)'s" if same else "DIFFER from (a)'s"),
         extra={
@@ -256,7 +280,7 @@ def _range_methods(ctx: _Context, bench_map: BenchRegionMap, answers_a: list[Any
     )
     ctx.log("timing (a*') the generator with the range certificate, batched ...")
     batch_cases = _batch_cases(cases, settings.batch_size)
-    times_batch, batch = bench_range_batched(ctx.coefficients, batch_cases, region_map, settings.repeats)
+    times_batch, batch = bench_range_batched(ctx.coefficients, batch_cases, region_map, settings.batch_repeats)
     counts_batch = batch_range_counts(batch, margin, len(cases))
     same_batch = _same_parameters(list(batch.parameters[: len(cases)]), answers_a)
     batched = MethodResult(
@@ -300,7 +324,9 @@ def _rest_to_rest_methods(ctx: _Context, bench_map: BenchRegionMap) -> list[Meth
     )
     ctx.log("timing (r*') certified rest-to-rest from the map, batched ...")
     batch_cases = _batch_cases(cases, settings.batch_size)
-    times_batch, batch, result = bench_rest_to_rest_batched(ctx.coefficients, batch_cases, region_map, settings.repeats)
+    times_batch, batch, result = bench_rest_to_rest_batched(
+        ctx.coefficients, batch_cases, region_map, settings.batch_repeats
+    )
     n = len(cases)
     within = result.within_limits[:n]
     clearance = batch.certified_clearance_m[:n]
@@ -464,8 +490,9 @@ def run_bench(
         coefficients_x = None if path_x is None else over_x.timed_load(path_x, arm, log)
     if bench_map is None:  # the map beside the coefficients, or certified in-process (minutes)
         bench_map = bench_region_map(coefficients, None, log=log, progress=progress, arm=arm)
-    methods, sweep_info, answers_a = _sweep_and_generator(ctx)
-    methods.extend(_range_methods(ctx, bench_map, answers_a))
+    rows = _time_per_query(ctx, bench_map, coefficients_x if settings.run_x else None)
+    methods, sweep_info, answers_a = _sweep_and_generator(ctx, rows["a"])
+    methods.extend(_range_methods(ctx, bench_map, answers_a, rows["a_range"]))
     methods.extend(_rest_to_rest_methods(ctx, bench_map))
     methods.append(_certified_method(ctx))
     skipped: dict[str, str] = {}
@@ -477,7 +504,7 @@ def run_bench(
     info_x = None
     if settings.run_x and coefficients_x is not None:
         methods_x, info_x = over_x.x_methods(
-            coefficients_x, arm, settings, log=log, skipped=skipped, ompl_margin_m=settings.ompl_margin_m
+            rows[over_x.KEY], arm, settings, log=log, skipped=skipped, ompl_margin_m=settings.ompl_margin_m
         )
         methods.extend(methods_x)
     else:
