@@ -27,8 +27,7 @@ power of two is exact in floating point, so the cells found at different depths 
 
 Over (L, W) the lookups (:meth:`RegionMap.cell_at`, :meth:`RegionMap.cells_at`) go through a
 dense index of the deepest level, so they cost one multiplication and one array read per query
-(int32: 4 MiB for cells of 1/1024; the scalar lookup reads a flat ``array.array`` copy, 4 MiB
-more, where a Python list of lists would take about 40 MB). A deepest cell that is split along W
+(int32: 4 MiB for cells of 1/1024). A deepest cell that is split along W
 holds -(1 + slot) there, and row ``slot`` of a second table holds its 2^E sub-leaves (E the
 largest ``split_W``): one more read. The sub-cell is found from the same scaled coordinate v =
 (W - W_lo) / (W_hi - W_lo) 2^depth as the cell, as floor(v 2^E) - 2^E floor(v): scaling by 2^E
@@ -43,20 +42,23 @@ sum_a b_a 2^(k - 1 - a), b_a the child's half along axis a), again a leaf or -(1
 deeper node. A lookup reads the coarse entry, then one row per level below C down to its leaf
 (none for a tree no deeper than C). The rows take 4 2^k bytes per cut node of depth C or more,
 about 4 bytes per leaf deeper than C: a map of a million such leaves needs about 5 MB beside the
-coarse index. The scalar lookups read both tables through ``memoryview``s of the NumPy arrays
-(no copy); the batch lookups descend all points level by level, vectorised.
+coarse index. The batch lookups descend all points level by level, vectorised.
+
+The scalar lookups (:meth:`RegionMap.cell_at`, :meth:`RegionMap.bounds_at`,
+:meth:`RegionMap.leaf_at`) and the online generator's compiled core read a copy of both tables
+as flat arrays (:attr:`RegionMap.lookup_tables`) through one compiled function,
+:func:`pipeline.certify.lookup.leaf_of`, by the same floating-point operations.
 """
 
 from __future__ import annotations
 
-import array
 import hashlib
 import json
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import NamedTuple
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -66,6 +68,9 @@ from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFitte
 from pipeline.io.jsonio import json_safe, read_json, write_text_atomic
 from pipeline.offline.variables import NAMES, SIZE
 from pipeline.validation import check_non_negative
+
+if TYPE_CHECKING:
+    from pipeline.certify.lookup import LookupTables
 
 #: Format of a map over (L, W).
 FORMAT = "twolink-region-map/2"
@@ -88,36 +93,6 @@ _COLUMNS = (
     "endpoint_clearance_upper_m",
     "status",
 )
-
-
-#: The lookup's mode (``LookupTables.index[0]``) of a map over (L, W): a dense index of the deepest
-#: level, strips along W.
-LOOKUP_SIZE = 1
-#: The lookup's mode of a map over k > 2 axes: a coarse dense index, then rows of 2^k children.
-LOOKUP_TREE = 2
-#: The length of ``LookupTables.index``'s header.
-LOOKUP_HEADER = 6
-
-
-class LookupTables(NamedTuple):
-    """The scalar lookup of a map as two flat arrays (module docstring), for the online
-    generator's compiled core (``pipeline.online.kernel``), which finds the same leaves as
-    :meth:`RegionMap.leaf_indices`. The arrays are copies, writable only because Numba's dispatch
-    of a read-only array costs twice as much: do not modify them.
-
-    Attributes:
-        index: int32: a header of :data:`LOOKUP_HEADER` (mode, 2^D, D - C, C, row width, start
-            of the rows), then the dense index, flat, then the rows of strips or children, flat.
-            The mode is :data:`LOOKUP_SIZE` or :data:`LOOKUP_TREE`, D the deepest depth, C the
-            dense index's depth (D over (L, W)); a row holds 2^E strips over (L, W), 2^k
-            children over k axes. An entry >= 0 is a leaf, -r - 1 the r-th row.
-        bounds: float64: the fitted range (lo, hi) of every axis, in ``axes`` order [m], then per
-            leaf its clearance bound [m], endpoint-error bound [m] and status (the index into
-            :data:`STATUSES`, exact as a float).
-    """
-
-    index: np.ndarray
-    bounds: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -349,9 +324,7 @@ class RegionMap:
         for name, value, (lo, hi) in zip(self.axes, values, self._ranges, strict=True):
             if not lo <= value <= hi:
                 raise OutOfFittedRangeError(name, value, (lo, hi))
-        if self.extra_index is None:
-            return self.cell(self._leaf_at(length_m, width_m))
-        return self.cell(self._leaf_at_kd(values))
+        return self.cell(self._leaf_of(values))
 
     def bounds_at(self, length_m: float, width_m: float, *extra: float) -> tuple[float, float, str] | None:
         """(clearance bound [m], endpoint-error bound [m], status) of the leaf holding the point
@@ -361,40 +334,28 @@ class RegionMap:
         Raises:
             InvalidParameterError: not one value per axis.
         """
-        if extra or self.extra_index is not None:
-            leaf = self._leaf_at_kd((length_m, width_m, *extra))
-            return None if leaf is None else self._leaf_bounds[leaf]
-        (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
-        if not (l_lo <= length_m <= l_hi and w_lo <= width_m <= w_hi):
+        leaf = self.leaf_at(length_m, width_m, *extra)
+        if leaf is None:
             return None
-        return self._leaf_bounds[self._leaf_at(length_m, width_m)]
+        clearance, endpoint, status = self.lookup_tables.leaf_bounds(len(self.axes), leaf)
+        return clearance, endpoint, STATUSES[status]
 
     def leaf_at(self, length_m: float, width_m: float, *extra: float) -> int | None:
         """Leaf number of the point (L, W [m] and the extra axes' values in ``axes`` order), or
-        None outside the fitted box (scalar lookup).
+        None outside the fitted box (scalar lookup: :func:`pipeline.certify.lookup.leaf_of`).
 
         Raises:
             InvalidParameterError: not one value per axis.
         """
-        if extra or self.extra_index is not None:
-            return self._leaf_at_kd((length_m, width_m, *extra))
-        (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
-        if not (l_lo <= length_m <= l_hi and w_lo <= width_m <= w_hi):
-            return None
-        return self._leaf_at(length_m, width_m)
+        leaf = self._leaf_of((length_m, width_m, *self._extra_values(extra)))
+        return None if leaf < 0 else leaf
 
-    def _leaf_at(self, length_m: float, width_m: float) -> int:
-        """Leaf of (L, W) [m] inside the fitted range (scalar; the same cells as :meth:`leaf_indices`)."""
-        (l_lo, l_hi), (w_lo, w_hi) = self.length_range_m, self.width_range_m
-        n = self._index.shape[0]
-        i = min(int((length_m - l_lo) / (l_hi - l_lo) * n), n - 1)
-        v = (width_m - w_lo) / (w_hi - w_lo) * n
-        j = min(int(v), n - 1)
-        leaf = self._lookup[i * n + j]
-        if leaf >= 0:
-            return leaf
-        s = self._sub_index.shape[1]
-        return self._sub_lookup[(-leaf - 1) * s + min(max(int(v * s) - j * s, 0), s - 1)]
+    def _leaf_of(self, values: tuple) -> int:
+        """Leaf of the point ``values`` (one per axis), -1 outside the fitted box."""
+        from pipeline.certify.lookup import leaf_of  # Numba: imported on the first scalar lookup
+
+        padded = (*values, 0.0, 0.0)
+        return int(leaf_of(*self.lookup_tables, len(self.axes), padded[0], padded[1], padded[2], padded[3]))
 
     def _extra_values(self, extra: tuple) -> tuple:
         """``extra`` if it holds one value per axis beyond L and W.
@@ -412,35 +373,6 @@ class RegionMap:
         raise InvalidParameterError(
             "values beyond the map's axes", extra[wanted:], f"one value per axis, the map's axes are {axes} only"
         )
-
-    def _leaf_at_kd(self, values: tuple) -> int | None:
-        """Leaf of the point ``values`` (L, W, then the extra axes) of a map over k > 2 axes, or
-        None outside the fitted box (scalar; the same cells as :meth:`leaf_indices`; module
-        docstring).
-
-        Raises:
-            InvalidParameterError: not one value per axis (also for a map over (L, W)).
-        """
-        if self.extra_index is None or len(values) != len(self.axes):
-            self._extra_values(values[2:])  # raises
-        ranges, n, shift, coarse, lookup, children, width = self._kd_plan
-        key = 0
-        for value, (lo, hi) in zip(values, ranges, strict=False):  # lengths checked above
-            if not lo <= value <= hi:
-                return None
-            t = int((value - lo) / (hi - lo) * n)
-            key = (key << coarse) | ((t if t < n else n - 1) >> shift)
-        leaf = lookup[key]
-        if leaf < 0:  # below the coarse index: the deepest cells again, one level at a time
-            pairs = zip(values, ranges, strict=True)
-            cells = [min(int((value - lo) / (hi - lo) * n), n - 1) for value, (lo, hi) in pairs]
-            while leaf < 0:
-                shift -= 1
-                slot = 0
-                for t in cells:
-                    slot = (slot << 1) | ((t >> shift) & 1)
-                leaf = children[(-leaf - 1) * width + slot]
-        return leaf
 
     def _leaf_indices_kd(self, length_m, width_m, extra: tuple) -> np.ndarray:
         """:meth:`leaf_indices` over all the map's axes, vectorised level by level (module docstring)."""
@@ -477,38 +409,11 @@ class RegionMap:
         return (tuple(self.length_range_m), tuple(self.width_range_m), *self.extra_ranges_m)
 
     @cached_property
-    def _lookup(self) -> array.array:
-        """The dense index, row-major, as a flat ``array.array`` (fast scalar reads)."""
-        flat = array.array("i")
-        flat.frombytes(np.ascontiguousarray(self._index, dtype=np.int32).tobytes())
-        return flat
-
-    @cached_property
-    def _sub_lookup(self) -> array.array:
-        """The sub-leaf table, row-major, as a flat ``array.array``."""
-        flat = array.array("i")
-        flat.frombytes(np.ascontiguousarray(self._sub_index, dtype=np.int32).tobytes())
-        return flat
-
-    @cached_property
-    def _kd_plan(self) -> tuple:
-        """What the scalar lookup over k > 2 axes reads: the axes' ranges, 2^D, D - C, C, the
-        coarse index and the rows of children (flat ``memoryview``s of the NumPy tables, no copy,
-        read as Python ints) and 2^k."""
-        top = int(self.depth.max())
-        return (
-            self._ranges,
-            1 << top,
-            top - self._coarse_depth,
-            self._coarse_depth,
-            memoryview(self._index).cast("B").cast("i"),
-            memoryview(self._sub_index.reshape(-1)).cast("B").cast("i"),
-            self._sub_index.shape[1],
-        )
-
-    @cached_property
     def lookup_tables(self) -> LookupTables:
-        """The scalar lookup as two flat arrays (:class:`LookupTables`; copies, not to be modified)."""
+        """The scalar lookup as two flat arrays (:class:`pipeline.certify.lookup.LookupTables`;
+        copies, not to be modified), built on first use."""
+        from pipeline.certify.lookup import LOOKUP_HEADER, LOOKUP_SIZE, LOOKUP_TREE, LookupTables
+
         top = int(self.depth.max())
         mode, coarse = (LOOKUP_SIZE, top) if self.extra_index is None else (LOOKUP_TREE, self._coarse_depth)
         rows = LOOKUP_HEADER + self._index.size
@@ -517,13 +422,6 @@ class RegionMap:
         leaves = np.column_stack([self.clearance_bound_m, self.endpoint_bound_m, self.status.astype(float)])
         bounds = np.concatenate([np.array(self._ranges, dtype=float).reshape(-1), leaves.reshape(-1)])
         return LookupTables(index, bounds)
-
-    @cached_property
-    def _leaf_bounds(self) -> list[tuple[float, float, str]]:
-        return [
-            (float(c), float(e), STATUSES[int(k)])
-            for c, e, k in zip(self.clearance_bound_m, self.endpoint_bound_m, self.status, strict=True)
-        ]
 
     # ------------------------------------------------------------------ summary
 

@@ -31,10 +31,9 @@ routes differ by at most twice that:
     |T(core) - T(NumPy)| <= 2 (gamma_5 max_j Q_j / q_j + gamma_162) T (1 + gamma_8).
 
 ``tests/online/test_kernel.py`` checks both bounds on random queries; on the fitted ranges they
-are about 1e-14 rad and 1e-13 s. The leaf is an integer found by the same floating-point
-operations as :meth:`RegionMap.leaf_indices` (a division, a product by a power of two, a
-truncation), so it is the same leaf, and its bounds and status are read from the map's own
-columns (:class:`pipeline.certify.region_map.LookupTables`).
+are about 1e-14 rad and 1e-13 s. The leaf is the map's own scalar lookup's,
+:func:`pipeline.certify.lookup.leaf_of` (the same leaf as :meth:`RegionMap.leaf_indices`), and its
+bounds and status are read from a copy of the map's own columns.
 
 **Why the certificate covers either route.** The range certificate bounds the clearance and the
 endpoint error of the exact regression polynomial and the exact T at every point of a leaf, and
@@ -46,14 +45,14 @@ the links' points by at most (l1 + l2) times the angles' change: with every d be
 
 **Its arguments.** Five numbers of the query, a bit set naming the regression's variables
 beyond L and W, and three flat arrays: the plan of the coefficients (:func:`plan_numbers`) and
-the map's two lookup arrays (:class:`pipeline.certify.region_map.LookupTables`; :data:`NO_TABLES`
-without a map). A Numba call costs about 0.1 us per array it is given, so the arrays are few and
-packed; the core allocates nothing, so its time is its arithmetic. It is compiled for its one
-signature when this module is imported, and Numba caches the machine code on disk
+the map's two lookup arrays (:class:`pipeline.certify.lookup.LookupTables`; :data:`NO_TABLES`
+without a map). The cost of a Numba call grows with the number of arrays it is given, so they
+are few and packed; the core allocates nothing, so its time is its arithmetic. It is compiled for
+its one signature when this module is imported, and Numba caches the machine code on disk
 (``cache=True``): importing it loads the cache (or, the first time, compiles, a few seconds), so
 no query compiles. The first query with a coefficients object and its map builds their arrays
-once (0.1 s for the default (L, W) map). Every array is C-contiguous and writable (Numba's
-dispatch of a read-only array costs twice as much).
+once. Every array is C-contiguous and writable (Numba's dispatch of a read-only array costs
+twice as much).
 """
 
 from __future__ import annotations
@@ -63,12 +62,10 @@ import math
 import numba
 import numpy as np
 
-from pipeline.certify.region_map import LOOKUP_HEADER, LOOKUP_SIZE, LookupTables
+from pipeline.certify.lookup import NO_TABLES, leaf_of
 
-__all__ = ["NO_MAP", "NO_TABLES", "VARIES_D", "VARIES_X", "plan_numbers", "query_core"]
+__all__ = ["NO_TABLES", "VARIES_D", "VARIES_X", "plan_numbers", "query_core"]
 
-#: The map mode of a query without a region map (the lookup arrays are then not read).
-NO_MAP = 0
 #: Bits of ``varies``: the regression's variables beyond L and W (x before d, the canonical order).
 VARIES_X = 1
 VARIES_D = 2
@@ -95,17 +92,6 @@ def plan_numbers(
     return np.ascontiguousarray(np.concatenate([np.asarray(part, float).reshape(-1) for part in parts]))
 
 
-def _no_tables() -> LookupTables:
-    header = np.zeros(LOOKUP_HEADER, dtype=np.int32)
-    header[0] = NO_MAP
-    return LookupTables(header, np.zeros(0))
-
-
-#: The lookup arrays of a query without a region map: the arrays' types are a map's, so that
-#: one compiled core serves both.
-NO_TABLES = _no_tables()
-
-
 @numba.njit(cache=True, nogil=True)
 def _value(a: int, length_m: float, width_m: float, centre_x_m: float, top_y_m: float, varies: int) -> float:
     """The a-th variable's value: L, W, then x and d where ``varies`` names them."""
@@ -116,47 +102,6 @@ def _value(a: int, length_m: float, width_m: float, centre_x_m: float, top_y_m: 
     if a == 2 and (varies & VARIES_X) != 0:
         return centre_x_m
     return top_y_m
-
-
-@numba.njit(cache=True, nogil=True)
-def _cell(value: float, lo: float, hi: float, n: int) -> int:
-    """The cell (0 .. n - 1) of ``value`` in [lo, hi] cut into n, as RegionMap.leaf_indices finds it."""
-    return min(int((value - lo) / (hi - lo) * n), n - 1)
-
-
-@numba.njit(cache=True, nogil=True)
-def _leaf(
-    length_m: float, width_m: float, centre_x_m: float, top_y_m: float, varies: int, k: int,
-    index: np.ndarray, bounds: np.ndarray,
-) -> int:  # fmt: skip
-    """The leaf holding the query, as RegionMap.leaf_indices finds it; -1 outside the map's box."""
-    for a in range(k):
-        value = _value(a, length_m, width_m, centre_x_m, top_y_m, varies)
-        if not (bounds[2 * a] <= value <= bounds[2 * a + 1]):
-            return -1
-    mode, n, shift, coarse, width, rows = index[0], index[1], index[2], index[3], index[4], index[5]
-    if mode == LOOKUP_SIZE:
-        i = _cell(length_m, bounds[0], bounds[1], n)
-        v = (width_m - bounds[2]) / (bounds[3] - bounds[2]) * n
-        j = min(int(v), n - 1)
-        leaf = index[LOOKUP_HEADER + i * n + j]
-        if leaf >= 0:
-            return leaf
-        slot = min(max(int(v * width) - j * width, 0), width - 1)
-        return index[rows + (-leaf - 1) * width + slot]
-    key = 0
-    for a in range(k):
-        cell = _cell(_value(a, length_m, width_m, centre_x_m, top_y_m, varies), bounds[2 * a], bounds[2 * a + 1], n)
-        key = (key << coarse) | (cell >> shift)
-    leaf = index[LOOKUP_HEADER + key]
-    while leaf < 0:
-        shift -= 1
-        slot = 0
-        for a in range(k):
-            value = _value(a, length_m, width_m, centre_x_m, top_y_m, varies)
-            slot = (slot << 1) | ((_cell(value, bounds[2 * a], bounds[2 * a + 1], n) >> shift) & 1)
-        leaf = index[rows + (-leaf - 1) * width + slot]
-    return leaf
 
 
 @numba.njit(cache=True, nogil=True)
@@ -187,8 +132,8 @@ def query_core(
             and P5 [m] of this query.
         varies: The regression's variables beyond L and W (:data:`VARIES_X`, :data:`VARIES_D`).
         plan: The coefficients' plan (:func:`plan_numbers`).
-        index, bounds: The region map's lookup arrays (:class:`LookupTables`; :data:`NO_TABLES`
-            for none).
+        index, bounds: The region map's lookup arrays
+            (:class:`pipeline.certify.lookup.LookupTables`; :data:`NO_TABLES` for none).
 
     Returns:
         (unreachable, radius_m, duration_s, inside, leaf, clearance_bound_m, endpoint_bound_m,
@@ -259,8 +204,9 @@ def query_core(
         if not math.isfinite(p[col]):
             finite = False
     leaf, clearance, endpoint, status = -1, math.nan, math.nan, -1
-    if index[0] != NO_MAP and inside:
-        leaf = _leaf(length_m, width_m, centre_x_m, top_y_m, varies, k, index, bounds)
+    if inside:
+        v2 = _value(2, length_m, width_m, centre_x_m, top_y_m, varies)
+        leaf = leaf_of(index, bounds, k, length_m, width_m, v2, top_y_m)
         if leaf >= 0:
             at = 2 * k + 3 * leaf
             clearance, endpoint, status = bounds[at], bounds[at + 1], int(bounds[at + 2])
