@@ -11,6 +11,7 @@ work; the work lives in importable functions below.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -18,6 +19,7 @@ from pathlib import Path
 from typing import NoReturn, TextIO
 
 from pipeline.exceptions import DataFileError, PipelineError
+from pipeline.io.executor import DEFAULT_WORKER_TIMEOUT_S
 from pipeline.io.output_paths import check_output_file, check_output_folder
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
@@ -168,6 +170,35 @@ def add_acceleration_limit_argument(parser: argparse.ArgumentParser, use: str) -
         default=None,
         metavar=("A1", "A2"),
         help=f"the arm's joint acceleration limits [rad/s^2] (URDF carries none): {use}",
+    )
+
+
+def _worker_timeout(text: str) -> float:
+    """argparse type of ``--worker-timeout``: a finite time > 0 [s]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--worker-timeout {text!r} is not a number [s]") from None
+    if not 0.0 < value < math.inf:  # NaN too
+        raise argparse.ArgumentTypeError(f"--worker-timeout {value} must be a finite time > 0 [s]")
+    return value
+
+
+def add_scheduler_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--scheduler ADDRESS`` (a Dask cluster in place of the local processes) and
+    ``--worker-timeout`` [s] (how long to wait for its first worker before any work)."""
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="Dask scheduler address (tcp://host:port); default: a local process pool of --jobs workers",
+    )
+    parser.add_argument(
+        "--worker-timeout",
+        type=_worker_timeout,
+        default=DEFAULT_WORKER_TIMEOUT_S,
+        metavar="SECONDS",
+        help="with --scheduler: how long to wait for its first worker before any work; none by then is refused [s]",
     )
 
 

@@ -5,6 +5,7 @@ single options).
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -15,7 +16,13 @@ import numpy as np
 from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS, REFIT_VARIABLES
 from pipeline.certify.range_model import axes_refusal
 from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineError
-from pipeline.io.executor import DaskScheduler, Executor, LocalPool, check_scheduler_address
+from pipeline.io.executor import (
+    DEFAULT_WORKER_TIMEOUT_S,
+    DaskScheduler,
+    Executor,
+    LocalPool,
+    check_scheduler_address,
+)
 from pipeline.model.arm import DEFAULT_URDF
 from pipeline.model.scene import Scene, read_scene_file
 from pipeline.motion.families import PAPER, TrajectoryFamily, family_from_name
@@ -44,6 +51,7 @@ OPTIONS: dict[str, str] = {
     "family": "--family",
     "jobs": "--jobs",
     "scheduler": "--scheduler",
+    "worker_timeout_s": "--worker-timeout",
     "urdf_path": "--urdf",
     "scene": "--scene",
     "swarm_size": "--swarm-size",
@@ -119,6 +127,8 @@ class BuildConfig:
         scheduler: Address of a Dask scheduler (``host:port`` or ``tcp://host:port``) whose
             workers run the DOE and the range map in place of the ``jobs`` local processes (see
             :mod:`pipeline.io.executor`); None: the local processes. Does not change the result.
+        worker_timeout_s: With ``scheduler``: how long to wait for its first worker before any
+            work [s]; none by then is refused (``NoDaskWorkersError``).
         urdf_path: URDF of the arm (None: the paper's arm shipped with the package).
         scene: The scene (obstacle placement, path, speed, margin); see :func:`scene_from_options`.
         swarm_size, iterations, restarts: PSO settings (:class:`pipeline.offline.pso.PsoConfig`).
@@ -148,6 +158,7 @@ class BuildConfig:
     family: TrajectoryFamily | str = PAPER
     jobs: int = 0
     scheduler: str | None = None
+    worker_timeout_s: float = DEFAULT_WORKER_TIMEOUT_S
     urdf_path: Path = DEFAULT_URDF
     scene: Scene = field(default_factory=Scene)
     swarm_size: int = _PSO.swarm_size
@@ -180,6 +191,9 @@ class BuildConfig:
             raise InvalidParameterError(OPTIONS["jobs"], self.jobs, "an integer >= 0 (0 = every CPU)")
         if self.scheduler is not None:
             check_scheduler_address(OPTIONS["scheduler"], self.scheduler)
+        timeout = self.worker_timeout_s
+        if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not 0.0 < timeout < math.inf:
+            raise InvalidParameterError(OPTIONS["worker_timeout_s"], self.worker_timeout_s, "a finite time > 0 [s]")
         if (
             isinstance(self.clearance_rounds, bool)
             or not isinstance(self.clearance_rounds, int | np.integer)
@@ -232,7 +246,9 @@ class BuildConfig:
     @property
     def executor(self) -> Executor:
         """Where the DOE and the range map run: the Dask scheduler, or ``workers`` local processes."""
-        return LocalPool(self.workers) if self.scheduler is None else DaskScheduler(self.scheduler)
+        if self.scheduler is None:
+            return LocalPool(self.workers)
+        return DaskScheduler(self.scheduler, worker_timeout_s=float(self.worker_timeout_s))
 
     def _check_vary(self) -> None:
         """``vary`` as Factors: known names other than L and W, each once, min < max."""

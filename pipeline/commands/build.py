@@ -31,6 +31,7 @@ from pipeline.cli import (
     Parser,
     add_acceleration_limit_argument,
     add_progress_argument,
+    add_scheduler_arguments,
     count_argument,
     jobs_count,
     run_cli,
@@ -167,12 +168,7 @@ def parser() -> Parser:
         default="0",
         help="worker processes [count], 0 = every CPU; the files do not depend on it (default: 0)",
     )
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        default=d.scheduler,
-        help="Dask scheduler address (tcp://host:port); default: a local process pool of --jobs workers",
-    )
+    add_scheduler_arguments(p)
     p.add_argument(
         "--urdf",
         type=Path,
@@ -275,6 +271,7 @@ def config_from_args(args: argparse.Namespace) -> BuildConfig:
         family=args.family,
         jobs=args.jobs,
         scheduler=args.scheduler,
+        worker_timeout_s=args.worker_timeout,
         urdf_path=args.urdf,
         scene=scene,
         swarm_size=args.swarm_size,

@@ -30,6 +30,7 @@ from pipeline.cli import (
     EXIT_OK,
     Parser,
     add_progress_argument,
+    add_scheduler_arguments,
     arm_for_cli,
     check_output_file,
     count_argument,
@@ -93,12 +94,7 @@ def parser() -> argparse.ArgumentParser:
         "0 for a family that pins the endpoints)",
     )
     p.add_argument("--jobs", type=jobs_count, default=1, help="worker processes [count], 0 = every CPU")
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        default=None,
-        help="Dask scheduler address (tcp://host:port); default: a local process pool of --jobs workers",
-    )
+    add_scheduler_arguments(p)
     p.add_argument(
         "--min-cell",
         type=_fraction,
@@ -148,7 +144,9 @@ def _work(args: argparse.Namespace) -> int:
     coefficients = load_coefficients(args.coefficients, region_map=None)
     executor = None
     if args.scheduler is not None:
-        executor = DaskScheduler(check_scheduler_address("--scheduler", args.scheduler))
+        executor = DaskScheduler(
+            check_scheduler_address("--scheduler", args.scheduler), worker_timeout_s=args.worker_timeout
+        )
         check_executor(executor)  # before any work
     if output is None:
         output = map_path_beside(coefficients)  # None for the paper's Eq. 9

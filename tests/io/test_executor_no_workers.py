@@ -1,11 +1,11 @@
 """pipeline.io.executor with a Dask scheduler that has no workers: the work waits at most
 ``DaskScheduler.worker_timeout_s`` for one, then stops before any task runs with one line naming
-the address and the timeout (a SchedulerUnreachableError, so a PipelineError); the build's CLI
-exits 2 with that line; a worker that joins in time is used."""
+the address and the timeout (a SchedulerUnreachableError, so a PipelineError); the build's and
+the range certificate's CLIs wait their ``--worker-timeout`` and exit 2 with that line; a worker
+that joins in time is used."""
 
 from __future__ import annotations
 
-import functools
 import pickle
 import threading
 import time
@@ -15,6 +15,7 @@ import pytest
 
 from pipeline.build import config as build_config
 from pipeline.commands import build as build_command
+from pipeline.commands import certify_range as certify_range_command
 from pipeline.exceptions import InvalidParameterError, PipelineError, SchedulerUnreachableError
 from pipeline.io.executor import (
     DEFAULT_WORKER_TIMEOUT_S,
@@ -77,16 +78,32 @@ def test_a_worker_that_joins_within_the_timeout_is_used(empty_cluster) -> None:
         joiner.cancel()
 
 
-def test_the_build_cli_exits_2_with_one_line(
-    empty_cluster, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+@pytest.mark.parametrize("command", ["build", "certify_range"])
+def test_the_clis_wait_worker_timeout_then_exit_2_with_one_line(
+    command: str, empty_cluster, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    # The build makes its DaskScheduler with the default timeout: shortened here.
-    monkeypatch.setattr(build_config, "DaskScheduler", functools.partial(DaskScheduler, worker_timeout_s=TIMEOUT_S))
     out = tmp_path / "out"
     address = empty_cluster.scheduler_address
-    assert build_command.main(["--scheduler", address, "--out", str(out), "--no-progress"]) == 2
+    timeout = ["--scheduler", address, "--worker-timeout", str(TIMEOUT_S), "--no-progress"]
+    started = time.perf_counter()
+    if command == "build":
+        status = build_command.main([*timeout, "--out", str(out)])
+    else:
+        out.mkdir()
+        status = certify_range_command.main(["paper", *timeout, "--output", str(out / "map.json")])
+    assert TIMEOUT_S <= time.perf_counter() - started < TIMEOUT_S + 20.0  # its timeout, not the default 30 s
+    assert status == 2
     err = capsys.readouterr().err
     lines = err.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in err, err
-    assert lines[0].startswith("python -m pipeline.build: error:") and address in lines[0] and "1 s" in lines[0]
-    assert not out.exists()
+    assert lines[0].startswith(f"python -m pipeline.{command}: error:") and address in lines[0] and "1 s" in lines[0]
+    assert not out.exists() or not any(out.iterdir())  # nothing written
+
+
+def test_the_build_config_passes_its_worker_timeout_and_checks_it() -> None:
+    config = build_config.BuildConfig(scheduler="tcp://127.0.0.1:8786", worker_timeout_s=2.5)
+    assert config.executor == DaskScheduler("tcp://127.0.0.1:8786", worker_timeout_s=2.5)
+    assert build_config.BuildConfig(scheduler="tcp://127.0.0.1:8786").executor.worker_timeout_s == 30.0
+    for bad in (0.0, -1.0, float("nan"), float("inf"), True, "5"):
+        with pytest.raises(InvalidParameterError, match=r"^--worker-timeout = "):
+            build_config.BuildConfig(worker_timeout_s=bad)
