@@ -54,6 +54,9 @@ EXIT_FAILED = 1
 EXIT_USAGE = 2
 #: Exit status: interrupted by Ctrl-C (128 + SIGINT).
 EXIT_INTERRUPTED = 130
+#: Exit status when the reader of the output went away (e.g. ``| head``): the shell's status of a
+#: command stopped by SIGPIPE (128 + 13).
+EXIT_PIPE_CLOSED = 141
 
 #: Where ``python -m pipeline.build`` writes the coefficients by default.
 DEFAULT_COEFFICIENTS = "results/coefficients.json"
@@ -102,19 +105,28 @@ def run_cli(
     * a usage error or ``--help``: argparse's status (2 or 0), already printed;
     * a :class:`pipeline.exceptions.PipelineError` (bad value, unreadable file, refused output
       path): ``prog: error: message`` and :data:`EXIT_USAGE`;
-    * Ctrl-C: ``prog: interrupted`` and :data:`EXIT_INTERRUPTED`.
+    * Ctrl-C: ``prog: interrupted`` and :data:`EXIT_INTERRUPTED`;
+    * the reader of stdout went away (``| head``): no more output, no message, and
+      :data:`EXIT_PIPE_CLOSED`.
     """
     try:
         args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     except SystemExit as exc:
         return int(exc.code or 0)
     try:
-        return work(args)
+        status = work(args)
+        sys.stdout.flush()  # here, so that a closed pipe is handled below and not at exit
+        return status
     except PipelineError as exc:
         return usage_error(parser.prog, str(exc))
     except KeyboardInterrupt:
         print(f"{parser.prog}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # What is still buffered goes nowhere, so that the interpreter's last flush cannot fail.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_PIPE_CLOSED
 
 
 def count_argument(text: str) -> int:

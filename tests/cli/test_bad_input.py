@@ -15,6 +15,7 @@ import pytest
 import pipeline
 from pipeline.build import BuildConfig, run_build, scene_from_options
 from pipeline.build import doe_fit as build_library
+from pipeline.cli import EXIT_PIPE_CLOSED
 from pipeline.commands import build, regress
 from pipeline.exceptions import PipelineError
 from pipeline.offline.doe import Design, load_doe
@@ -224,3 +225,21 @@ def test_every_command_that_names_its_coefficients_flags_an_unconverged_file() -
     assert "NOT CONVERGED" not in describe_coefficients(coefficients)
     flagged = describe_coefficients(coefficients.marked_unconverged(["Test 1 missed P5 by 168 mm"]))
     assert "NOT CONVERGED" in flagged and "Test 1 missed P5 by 168 mm" in flagged
+
+
+@pytest.mark.parametrize("unbuffered", ["1", ""])
+def test_a_reader_that_goes_away_stops_the_output_without_a_traceback(unbuffered: str, tmp_path: Path) -> None:
+    """``python -m pipeline.generate ... | head -1``: the reader closes the pipe before the command
+    writes (its stdout unbuffered or block-buffered); the command stops with the shell's status of
+    a closed pipe and writes nothing to stderr."""
+    root = str(Path(pipeline.__file__).resolve().parents[1])
+    environment = {**os.environ, "PYTHONPATH": root + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    environment.pop("PYTHONUNBUFFERED", None)
+    if unbuffered:
+        environment["PYTHONUNBUFFERED"] = unbuffered
+    command = [sys.executable, "-m", "pipeline.generate", "--coefficients", "paper", "--L", "0.27", "--W", "0.09"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path, env=environment)
+    process.stdout.close()  # before the command has imported anything, so before its first line
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == EXIT_PIPE_CLOSED == 141, stderr
+    assert stderr == b"", stderr
