@@ -6,6 +6,7 @@ the symmetric formula's."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -58,7 +59,7 @@ def random_free(rng: np.random.Generator, count: int) -> np.ndarray:
 def r_of(free: np.ndarray, context: EndpointContext) -> np.ndarray:
     """r = (theta2_e - theta2_s) / (2 A2 sin(w2 T / 2)) of the module's derivation."""
     change = context.theta_end_rad[1] - context.theta_start_rad[1]
-    with np.errstate(divide="ignore"):  # A2 sin(w2 T / 2) = 0: r = +-inf
+    with np.errstate(divide="ignore", over="ignore"):  # A2 sin(w2 T / 2) = 0 or subnormal: r = +-inf
         return change / (2.0 * free[..., 2] * np.sin(free[..., 3] * context.duration_s / 2.0))
 
 
@@ -131,10 +132,14 @@ def test_a_small_amplitude_is_reported_as_not_exact(arm: PlanarArm) -> None:
     free = np.array([[0.9, 0.3, tiny, 1.0], [0.9, 0.3, 1.2, 1.0]])
     assert EXACT_ENDPOINTS.endpoints_exact(free, context).tolist() == [False, True]
     assert np.all(np.isfinite(EXACT_ENDPOINTS.expand(free, context)))
-    # A2 sin(w2 T / 2) = 0: joint 2 cannot move between the ends; finite, and not exact.
-    stuck = np.array([0.9, 0.3, 0.0, 1.0])
-    assert np.all(np.isfinite(EXACT_ENDPOINTS.expand(stuck, context)))
-    assert not EXACT_ENDPOINTS.endpoints_exact(stuck, context)
+    # A2 sin(w2 T / 2) = 0, or so small that r overflows: joint 2 cannot move between the ends;
+    # finite, not exact, and no floating-point warning.
+    for a2 in (0.0, 5e-324, -1e-308):
+        stuck = np.array([0.9, 0.3, a2, 1.0])
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert np.all(np.isfinite(EXACT_ENDPOINTS.expand(stuck, context)))
+            assert not EXACT_ENDPOINTS.endpoints_exact(stuck, context)
 
 
 def test_w2_sign_is_the_same_motion_off_centre(arm: PlanarArm) -> None:

@@ -66,7 +66,7 @@ def _joint2_phase(
     change = context.theta_end_rad[1] - context.theta_start_rad[1]
     if change == 0.0:
         return (np.pi - w2 * t_end) / 2.0, np.zeros_like(w2), np.zeros(np.shape(w2), dtype=bool)
-    with np.errstate(divide="ignore", invalid="ignore"):  # A2 sin(w2 T / 2) = 0: r = +-inf, clamped
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):  # A2 sin(w2 T / 2) ~ 0: r = +-inf, clamped
         raw = change / (2.0 * a2 * np.sin(w2 * t_end / 2.0))
     clamped = ~(np.abs(raw) <= 1.0)
     r = np.clip(raw, -1.0, 1.0)
