@@ -5,11 +5,12 @@ index as two flat arrays.
 makes it): its index, and the fitted ranges with every leaf's bounds. :func:`leaf_of` finds the
 leaf of one point in it, by the floating-point operations of the vectorised
 :meth:`pipeline.certify.region_map.RegionMap.leaf_indices` (a division, a product by a power of
-two, a truncation; the region map's module docstring), so it finds the same leaf. The map's
-scalar lookups (``cell_at``, ``bounds_at``, ``leaf_at``) and the online generator's compiled core
-(:mod:`pipeline.online.kernel`) both call it: one scalar lookup.
+two, a truncation; the region map's module docstring), so it finds the same leaf, and
+:func:`bounds_of` reads that leaf's bounds. The map's scalar lookups (``cell_at``, ``bounds_at``,
+``leaf_at``) and the online generator's compiled core (:mod:`pipeline.online.kernel`) both call
+them: one scalar lookup.
 
-:func:`leaf_of` is compiled with Numba for its one signature on first use of this module, and
+Both are compiled with Numba for their one signature when this module is imported, and
 cached on disk (``cache=True``). The arrays are writable copies because Numba's dispatch of a
 read-only array costs twice as much; do not modify them.
 """
@@ -21,7 +22,16 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-__all__ = ["LOOKUP_HEADER", "LOOKUP_SIZE", "LOOKUP_TREE", "NO_MAP", "NO_TABLES", "LookupTables", "leaf_of"]
+__all__ = [
+    "LOOKUP_HEADER",
+    "LOOKUP_SIZE",
+    "LOOKUP_TREE",
+    "NO_MAP",
+    "NO_TABLES",
+    "LookupTables",
+    "bounds_of",
+    "leaf_of",
+]
 
 #: The mode (``LookupTables.index[0]``) of no map: every point is outside (:data:`NO_TABLES`).
 NO_MAP = 0
@@ -52,10 +62,8 @@ class LookupTables(NamedTuple):
 
     def leaf_bounds(self, axes: int, leaf: int) -> tuple[float, float, int]:
         """(clearance bound [m], endpoint-error bound [m], status index) of ``leaf`` of a map over
-        ``axes`` axes."""
-        at = 2 * axes + 3 * leaf
-        clearance, endpoint, status = self.bounds[at : at + 3].tolist()
-        return clearance, endpoint, int(status)
+        ``axes`` axes (:func:`bounds_of`)."""
+        return bounds_of(self.bounds, axes, leaf)
 
 
 def _no_tables() -> LookupTables:
@@ -67,6 +75,14 @@ def _no_tables() -> LookupTables:
 #: The lookup of no map (every point outside): the arrays' types are a map's, so that one
 #: compiled function serves both.
 NO_TABLES = _no_tables()
+
+
+@numba.njit("Tuple((float64, float64, int64))(float64[::1], int64, int64)", cache=True, nogil=True)
+def bounds_of(bounds: np.ndarray, axes: int, leaf: int) -> tuple[float, float, int]:
+    """(clearance bound [m], endpoint-error bound [m], status index) of ``leaf``, read from
+    ``LookupTables.bounds`` of a map over ``axes`` axes."""
+    at = 2 * axes + 3 * leaf
+    return bounds[at], bounds[at + 1], int(bounds[at + 2])
 
 
 @numba.njit("int64(float64, float64, float64, int64)", cache=True, nogil=True)

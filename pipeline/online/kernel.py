@@ -62,7 +62,7 @@ import math
 import numba
 import numpy as np
 
-from pipeline.certify.lookup import NO_TABLES, leaf_of
+from pipeline.certify.lookup import NO_TABLES, bounds_of, leaf_of
 
 __all__ = ["NO_TABLES", "VARIES_D", "VARIES_X", "plan_numbers", "query_core"]
 
@@ -89,7 +89,7 @@ def plan_numbers(
         rule: (5, m): the arc-length rule: rows 1, u^2, u^4, u^6 at its nodes, then its weights.
     """
     parts = (np.asarray(scene_numbers, float), ranges, matrix, rule)
-    return np.ascontiguousarray(np.concatenate([np.asarray(part, float).reshape(-1) for part in parts]))
+    return np.concatenate([np.asarray(part, float).reshape(-1) for part in parts])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -208,8 +208,7 @@ def query_core(
         v2 = _value(2, length_m, width_m, centre_x_m, top_y_m, varies)
         leaf = leaf_of(index, bounds, k, length_m, width_m, v2, top_y_m)
         if leaf >= 0:
-            at = 2 * k + 3 * leaf
-            clearance, endpoint, status = bounds[at], bounds[at + 1], int(bounds[at + 2])
+            clearance, endpoint, status = bounds_of(bounds, k, leaf)
     return (
         unreachable, radius, duration, inside, leaf, clearance, endpoint, status,
         p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], finite,
