@@ -41,8 +41,8 @@ class PerQueryRow:
     coefficients: Coefficients
     cases: np.ndarray
     region_map: RegionMap | None = None
-    times_s: list[float] = field(default_factory=list)
-    answers: list[Any] = field(default_factory=list)
+    times_s: list[float] = field(default_factory=list, init=False)
+    answers: list[Any] = field(init=False)
 
     def __post_init__(self) -> None:
         self._rows = [tuple(float(v) for v in case) for case in np.asarray(self.cases)]

@@ -182,7 +182,7 @@ def _sweep_and_generator(ctx: _Context, timed: PerQueryRow) -> tuple[list[Method
         certified=certified_a,
         keeps_margin=keeps_a,
         note=f"generate(coefficients, L, W), each call timed; passes over the obstacles: {settings.repeats}, "
-        "interleaved with (a*)'s",
+        "interleaved with the other per-query rows'",
     )
     ctx.log("timing (a') the regression generator, batched ...")
     batch_cases = _batch_cases(cases, settings.batch_size)
@@ -268,7 +268,7 @@ def _range_methods(
         certified=counts.certified,
         keeps_margin=counts.keeps_margin,
         note=f"generate(coefficients, L, W, region_map=m), each call timed; passes: {settings.repeats}, interleaved "
-        "with (a)'s; "
+        "with the other per-query rows'; "
         f"{counts.certified} of {counts.in_range} in-range queries answered with a certified clearance > 0, "
         f"{counts.keeps_margin} >= the margin; parameters " + ("equal (a)'s" if same else "DIFFER from (a)'s"),
         extra={
