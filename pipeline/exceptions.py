@@ -400,3 +400,16 @@ class ExecutionRefusedError(PipelineError):
         timing = "" if timing_name is None else f" with the {timing_name} timing"
         where = f"L = {length_m:.4f} m, W = {width_m:.4f} m{_variables_text(self.variables, '.4f')}"
         super().__init__(f"no executable trajectory for {where}{timing}: " + "; ".join(self.reasons))
+
+
+class TimingRefusedError(PipelineError):
+    """No timing of a path keeps the limits: the path's angles leave them, a limit binds at rest,
+    or no profile tried was certified (:func:`pipeline.motion.near_optimal.near_optimal_timing`).
+
+    Attributes:
+        reasons: One line per failed check, naming the joint, the certified bound and the limit.
+    """
+
+    def __init__(self, reasons: tuple[str, ...]) -> None:
+        self.reasons = tuple(reasons)
+        super().__init__("no certified timing: " + "; ".join(self.reasons))

@@ -49,13 +49,23 @@ within rounding of a phase interval's end changes the range by the square of tha
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
+from pipeline.motion.interval_arithmetic import (
+    FLOAT_SLACK_ABSOLUTE,
+    FLOAT_SLACK_RELATIVE,
+    affine_trig,
+    magnitude,
+    mul,
+    scale,
+    sin_range,
+    square,
+    widen,
+)
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.timing import PaperTiming, RestToRestTiming
 
@@ -67,119 +77,82 @@ __all__ = [
     "certify_execution",
 ]
 
-#: Widening of every enclosure for floating-point rounding (module docstring).
-FLOAT_SLACK_RELATIVE = 1e-10
-FLOAT_SLACK_ABSOLUTE = 1e-12
 #: Default tolerance of the bounds: an interval is bisected while its enclosure exceeds the
 #: sampled maximum by more than this fraction of it (or of 1e-3 in the quantity's unit).
 DEFAULT_RELATIVE_TOLERANCE = 1e-4
 _INITIAL_INTERVALS = 32
 _MAX_INTERVALS = 200_000
 _MAX_ROUNDS = 40
-_TWO_PI = 2.0 * math.pi
-#: The certified quantities, in column order: the maxima of q1, q2, -q1, -q2, |dq|, |ddq|, |tau|.
-_QUANTITIES = ("q1 max", "q2 max", "-q1 min", "-q2 min", "dq1", "dq2", "ddq1", "ddq2", "tau1", "tau2")
+#: The certified quantities, in column order: the maxima of q1, q2, -q1, -q2, |dq|, |ddq|, |tau|, |jerk|.
+_QUANTITIES = (
+    "q1 max", "q2 max", "-q1 min", "-q2 min", "dq1", "dq2", "ddq1", "ddq2", "tau1", "tau2", "jerk1", "jerk2"
+)  # fmt: skip
 
 
-def _sin_range(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Exact (min, max) of sin over [lo, hi] (elementwise, lo <= hi)."""
-    top = np.ceil((lo - math.pi / 2) / _TWO_PI) * _TWO_PI + math.pi / 2 <= hi
-    bottom = np.ceil((lo + math.pi / 2) / _TWO_PI) * _TWO_PI - math.pi / 2 <= hi
-    s_lo, s_hi = np.sin(lo), np.sin(hi)
-    return np.where(bottom, -1.0, np.minimum(s_lo, s_hi)), np.where(top, 1.0, np.maximum(s_lo, s_hi))
-
-
-def _scale(k, lo, hi):
-    """k [lo, hi] for a scalar or array k."""
-    a, b = k * lo, k * hi
-    return np.minimum(a, b), np.maximum(a, b)
-
-
-def _mul(a_lo, a_hi, b_lo, b_hi):
-    corners = np.stack([a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi])
-    return corners.min(0), corners.max(0)
-
-
-def _square(lo, hi):
-    low = np.where((lo <= 0.0) & (hi >= 0.0), 0.0, np.minimum(lo * lo, hi * hi))
-    return low, np.maximum(lo * lo, hi * hi)
-
-
-def _affine_trig(k0, kc, ks, c_lo, c_hi, s_lo, s_hi):
-    """k0 + kc [cos] + ks [sin] as an interval."""
-    a_lo, a_hi = _scale(kc, c_lo, c_hi)
-    b_lo, b_hi = _scale(ks, s_lo, s_hi)
-    return k0 + a_lo + b_lo, k0 + a_hi + b_hi
-
-
-def _widen(lo, hi):
-    slack = FLOAT_SLACK_RELATIVE * np.maximum(np.abs(lo), np.abs(hi)) + FLOAT_SLACK_ABSOLUTE
-    return lo - slack, hi + slack
-
-
-def _upper_bounds(timed: TimedTrajectory, dynamics: PlanarDynamics, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Rigorous upper bounds of the :data:`_QUANTITIES` over each interval [lo_k, hi_k]: (n, 10)."""
-    s_lo, s_hi, d1_lo, d1_hi, d2_lo, d2_hi = timed.timing.ranges(lo, hi)
+def _joint_enclosures(timed: TimedTrajectory, lo: np.ndarray, hi: np.ndarray):
+    """Per joint, the intervals of q, dq, ddq and the jerk over each [lo_k, hi_k] (module docstring)."""
+    s_lo, s_hi, d1_lo, d1_hi, d2_lo, d2_hi, d3_lo, d3_hi = timed.timing.ranges_with_jerk(lo, hi)
     p = timed.parameters
-    theta, speed, accel = [], [], []
+    d1_sq = square(d1_lo, d1_hi)
+    d1_cube = mul(*d1_sq, d1_lo, d1_hi)
+    d1_d2 = mul(d1_lo, d1_hi, d2_lo, d2_hi)
+    theta, speed, accel, jerk = [], [], [], []
     for i in (0, 1):
         amplitude, w, phi, gamma = p[4 * i : 4 * i + 4]
         ph_a, ph_b = w * s_lo + phi, w * s_hi + phi
         ph_lo, ph_hi = np.minimum(ph_a, ph_b), np.maximum(ph_a, ph_b)
-        sin_lo, sin_hi = _sin_range(ph_lo, ph_hi)
-        cos_lo, cos_hi = _sin_range(ph_lo + math.pi / 2, ph_hi + math.pi / 2)
-        t_lo, t_hi = _scale(amplitude, sin_lo, sin_hi)
-        theta.append(_widen(t_lo + gamma, t_hi + gamma))
-        v = _scale(amplitude * w, cos_lo, cos_hi)
-        a = _scale(-amplitude * w * w, sin_lo, sin_hi)
-        dq = _mul(*v, d1_lo, d1_hi)
-        sq = _square(d1_lo, d1_hi)
-        ddq_lo1, ddq_hi1 = _mul(*a, *sq)
-        ddq_lo2, ddq_hi2 = _mul(*v, d2_lo, d2_hi)
-        speed.append(_widen(*dq))
-        accel.append(_widen(ddq_lo1 + ddq_lo2, ddq_hi1 + ddq_hi2))
+        sin_lo, sin_hi = sin_range(ph_lo, ph_hi)
+        cos_lo, cos_hi = sin_range(ph_lo + np.pi / 2, ph_hi + np.pi / 2)
+        t_lo, t_hi = scale(amplitude, sin_lo, sin_hi)
+        theta.append(widen(t_lo + gamma, t_hi + gamma))
+        v = scale(amplitude * w, cos_lo, cos_hi)
+        a = scale(-amplitude * w * w, sin_lo, sin_hi)
+        j = scale(-amplitude * w**3, cos_lo, cos_hi)
+        speed.append(widen(*mul(*v, d1_lo, d1_hi)))
+        first, second = mul(*a, *d1_sq), mul(*v, d2_lo, d2_hi)
+        accel.append(widen(first[0] + second[0], first[1] + second[1]))
+        parts = (mul(*j, *d1_cube), scale(3.0, *mul(*a, *d1_d2)), mul(*v, d3_lo, d3_hi))
+        jerk.append(widen(sum(q[0] for q in parts), sum(q[1] for q in parts)))
+    return theta, speed, accel, jerk
+
+
+def _torques(dynamics: PlanarDynamics, theta, speed, accel):
+    """The intervals of tau_1, tau_2 from those of q2, dq and ddq (module docstring)."""
     q2_lo, q2_hi = theta[1]
-    sin2 = _sin_range(q2_lo, q2_hi)
-    cos2 = _sin_range(q2_lo + math.pi / 2, q2_hi + math.pi / 2)
+    sin2 = sin_range(q2_lo, q2_hi)
+    cos2 = sin_range(q2_lo + np.pi / 2, q2_hi + np.pi / 2)
     m0, mc, ms = (np.asarray(m) for m in (dynamics.m0, dynamics.mc, dynamics.ms))
-    m11 = _affine_trig(m0[0, 0], mc[0, 0], ms[0, 0], *cos2, *sin2)
-    m12 = _affine_trig(m0[0, 1], mc[0, 1], ms[0, 1], *cos2, *sin2)
-    m22 = _affine_trig(m0[1, 1], mc[1, 1], ms[1, 1], *cos2, *sin2)
-    h = _affine_trig(0.0, 0.5 * ms[0, 0], -0.5 * mc[0, 0], *cos2, *sin2)
+    m11 = affine_trig(m0[0, 0], mc[0, 0], ms[0, 0], *cos2, *sin2)
+    m12 = affine_trig(m0[0, 1], mc[0, 1], ms[0, 1], *cos2, *sin2)
+    m22 = affine_trig(m0[1, 1], mc[1, 1], ms[1, 1], *cos2, *sin2)
+    h = affine_trig(0.0, 0.5 * ms[0, 0], -0.5 * mc[0, 0], *cos2, *sin2)
     (dq1, dq2), (ddq1, ddq2) = speed, accel
-    cross = _mul(*dq1, *dq2)
-    dq2_sq, dq1_sq = _square(*dq2), _square(*dq1)
+    cross = mul(*dq1, *dq2)
+    dq2_sq, dq1_sq = square(*dq2), square(*dq1)
     quadratic1 = (2.0 * cross[0] + dq2_sq[0], 2.0 * cross[1] + dq2_sq[1])
-    parts1 = [_mul(*m11, *ddq1), _mul(*m12, *ddq2), _mul(*h, *quadratic1)]
+    parts1 = [mul(*m11, *ddq1), mul(*m12, *ddq2), mul(*h, *quadratic1)]
     minus_h = (-h[1], -h[0])
-    parts2 = [_mul(*m12, *ddq1), _mul(*m22, *ddq2), _mul(*minus_h, *dq1_sq)]
-    tau = [_widen(sum(p[0] for p in parts), sum(p[1] for p in parts)) for parts in (parts1, parts2)]
+    parts2 = [mul(*m12, *ddq1), mul(*m22, *ddq2), mul(*minus_h, *dq1_sq)]
+    return [widen(sum(p[0] for p in parts), sum(p[1] for p in parts)) for parts in (parts1, parts2)]
 
-    def magnitude(interval):
-        return np.maximum(np.abs(interval[0]), np.abs(interval[1]))
 
-    return np.stack(
-        [
-            theta[0][1],
-            theta[1][1],
-            -theta[0][0],
-            -theta[1][0],
-            magnitude(speed[0]),
-            magnitude(speed[1]),
-            magnitude(accel[0]),
-            magnitude(accel[1]),
-            magnitude(tau[0]),
-            magnitude(tau[1]),
-        ],
-        -1,
-    )
+def _upper_bounds(timed: TimedTrajectory, dynamics: PlanarDynamics, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Rigorous upper bounds of the :data:`_QUANTITIES` over each interval [lo_k, hi_k]: (n, 12)."""
+    theta, speed, accel, jerk = _joint_enclosures(timed, lo, hi)
+    tau = _torques(dynamics, theta, speed, accel)
+    columns = [theta[0][1], theta[1][1], -theta[0][0], -theta[1][0]]
+    columns += [magnitude(v) for v in (*speed, *accel, *tau, *jerk)]
+    return np.stack(columns, -1)
 
 
 def _values(timed: TimedTrajectory, dynamics: PlanarDynamics, t: np.ndarray) -> np.ndarray:
-    """The :data:`_QUANTITIES` at times ``t`` (exact evaluation): (m, 10)."""
+    """The :data:`_QUANTITIES` at times ``t`` (exact evaluation): (m, 12)."""
     q, dq, ddq = timed.states(t, outside="clamp")
     tau = dynamics.torque(q, dq, ddq)
-    return np.column_stack([q[:, 0], q[:, 1], -q[:, 0], -q[:, 1], *np.abs(dq).T, *np.abs(ddq).T, *np.abs(tau).T])
+    jerk = timed.jerk(t, outside="clamp")
+    return np.column_stack(
+        [q[:, 0], q[:, 1], -q[:, 0], -q[:, 1], *np.abs(dq).T, *np.abs(ddq).T, *np.abs(tau).T, *np.abs(jerk).T]
+    )
 
 
 @dataclass(frozen=True)
@@ -187,9 +160,10 @@ class LimitViolation:
     """A certified bound beyond a limit.
 
     Attributes:
-        quantity: "angle", "speed", "acceleration" or "torque".
+        quantity: "angle", "speed", "acceleration", "torque" or "jerk".
         joint: 1 or 2.
-        bound: The certified bound (for an angle: the extreme angle reached) [rad, rad/s, rad/s^2, N m].
+        bound: The certified bound (for an angle: the extreme of the certified range) [rad, rad/s,
+            rad/s^2, N m, rad/s^3]. It is a bound: the motion's true extreme lies at or below it.
         limit: The limit it exceeds, same unit.
         unit: The unit's symbol.
     """
@@ -203,14 +177,19 @@ class LimitViolation:
     def __str__(self) -> str:
         if self.quantity == "angle":
             side = "upper" if self.bound > self.limit else "lower"
+            relation = ">" if side == "upper" else "<"
             return (
-                f"joint {self.joint} angle reaches {self.bound:.4f} {self.unit}, beyond its {side} limit "
+                f"joint {self.joint} angle bound {self.bound:.4f} {self.unit} {relation} {side} limit "
                 f"{self.limit:.4f} {self.unit} (by {abs(self.bound - self.limit):.4f} {self.unit})"
             )
         return (
-            f"joint {self.joint} {self.quantity} up to {self.bound:.4f} {self.unit} > limit {self.limit:.4f} "
+            f"joint {self.joint} {self.quantity} bound {self.bound:.4f} {self.unit} > limit {self.limit:.4f} "
             f"{self.unit} (by {self.bound - self.limit:.4f} {self.unit})"
         )
+
+
+def _unbounded_jerk() -> np.ndarray:
+    return np.full(2, np.inf)
 
 
 @dataclass(frozen=True, eq=False)
@@ -218,18 +197,21 @@ class ExecutionCertificate:
     """Rigorous bounds of a timed trajectory over all of [0, T'] (module docstring).
 
     Attributes:
-        timing_name: "paper" or "rest-to-rest".
+        timing_name: The timing's name ("paper", "rest-to-rest", "near-optimal").
         duration_s: T' [s].
         angle_range_rad: ((lo1, hi1), (lo2, hi2)) enclosing every joint angle taken [rad].
         speed_bound_rad_s, acceleration_bound_rad_s2, torque_bound_n_m: (2,) upper bounds of
             |dq_i| [rad/s], |ddq_i| [rad/s^2], |tau_i| [N m].
         sampled: The largest values sampled (values the quantities take), per quantity as the bounds:
-            {"speed_rad_s": (2,), "acceleration_rad_s2": (2,), "torque_n_m": (2,), "angle_range_rad": ...}.
+            {"speed_rad_s": (2,), "acceleration_rad_s2": (2,), "torque_n_m": (2,), "jerk_rad_s3": (2,),
+            "angle_range_rad": ...}.
         intervals: Time intervals of the final partition (0: decided in closed form).
         decided_against: The limits the bounds were decided against (None: tight bounds).
         source: "query" (this certificate, over this trajectory) or "range" (the bounds of the
             region map's leaf holding the obstacle, proven for every obstacle of the leaf:
             :mod:`pipeline.certify.execution_bounds`; no samples).
+        jerk_bound_rad_s3: (2,) upper bounds of the joint jerks [rad/s^3] (inf: not bounded, as
+            for the map's bounds, which hold no jerk).
     """
 
     timing_name: str
@@ -242,6 +224,7 @@ class ExecutionCertificate:
     intervals: int
     decided_against: ArmLimits | None = None
     source: str = "query"
+    jerk_bound_rad_s3: np.ndarray = field(default_factory=_unbounded_jerk)
 
     def violations(self, limits: ArmLimits) -> list[LimitViolation]:
         """Every limit a bound exceeds (empty: the trajectory is certified within ``limits``)."""
@@ -257,6 +240,7 @@ class ExecutionCertificate:
             ("speed", self.speed_bound_rad_s, limits.velocity_rad_s, "rad/s"),
             ("acceleration", self.acceleration_bound_rad_s2, limits.acceleration_rad_s2, "rad/s^2"),
             ("torque", self.torque_bound_n_m, limits.effort_n_m, "N m"),
+            ("jerk", self.jerk_bound_rad_s3, limits.jerk_rad_s3, "rad/s^3"),
         ):
             for i in (0, 1):
                 if bounds[i] > limit[i]:
@@ -266,40 +250,75 @@ class ExecutionCertificate:
 
 def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLimits) -> ExecutionCertificate | None:
     """The bounds in closed form (module docstring), if they keep every limit; else None. For a
-    rest-to-rest timing (speed scale c, ramp r: sigma' <= c, |sigma''| <= 1.5 c / r) the speeds
-    scale by c, the accelerations are bounded by c^2 max|theta''| + 1.5 c max|theta'| / r, and
-    the torques follow from those as for the paper timing (c = 1, no ramp)."""
+    rest-to-rest timing (speed scale c, ramp r: sigma' <= c, |sigma''| <= 1.5 c / r,
+    |sigma'''| <= 6 c / r^2) the speeds scale by c, the accelerations are bounded by
+    c^2 max|theta''| + 1.5 c max|theta'| / r, the jerks by c^3 |A| w^3 + 4.5 c^2 max|theta''| / r +
+    6 c max|theta'| / r^2, and the torques follow from the speeds and accelerations as for the
+    paper timing (c = 1, no ramp)."""
     trajectory = timed.trajectory
     V, acc = np.asarray(trajectory.peak_velocity_rad_s()), np.asarray(trajectory.peak_acceleration_rad_s2())
-    c, ramp_term = 1.0, 0.0
+    p = np.asarray(trajectory.parameters).reshape(2, 4)
+    third = np.abs(p[:, 0]) * p[:, 1] ** 3
+    c, ramp_term, jerk_ramp = 1.0, 0.0, np.zeros(2)
     if isinstance(timed.timing, RestToRestTiming):
-        c = timed.timing.speed_scale
-        ramp_term = 1.5 * c / timed.timing.ramp_s
+        c, r = timed.timing.speed_scale, timed.timing.ramp_s
+        ramp_term = 1.5 * c / r
+        jerk_ramp = 4.5 * c * c * acc / r + 6.0 * c * V / r**2
     speed, accel = c * V, c * c * acc + ramp_term * V
+    jerk = c**3 * third + jerk_ramp
     (lo1, hi1), (lo2, hi2) = trajectory.angle_ranges_rad()
     quadratic = c * c * np.array([2.0 * V[0] * V[1] + V[1] ** 2, V[0] ** 2])
     torque = dynamics.mass_matrix_sup() @ accel + dynamics.coriolis_sup() * quadratic
-    bounds = np.array([hi1, hi2, -lo1, -lo2, *speed, *accel, *torque])
+    bounds = np.array([hi1, hi2, -lo1, -lo2, *speed, *accel, *torque, *jerk])
     bounds = bounds + FLOAT_SLACK_RELATIVE * np.abs(bounds) + FLOAT_SLACK_ABSOLUTE
     if np.any(bounds > _limit_vector(limits)):
         return None
-    return ExecutionCertificate(
-        timing_name=timed.timing.name,
-        duration_s=timed.duration_s,
-        angle_range_rad=((-float(bounds[2]), float(bounds[0])), (-float(bounds[3]), float(bounds[1]))),
-        speed_bound_rad_s=bounds[4:6].copy(),
-        acceleration_bound_rad_s2=bounds[6:8].copy(),
-        torque_bound_n_m=bounds[8:10].copy(),
-        sampled={},
-        intervals=0,
-        decided_against=limits,
-    )
+    return _certificate(timed, bounds, None, 0, limits)
 
 
 def _limit_vector(limits: ArmLimits) -> np.ndarray:
     """The limits in the order of :data:`_QUANTITIES`."""
     (lo1, hi1), (lo2, hi2) = limits.position_rad
-    return np.array([hi1, hi2, -lo1, -lo2, *limits.velocity_rad_s, *limits.acceleration_rad_s2, *limits.effort_n_m])
+    speed, accel, effort, jerk = limits.velocity_rad_s, limits.acceleration_rad_s2, limits.effort_n_m, limits.jerk_rad_s3
+    return np.array([hi1, hi2, -lo1, -lo2, *speed, *accel, *effort, *jerk])
+
+
+def _certificate(timed: TimedTrajectory, bound, sampled, intervals: int, limits) -> ExecutionCertificate:
+    """The certificate of the bounds (and sampled maxima, None: none) in :data:`_QUANTITIES` order."""
+
+    def angles(v):
+        return ((-float(v[2]), float(v[0])), (-float(v[3]), float(v[1])))
+
+    found = {}
+    if sampled is not None:
+        found = {
+            "angle_range_rad": angles(sampled),
+            "speed_rad_s": sampled[4:6].copy(),
+            "acceleration_rad_s2": sampled[6:8].copy(),
+            "torque_n_m": sampled[8:10].copy(),
+            "jerk_rad_s3": sampled[10:12].copy(),
+        }
+    return ExecutionCertificate(
+        timing_name=timed.timing.name,
+        duration_s=timed.duration_s,
+        angle_range_rad=angles(bound),
+        speed_bound_rad_s=bound[4:6].copy(),
+        acceleration_bound_rad_s2=bound[6:8].copy(),
+        torque_bound_n_m=bound[8:10].copy(),
+        sampled=found,
+        intervals=intervals,
+        decided_against=limits,
+        jerk_bound_rad_s3=bound[10:12].copy(),
+    )
+
+
+def _initial_partition(timed: TimedTrajectory, tight: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The first intervals: the timing's own pieces (one polynomial each); for tight bounds of a
+    timing of one piece, :data:`_INITIAL_INTERVALS` equal ones."""
+    knots = np.asarray(timed.timing.knots_s, dtype=float)
+    if tight and knots.size == 2:
+        knots = np.linspace(0.0, timed.duration_s, _INITIAL_INTERVALS + 1)
+    return knots[:-1], knots[1:]
 
 
 def certify_execution(
@@ -308,7 +327,7 @@ def certify_execution(
     limits: ArmLimits | None = None,
     relative_tolerance: float = DEFAULT_RELATIVE_TOLERANCE,
 ) -> ExecutionCertificate:
-    """Bound the angles, speeds, accelerations and torques of ``timed`` over all of [0, T'].
+    """Bound the angles, speeds, accelerations, torques and jerks of ``timed`` over all of [0, T'].
 
     Args:
         timed: The trajectory with its timing.
@@ -323,10 +342,8 @@ def certify_execution(
         coarse = _closed_form(timed, dynamics, limits)
         if coarse is not None:
             return coarse
-    end = timed.duration_s
-    edges = np.linspace(0.0, end, (_INITIAL_INTERVALS if limit is None else 1) + 1)
-    lo, hi = edges[:-1], edges[1:]
-    sampled = _values(timed, dynamics, edges).max(0)
+    lo, hi = _initial_partition(timed, limit is None)
+    sampled = _values(timed, dynamics, np.concatenate([lo, hi[-1:]])).max(0)
     bound = np.full(len(_QUANTITIES), -np.inf)
     total = 0
     for _ in range(_MAX_ROUNDS):
@@ -351,19 +368,4 @@ def certify_execution(
     else:
         bound = np.maximum(bound, _upper_bounds(timed, dynamics, lo, hi).max(0))
         total += lo.size
-    return ExecutionCertificate(
-        timing_name=timed.timing.name,
-        duration_s=end,
-        angle_range_rad=((-float(bound[2]), float(bound[0])), (-float(bound[3]), float(bound[1]))),
-        speed_bound_rad_s=bound[4:6].copy(),
-        acceleration_bound_rad_s2=bound[6:8].copy(),
-        torque_bound_n_m=bound[8:10].copy(),
-        sampled={
-            "angle_range_rad": ((-float(sampled[2]), float(sampled[0])), (-float(sampled[3]), float(sampled[1]))),
-            "speed_rad_s": sampled[4:6].copy(),
-            "acceleration_rad_s2": sampled[6:8].copy(),
-            "torque_n_m": sampled[8:10].copy(),
-        },
-        intervals=total,
-        decided_against=limits,
-    )
+    return _certificate(timed, bound, sampled, total, limits)

@@ -13,6 +13,7 @@ from pipeline.motion.trajectory import (
     checked_times,
     joint_accelerations,
     joint_angles,
+    joint_jerks,
     joint_velocities,
 )
 
@@ -84,6 +85,14 @@ class TimedTrajectory:
         t, flat, s = self._states(t_s, outside)
         d1, d2 = self.timing.dsigma(flat)[:, None], self.timing.ddsigma(flat)[:, None]
         out = joint_accelerations(self.parameters, s) * d1 * d1 + joint_velocities(self.parameters, s) * d2
+        return out[0] if t.ndim == 0 else out
+
+    def jerk(self, t_s, *, outside: str = "error") -> np.ndarray:
+        """Joint jerks [rad/s^3]: theta''' sigma'^3 + 3 theta'' sigma' sigma'' + theta' sigma'''."""
+        t, flat, s = self._states(t_s, outside)
+        d1, d2, d3 = (f(flat)[:, None] for f in (self.timing.dsigma, self.timing.ddsigma, self.timing.dddsigma))
+        p = self.parameters
+        out = joint_jerks(p, s) * d1**3 + 3.0 * joint_accelerations(p, s) * d1 * d2 + joint_velocities(p, s) * d3
         return out[0] if t.ndim == 0 else out
 
     def states(self, t_s, *, outside: str = "error") -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -56,9 +56,25 @@ class Timing:
     def ddsigma(self, tau_s: np.ndarray) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
 
+    def dddsigma(self, tau_s: np.ndarray) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
     def ranges(self, lo_s: np.ndarray, hi_s: np.ndarray) -> tuple[np.ndarray, ...]:  # pragma: no cover
         """(sigma_lo, sigma_hi, dsigma_lo, dsigma_hi, ddsigma_lo, ddsigma_hi) over [lo, hi] (arrays)."""
         raise NotImplementedError
+
+    def jerk_ranges(self, lo_s: np.ndarray, hi_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+        """(dddsigma_lo, dddsigma_hi) over [lo, hi] (arrays)."""
+        raise NotImplementedError
+
+    def ranges_with_jerk(self, lo_s: np.ndarray, hi_s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`ranges`, then :meth:`jerk_ranges`: eight arrays."""
+        return (*self.ranges(lo_s, hi_s), *self.jerk_ranges(lo_s, hi_s))
+
+    @property
+    def knots_s(self) -> np.ndarray:
+        """Times [s] between which sigma is one polynomial (the certificates start from them)."""
+        return np.array([0.0, self.duration_s])
 
 
 @dataclass(frozen=True)
@@ -90,10 +106,17 @@ class PaperTiming(Timing):
     def ddsigma(self, tau_s):
         return np.zeros_like(np.asarray(tau_s, dtype=float))
 
+    def dddsigma(self, tau_s):
+        return np.zeros_like(np.asarray(tau_s, dtype=float))
+
     def ranges(self, lo_s, hi_s):
         lo, hi = np.asarray(lo_s, dtype=float), np.asarray(hi_s, dtype=float)
         one, zero = np.ones_like(lo), np.zeros_like(lo)
         return lo, hi, one, one, zero, zero
+
+    def jerk_ranges(self, lo_s, hi_s):
+        zero = np.zeros_like(np.asarray(lo_s, dtype=float))
+        return zero, zero
 
 
 #: The paper's timing (bound to a path's T when used).
@@ -163,6 +186,30 @@ class RestToRestTiming(Timing):
         c, r = self.speed_scale, self.ramp_s
         slope_in, slope_out = 6.0 * u_in * (1.0 - u_in), 6.0 * u_out * (1.0 - u_out)
         return (c / r) * np.where(tau < r, slope_in, np.where(tau > end - r, -slope_out, 0.0))
+
+    def dddsigma(self, tau_s):
+        """sigma''' [1/s^2]: (c / r^2) 6 (1 - 2 u) on each ramp (u as above), 0 between."""
+        tau, end, u_in, u_out = self._parts(tau_s)
+        c, r = self.speed_scale, self.ramp_s
+        ramp_in, ramp_out = 6.0 * (1.0 - 2.0 * u_in), 6.0 * (1.0 - 2.0 * u_out)
+        return (c / r**2) * np.where(tau < r, ramp_in, np.where(tau > end - r, ramp_out, 0.0))
+
+    def jerk_ranges(self, lo_s, hi_s):
+        """sigma''' over [lo, hi]: linear in tau on each ramp, 0 between; the union over the parts it meets."""
+        lo, hi = np.asarray(lo_s, dtype=float), np.asarray(hi_s, dtype=float)
+        c, r, end = self.speed_scale, self.ramp_s, self.duration_s
+        k = 6.0 * c / r**2
+        low, high = np.full_like(lo, np.inf), np.full_like(lo, -np.inf)
+        for a, b, value in (
+            (0.0, r, lambda t: k * (1.0 - 2.0 * t / r)),
+            (r, end - r, lambda t: np.zeros_like(t)),
+            (end - r, end, lambda t: k * (1.0 - 2.0 * (end - t) / r)),
+        ):
+            meets = (hi >= a) & (lo <= b) & (b >= a)
+            ends = np.stack([value(np.clip(lo, a, b)), value(np.clip(hi, a, b))])
+            low = np.where(meets, np.minimum(low, ends.min(0)), low)
+            high = np.where(meets, np.maximum(high, ends.max(0)), high)
+        return low, high
 
     def ranges(self, lo_s, hi_s):
         """Ranges over [lo, hi] of sigma (monotone: its ends), and of sigma', sigma'' (piecewise

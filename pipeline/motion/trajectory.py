@@ -49,6 +49,13 @@ def joint_accelerations(params: np.ndarray, t_s: np.ndarray) -> np.ndarray:
     return -(a * w * w)[..., None, :] * np.sin(w[..., None, :] * t + phi[..., None, :])
 
 
+def joint_jerks(params: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """d3theta/dt3 [rad/s^3], shape (..., m, 2)."""
+    a, w, phi, _ = _split(params)
+    t = np.asarray(t_s, dtype=float)[:, None]
+    return -(a * w**3)[..., None, :] * np.cos(w[..., None, :] * t + phi[..., None, :])
+
+
 def canonicalize(params: np.ndarray) -> np.ndarray:
     """Map parameters to the canonical form of Eq. 8, so equal motions get equal parameters.
 

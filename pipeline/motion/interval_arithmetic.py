@@ -1,0 +1,77 @@
+"""Interval arithmetic on NumPy arrays of lower and upper ends, elementwise.
+
+An interval is a pair ``(lo, hi)`` of arrays (or scalars) with lo <= hi. Each operation returns an
+interval that encloses every value the operation takes over its arguments' intervals: products
+take the extremes of the four corner products, a square of an interval holding 0 starts at 0, and
+the ranges of sin and cos over a phase interval are exact (the ends, and -1 / +1 where the interval
+holds a critical point). Rounding is not accounted for here: callers widen their results with
+:func:`widen` once a chain of operations is done (:mod:`pipeline.motion.execution_certificate`
+states the slack and why it covers the chain).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    "FLOAT_SLACK_ABSOLUTE",
+    "FLOAT_SLACK_RELATIVE",
+    "affine_trig",
+    "magnitude",
+    "mul",
+    "scale",
+    "sin_range",
+    "square",
+    "widen",
+]
+
+#: Widening of every enclosure for floating-point rounding (:mod:`pipeline.motion.execution_certificate`).
+FLOAT_SLACK_RELATIVE = 1e-10
+FLOAT_SLACK_ABSOLUTE = 1e-12
+_TWO_PI = 2.0 * math.pi
+
+
+def sin_range(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact (min, max) of sin over [lo, hi] (elementwise, lo <= hi)."""
+    top = np.ceil((lo - math.pi / 2) / _TWO_PI) * _TWO_PI + math.pi / 2 <= hi
+    bottom = np.ceil((lo + math.pi / 2) / _TWO_PI) * _TWO_PI - math.pi / 2 <= hi
+    s_lo, s_hi = np.sin(lo), np.sin(hi)
+    return np.where(bottom, -1.0, np.minimum(s_lo, s_hi)), np.where(top, 1.0, np.maximum(s_lo, s_hi))
+
+
+def scale(k, lo, hi):
+    """k [lo, hi] for a scalar or array k."""
+    a, b = k * lo, k * hi
+    return np.minimum(a, b), np.maximum(a, b)
+
+
+def mul(a_lo, a_hi, b_lo, b_hi):
+    """[a] [b]: the extremes of the four corner products."""
+    corners = np.stack(np.broadcast_arrays(a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi))
+    return corners.min(0), corners.max(0)
+
+
+def square(lo, hi):
+    """[a]^2 (0 at the bottom when the interval holds 0)."""
+    low = np.where((lo <= 0.0) & (hi >= 0.0), 0.0, np.minimum(lo * lo, hi * hi))
+    return low, np.maximum(lo * lo, hi * hi)
+
+
+def affine_trig(k0, kc, ks, c_lo, c_hi, s_lo, s_hi):
+    """k0 + kc [cos] + ks [sin] as an interval."""
+    a_lo, a_hi = scale(kc, c_lo, c_hi)
+    b_lo, b_hi = scale(ks, s_lo, s_hi)
+    return k0 + a_lo + b_lo, k0 + a_hi + b_hi
+
+
+def widen(lo, hi):
+    """[lo, hi] widened by :data:`FLOAT_SLACK_RELATIVE` of its magnitude plus :data:`FLOAT_SLACK_ABSOLUTE`."""
+    slack = FLOAT_SLACK_RELATIVE * np.maximum(np.abs(lo), np.abs(hi)) + FLOAT_SLACK_ABSOLUTE
+    return lo - slack, hi + slack
+
+
+def magnitude(interval) -> np.ndarray:
+    """The largest |value| of an interval."""
+    return np.maximum(np.abs(interval[0]), np.abs(interval[1]))

@@ -1,0 +1,197 @@
+"""The near time-optimal timing of a joint path, smooth and certified in continuous time.
+
+The path's configurations are kept (``q(tau) = theta(sigma(tau))``, :mod:`pipeline.motion.timing`);
+only the speed along it is chosen, as fast as the limits allow:
+
+1. **Constraints per piece.** The path time [0, T] is cut into n equal pieces; over each, the
+   speed, acceleration and torque limits become linear constraints on (sdot^2, sddot) with
+   worst-case coefficients (:mod:`pipeline.motion.path_constraints`), on ``share`` of each limit.
+2. **Fastest profile.** Reachability passes give the fastest profile with constant path
+   acceleration per piece that keeps those constraints over every piece and starts and ends at
+   rest (:mod:`pipeline.motion.speed_profile`).
+3. **Smooth.** Its path acceleration steps where pieces meet; each step becomes a ramp centred on
+   it (:func:`pipeline.motion.smooth_timing.smoothed`), of width
+   ``delta_k = max_i |theta_i'| |du_k| / (jerk_share J_i - background_i)``: the ramp's share of
+   joint i's jerk, ``theta_i' sigma'''``, stays within what the jerk limit J_i leaves after the
+   other terms ``theta_i''' sigma'^3 + 3 theta_i'' sigma' sigma''`` (estimated from the profile at
+   the step). The joint accelerations are then continuous, and zero at both ends with the speeds.
+4. **Certified.** The execution certificate (:mod:`pipeline.motion.execution_certificate`)
+   bounds the angles, speeds, accelerations, torques and jerks over all of [0, T'] in continuous
+   time and decides every limit. If a bound other than the jerk exceeds its limit (the ramps
+   moved the profile off the constraints it was built on), the profile is rebuilt on a share
+   lowered by the bound's excess; if only the jerk does, the ramps are widened by its excess.
+   After :attr:`NearOptimalSettings.tries` attempts the timing is refused with the last bounds.
+
+What the user receives is certified; steps 1 to 3 only make it likely to be certified at once and
+close to the fastest. A jerk limit is required (a finite one per joint): with none, the ramps
+would have no width and the accelerations would step (:meth:`pipeline.model.limits.ArmLimits.with_servo_defaults`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.exceptions import InvalidParameterError, TimingRefusedError
+from pipeline.model.dynamics import PlanarDynamics
+from pipeline.model.limits import ArmLimits
+from pipeline.motion.execution_certificate import ExecutionCertificate, LimitViolation, certify_execution
+from pipeline.motion.interval_arithmetic import magnitude
+from pipeline.motion.path_constraints import PathEnclosures, enclose_path, piece_constraints
+from pipeline.motion.smooth_timing import SmoothTiming, smoothed
+from pipeline.motion.speed_profile import fastest_profile
+from pipeline.motion.timed_trajectory import TimedTrajectory
+from pipeline.motion.trajectory import JointTrajectory
+
+__all__ = ["NEAR_OPTIMAL", "NearOptimal", "NearOptimalSettings", "NearOptimalTiming", "near_optimal_timing"]
+
+
+@dataclass(frozen=True)
+class NearOptimalSettings:
+    """How the near time-optimal timing is built (module docstring).
+
+    Attributes:
+        pieces: Pieces of the path (n); more pieces enclose tighter and cost more.
+        limit_share: Share of each speed, acceleration and effort limit the profile is built on, in (0, 1].
+        jerk_share: Share of each jerk limit the ramps are sized for, in (0, 1].
+        tries: Attempts before the timing is refused (>= 1).
+    """
+
+    pieces: int = 200
+    limit_share: float = 0.99
+    jerk_share: float = 0.9
+    tries: int = 8
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.pieces, int) and not isinstance(self.pieces, bool) and self.pieces >= 2):
+            raise InvalidParameterError("pieces", self.pieces, "an integer >= 2")
+        for name in ("limit_share", "jerk_share"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and 0.0 < value <= 1.0):
+                raise InvalidParameterError(name, value, "a share in (0, 1]")
+        if not (isinstance(self.tries, int) and not isinstance(self.tries, bool) and self.tries >= 1):
+            raise InvalidParameterError("tries", self.tries, "an integer >= 1")
+
+
+@dataclass(frozen=True)
+class NearOptimal:
+    """Ask for the near time-optimal timing (``generate_certified(..., timing=NEAR_OPTIMAL)``).
+
+    Attributes:
+        settings: How it is built.
+    """
+
+    settings: NearOptimalSettings = NearOptimalSettings()
+    name: str = "near-optimal"
+
+
+#: The near time-optimal, smooth, certified timing with the default settings.
+NEAR_OPTIMAL = NearOptimal()
+
+
+@dataclass(frozen=True, eq=False)
+class NearOptimalTiming:
+    """A certified near time-optimal timing of a path.
+
+    Attributes:
+        executed: The path with its timing (``q``, ``dq``, ``ddq``, ``jerk`` at executed times).
+        certificate: Its bounds over all of [0, T'], decided against the limits.
+        limit_share: The share of the limits the certified profile was built on.
+        attempts: Profiles built until one was certified.
+    """
+
+    executed: TimedTrajectory
+    certificate: ExecutionCertificate
+    limit_share: float
+    attempts: int
+
+
+def _check_jerk(limits: ArmLimits) -> None:
+    if not all(math.isfinite(j) for j in limits.jerk_rad_s3):
+        raise InvalidParameterError(
+            "jerk_rad_s3", limits.jerk_rad_s3, "a finite jerk limit per joint (ArmLimits.with_servo_defaults)"
+        )
+
+
+def _windows(enclosures: PathEnclosures, x, u, steps, limits: ArmLimits, jerk_share: float) -> np.ndarray:
+    """The ramps' widths delta_k [s] at the n + 1 steps (module docstring, step 3)."""
+    speed = magnitude(enclosures.d1)  # (n, 2)
+    at_knot = np.maximum(np.vstack([speed[:1], speed]), np.vstack([speed, speed[-1:]]))
+    second, third = (magnitude(d) for d in (enclosures.d2, enclosures.d3))
+    second = np.maximum(np.vstack([second[:1], second]), np.vstack([second, second[-1:]]))
+    third = np.maximum(np.vstack([third[:1], third]), np.vstack([third, third[-1:]]))
+    padded = np.concatenate([[0.0], u, [0.0]])
+    u_near = np.maximum(np.abs(padded[:-1]), np.abs(padded[1:]))
+    root = np.sqrt(x)[:, None]
+    background = third * root**3 + 3.0 * second * root * u_near[:, None]
+    allowed = jerk_share * np.asarray(limits.jerk_rad_s3)
+    room = np.maximum(allowed - background, 0.25 * allowed)
+    return np.max(at_knot * np.abs(steps)[:, None] / room, axis=1)
+
+
+def _smooth_timing(trajectory, enclosures, x, u, limits, jerk_share, widen) -> SmoothTiming:
+    """Steps 2 to 3 of the module docstring, the ramps widened by ``widen``."""
+    ds = enclosures.edges_s[1] - enclosures.edges_s[0]
+    rates = np.sqrt(x)
+    durations = 2.0 * ds / (rates[:-1] + rates[1:])
+    times = np.concatenate([[0.0], np.cumsum(durations)])
+    steps = np.diff(np.concatenate([[0.0], u, [0.0]]))
+    windows = widen * _windows(enclosures, x, u, steps, limits, jerk_share)
+    keep = np.abs(steps) > 0.0
+    windows = np.maximum(windows, 1e-6)
+    timing, _ = smoothed(times[keep], steps[keep], windows[keep], trajectory.duration_s)
+    return timing
+
+
+def _excess(found: list[LimitViolation], quantities: tuple[str, ...]) -> float:
+    return max((v.bound / v.limit for v in found if v.quantity in quantities), default=1.0)
+
+
+def near_optimal_timing(
+    trajectory: JointTrajectory,
+    dynamics: PlanarDynamics,
+    limits: ArmLimits,
+    settings: NearOptimalSettings = NearOptimalSettings(),
+) -> NearOptimalTiming:
+    """The near time-optimal timing of ``trajectory``'s path within ``limits`` (module docstring).
+
+    Args:
+        trajectory: The path (the paper's sinusoids over [0, T]).
+        dynamics: The arm's closed-form dynamics.
+        limits: The limits to keep; the jerk limits must be finite.
+        settings: How the timing is built.
+
+    Returns:
+        The timing and its certificate (every bound within ``limits``).
+
+    Raises:
+        InvalidParameterError: an infinite jerk limit, or no speed, acceleration or effort limit.
+        TimingRefusedError: no certified timing within the attempts (the violations of the last one),
+            or the path's angles leave their limits (no timing changes them).
+    """
+    _check_jerk(limits)
+    edges = np.linspace(0.0, trajectory.duration_s, settings.pieces + 1)
+    enclosures = enclose_path(trajectory.parameters, edges, dynamics)
+    share, widen = settings.limit_share, 1.0
+    found: list[LimitViolation] = []
+    for attempt in range(1, settings.tries + 1):
+        rows = piece_constraints(enclosures, limits, share)
+        x, u = fastest_profile(rows.cu, rows.cx, rows.rhs, rows.speed_cap, edges[1] - edges[0])
+        if not np.all(x[1:-1] > 0.0):
+            raise TimingRefusedError(("the limits leave the path no speed: a limit binds at rest",))
+        timing = _smooth_timing(trajectory, enclosures, x, u, limits, settings.jerk_share, widen)
+        executed = TimedTrajectory(trajectory, timing)
+        certificate = certify_execution(executed, dynamics, limits)
+        found = certificate.violations(limits)
+        if not found:
+            return NearOptimalTiming(executed, certificate, share, attempt)
+        if any(v.quantity == "angle" for v in found):
+            break
+        other = _excess(found, ("speed", "acceleration", "torque"))
+        if other > 1.0:
+            share *= 0.995 / other
+        else:
+            widen *= 1.1 * _excess(found, ("jerk",))
+    raise TimingRefusedError(tuple(str(v) for v in found))

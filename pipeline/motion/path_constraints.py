@@ -1,0 +1,156 @@
+"""Linear constraints on the path speed, with worst-case coefficients over each piece of the path.
+
+A timing of the joint path ``theta(s)``, s in [0, T] (:mod:`pipeline.motion.timing`), is described
+along the path by ``x(s) = sdot^2`` and ``u(s) = sddot`` (derivatives of s in executed time). The
+executed motion is ``dq = theta'(s) sdot`` and ``ddq = theta''(s) x + theta'(s) u``, and the closed-form
+dynamics (:class:`pipeline.model.dynamics.PlanarDynamics`) give
+
+    tau_i = sum_j M_ij(q2) ddq_j + c_i,   c_1 = h (2 dq_1 dq_2 + dq_2^2),   c_2 = -h dq_1^2,
+
+so ``tau_i = a_i(s) u + b_i(s) x`` with ``a_i = sum_j M_ij theta_j'`` and
+``b_i = sum_j M_ij theta_j'' + h Q_i`` (Q_1 = 2 theta_1' theta_2' + theta_2'^2, Q_2 = -theta_1'^2):
+every acceleration and torque is linear in (x, u), and every speed is ``|theta_i'| sqrt(x)``.
+
+**Over a piece [s_k, s_k+1]** the coefficients are enclosed (:mod:`pipeline.motion.interval_arithmetic`):
+theta', theta'', theta''' exactly over the phase interval of each sinusoid, M and h over the
+piece's exact range of q2, the products and sums in interval arithmetic, each result widened for
+rounding. A quantity ``a u + b x`` stays within [-L, L] for every a in [a], b in [b] when, with
+x >= 0,
+
+    a_hi u + b_hi x <= L,   a_lo u + b_hi x <= L,   -a_lo u - b_lo x <= L,   -a_hi u - b_lo x <= L
+
+(the first two bound ``max(a_lo u, a_hi u) + b_hi x``, the largest value; the last two the smallest).
+These four rows per limited quantity are the piece's constraints; the speed limits give
+``x <= min_i (v_i / max |theta_i'|)^2``. A profile with constant u on the piece, so that x is
+linear in s there, keeps every limit over the whole piece when the rows hold at both of its ends
+(each row is linear in x): that is what :mod:`pipeline.motion.speed_profile` imposes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.exceptions import InvalidParameterError
+from pipeline.model.dynamics import PlanarDynamics
+from pipeline.model.limits import ArmLimits
+from pipeline.motion.interval_arithmetic import affine_trig, magnitude, mul, scale, sin_range, square, widen
+
+__all__ = ["PathEnclosures", "PieceConstraints", "enclose_path", "piece_constraints"]
+
+
+@dataclass(frozen=True, eq=False)
+class PathEnclosures:
+    """Enclosures of the path's derivatives over each of n pieces (module docstring).
+
+    Attributes:
+        edges_s: The pieces' ends s_0 = 0 < ... < s_n = T on the path time [s], (n + 1,).
+        d1, d2, d3: theta', theta'', theta''' as (lo, hi) pairs of (n, 2) arrays [rad/s, rad/s^2, rad/s^3].
+        accel_u, accel_x: The intervals of a_i = theta_i' and b_i = theta_i'' ((lo, hi), each (n, 2)).
+        torque_u, torque_x: The intervals of the torque's a_i and b_i [kg m^2 rad/s, kg m^2 rad/s^2].
+    """
+
+    edges_s: np.ndarray
+    d1: tuple[np.ndarray, np.ndarray]
+    d2: tuple[np.ndarray, np.ndarray]
+    d3: tuple[np.ndarray, np.ndarray]
+    accel_u: tuple[np.ndarray, np.ndarray]
+    accel_x: tuple[np.ndarray, np.ndarray]
+    torque_u: tuple[np.ndarray, np.ndarray]
+    torque_x: tuple[np.ndarray, np.ndarray]
+
+
+@dataclass(frozen=True, eq=False)
+class PieceConstraints:
+    """The rows ``cu u + cx x <= rhs`` of every piece and its speed cap (module docstring).
+
+    Attributes:
+        edges_s: (n + 1,) the pieces' ends on the path time [s].
+        cu, cx, rhs: (n, m) the rows of each piece (m = 4 per finite acceleration or effort limit).
+        speed_cap: (n,) the largest x = sdot^2 the speed limits allow on each piece (inf: none).
+    """
+
+    edges_s: np.ndarray
+    cu: np.ndarray
+    cx: np.ndarray
+    rhs: np.ndarray
+    speed_cap: np.ndarray
+
+
+def _column(values: tuple[np.ndarray, np.ndarray], i: int) -> tuple[np.ndarray, np.ndarray]:
+    return values[0][:, i], values[1][:, i]
+
+
+def _add(*intervals):
+    return sum(v[0] for v in intervals), sum(v[1] for v in intervals)
+
+
+def enclose_path(parameters, edges_s: np.ndarray, dynamics: PlanarDynamics) -> PathEnclosures:
+    """Enclose theta', theta'', theta''' and the torque coefficients over each piece of ``edges_s``.
+
+    Args:
+        parameters: The eight sinusoid parameters (A1, w1, phi1, gamma1, A2, w2, phi2, gamma2).
+        edges_s: Increasing path times [s], (n + 1,).
+        dynamics: The arm's closed-form dynamics.
+    """
+    p = np.asarray(parameters, dtype=float).reshape(2, 4)
+    amplitude, w, phi, gamma = p[:, 0], p[:, 1], p[:, 2], p[:, 3]
+    s_lo, s_hi = edges_s[:-1, None], edges_s[1:, None]
+    ph_a, ph_b = w * s_lo + phi, w * s_hi + phi
+    ph_lo, ph_hi = np.minimum(ph_a, ph_b), np.maximum(ph_a, ph_b)
+    sin = sin_range(ph_lo, ph_hi)
+    cos = sin_range(ph_lo + math.pi / 2, ph_hi + math.pi / 2)
+    d1 = widen(*scale(amplitude * w, *cos))
+    d2 = widen(*scale(-amplitude * w * w, *sin))
+    d3 = widen(*scale(-amplitude * w**3, *cos))
+    q2 = widen(*(v + gamma[1] for v in scale(amplitude[1], sin[0][:, 1], sin[1][:, 1])))
+    sin2, cos2 = sin_range(*q2), sin_range(q2[0] + math.pi / 2, q2[1] + math.pi / 2)
+    m0, mc, ms = (np.asarray(m) for m in (dynamics.m0, dynamics.mc, dynamics.ms))
+    mass = [[affine_trig(m0[i, j], mc[i, j], ms[i, j], *cos2, *sin2) for j in (0, 1)] for i in (0, 1)]
+    h = affine_trig(0.0, 0.5 * ms[0, 0], -0.5 * mc[0, 0], *cos2, *sin2)
+    v1, v2 = _column(d1, 0), _column(d1, 1)
+    a1, a2 = _column(d2, 0), _column(d2, 1)
+    quadratic = (_add(scale(2.0, *mul(*v1, *v2)), square(*v2)), scale(-1.0, *square(*v1)))
+    torque_u, torque_x = [], []
+    for i in (0, 1):
+        torque_u.append(widen(*_add(mul(*mass[i][0], *v1), mul(*mass[i][1], *v2))))
+        torque_x.append(widen(*_add(mul(*mass[i][0], *a1), mul(*mass[i][1], *a2), mul(*h, *quadratic[i]))))
+    stack = lambda pairs: (np.stack([p[0] for p in pairs], 1), np.stack([p[1] for p in pairs], 1))  # noqa: E731
+    return PathEnclosures(edges_s, d1, d2, d3, d1, d2, stack(torque_u), stack(torque_x))
+
+
+def _rows(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], limit: float):
+    """The four rows (cu, cx, rhs) of |a u + b x| <= limit (module docstring), each (n, 4)."""
+    cu = np.stack([a[1], a[0], -a[0], -a[1]], 1)
+    cx = np.stack([b[1], b[1], -b[0], -b[0]], 1)
+    return cu, cx, np.full_like(cu, limit)
+
+
+def piece_constraints(enclosures: PathEnclosures, limits: ArmLimits, share: float = 1.0) -> PieceConstraints:
+    """The rows and speed caps of every piece for ``limits`` scaled by ``share`` (0 < share <= 1).
+
+    Raises:
+        InvalidParameterError: no limit bounds the path's speed or acceleration (no fastest timing).
+    """
+    velocity = share * np.asarray(limits.velocity_rad_s)
+    peak = magnitude(enclosures.d1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(peak > 0.0, velocity / peak, np.inf)
+    cap = np.min(ratio, axis=1) ** 2
+    parts = []
+    for (a, b), bound in (
+        ((enclosures.accel_u, enclosures.accel_x), limits.acceleration_rad_s2),
+        ((enclosures.torque_u, enclosures.torque_x), limits.effort_n_m),
+    ):
+        for i in (0, 1):
+            if math.isfinite(bound[i]):
+                parts.append(_rows(_column(a, i), _column(b, i), share * bound[i]))
+    if not parts and not np.all(np.isfinite(cap)):
+        raise InvalidParameterError(
+            "limits", limits, "a finite speed, acceleration or effort limit (else no timing is fastest)"
+        )
+    n = cap.size
+    cu, cx, rhs = (np.concatenate([p[k] for p in parts], 1) if parts else np.zeros((n, 0)) for k in range(3))
+    return PieceConstraints(enclosures.edges_s, cu, cx, rhs, cap)

@@ -1,0 +1,185 @@
+"""A timing with continuous acceleration: ``sigma`` a C2 piecewise cubic of the executed time.
+
+The timing maps the executed time tau in [0, T'] onto the path time s in [0, T]
+(:mod:`pipeline.motion.timing`). Here sigma is a cubic on each segment [tau_j, tau_j+1] of its
+breakpoints, with constant third derivative (jerk) ``j_j``, and sigma, sigma', sigma'' continuous
+across breakpoints; sigma' = sigma'' = 0 at both ends. So the joint accelerations
+``ddq = theta''(sigma) sigma'^2 + theta'(sigma) sigma''`` are continuous everywhere, and the joint
+jerk ``theta''' sigma'^3 + 3 theta'' sigma' sigma'' + theta' sigma'''`` is bounded.
+
+**From a profile with steps in acceleration.** A profile of constant path acceleration ``u_k`` on
+each of its pieces (:mod:`pipeline.motion.speed_profile`), starting and ending at rest, has
+``sigma'' = sum_k du_k H(tau - tau_k)``, a sum of steps ``du_k = u_k - u_k-1`` at the times tau_k
+where the pieces meet (u_-1 = u_n = 0: the steps at the start and the end). :func:`smoothed`
+replaces every step by a ramp of width ``delta_k`` centred on tau_k. A ramp centred on its step has
+the same integral as the step beyond the window (their difference is odd about tau_k), so sigma'
+is unchanged outside every window and the end is still at rest: ``sigma'(end) = sum_k du_k (end -
+tau_k)``, as before. sigma itself moves by ``du_k delta_k^2 / 24`` per window; the whole timing is
+scaled by the one factor that puts its end at exactly T (a factor within 1e-3 of 1, reported).
+The windows at the start and the end lengthen the motion by half of each; the others do not.
+
+**Ranges over an interval** (for the certificates): within a segment, sigma''' is constant,
+sigma'' linear (its range is at the interval's ends), sigma' quadratic (ends and vertex) and sigma
+cubic (ends and the roots of sigma'); across segments, the union of the segments' ranges.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.exceptions import InvalidParameterError
+from pipeline.motion.timing import Timing
+
+__all__ = ["SmoothTiming", "smoothed"]
+
+
+@dataclass(frozen=True, eq=False)
+class SmoothTiming(Timing):
+    """sigma as a C2 piecewise cubic (module docstring).
+
+    Attributes:
+        path_duration_s: T [s].
+        breakpoints_s: (m + 1,) increasing executed times, from 0 to T' [s].
+        start: (m, 3) sigma [s], sigma' [1], sigma'' [1/s] at each segment's start.
+        jerk: (m,) sigma''' on each segment [1/s^2].
+        name: The timing's name.
+    """
+
+    path_duration_s: float
+    breakpoints_s: np.ndarray
+    start: np.ndarray
+    jerk: np.ndarray
+    name: str = "near-optimal"
+
+    def __post_init__(self) -> None:
+        knots = np.asarray(self.breakpoints_s, dtype=float)
+        if knots.ndim != 1 or knots.size < 2 or knots[0] != 0.0 or not np.all(np.diff(knots) > 0.0):
+            raise InvalidParameterError("breakpoints_s", knots.size, "increasing times from 0 [s]")
+        if np.shape(self.start) != (knots.size - 1, 3) or np.shape(self.jerk) != (knots.size - 1,):
+            raise InvalidParameterError("start", np.shape(self.start), f"({knots.size - 1}, 3) and jerk of that length")
+
+    @property
+    def duration_s(self) -> float:
+        """T' [s]."""
+        return float(self.breakpoints_s[-1])
+
+    @property
+    def knots_s(self) -> np.ndarray:
+        """The breakpoints [s]: sigma is one cubic between consecutive knots."""
+        return self.breakpoints_s
+
+    def _local(self, tau_s):
+        tau = np.clip(np.asarray(tau_s, dtype=float), 0.0, self.duration_s)
+        j = np.clip(np.searchsorted(self.breakpoints_s, tau, side="right") - 1, 0, self.jerk.size - 1)
+        return j, tau - self.breakpoints_s[j]
+
+    def sigma(self, tau_s):
+        j, h = self._local(tau_s)
+        c0, c1, c2 = self.start[j, 0], self.start[j, 1], self.start[j, 2]
+        value = c0 + h * (c1 + h * (c2 / 2.0 + h * self.jerk[j] / 6.0))
+        return np.where(np.asarray(tau_s) >= self.duration_s, self.path_duration_s, value)
+
+    def dsigma(self, tau_s):
+        j, h = self._local(tau_s)
+        value = self.start[j, 1] + h * (self.start[j, 2] + h * self.jerk[j] / 2.0)
+        return np.where(np.asarray(tau_s) >= self.duration_s, 0.0, value)  # at rest at the end, exactly
+
+    def ddsigma(self, tau_s):
+        j, h = self._local(tau_s)
+        return np.where(np.asarray(tau_s) >= self.duration_s, 0.0, self.start[j, 2] + h * self.jerk[j])
+
+    def dddsigma(self, tau_s):
+        """sigma''' [1/s^2] (the right-hand value at a breakpoint; 0 at and after the end)."""
+        j, _ = self._local(tau_s)
+        return np.where(np.asarray(tau_s) >= self.duration_s, 0.0, self.jerk[j])
+
+    def _segment_ranges(self, j, a, b):
+        """Ranges of sigma, sigma', sigma'', sigma''' over local [a, b] of segments j (arrays)."""
+        c0, c1, c2, k = self.start[j, 0], self.start[j, 1], self.start[j, 2], self.jerk[j]
+
+        def s0(h):
+            return c0 + h * (c1 + h * (c2 / 2.0 + h * k / 6.0))
+
+        def s1(h):
+            return c1 + h * (c2 + h * k / 2.0)
+
+        d2 = np.stack([c2 + a * k, c2 + b * k])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            vertex = np.where(k != 0.0, -c2 / k, a)
+            disc = c2 * c2 - 2.0 * k * c1
+            root = np.sqrt(np.maximum(disc, 0.0))
+            roots = [np.where(k != 0.0, (-c2 + sign * root) / k, np.where(c2 != 0.0, -c1 / c2, a)) for sign in (-1, 1)]
+        d1 = np.stack([s1(a), s1(b), s1(np.clip(vertex, a, b))])
+        s = np.stack([s0(a), s0(b), *(s0(np.clip(r, a, b)) for r in roots)])
+        return s.min(0), s.max(0), d1.min(0), d1.max(0), d2.min(0), d2.max(0), k, k
+
+    def ranges(self, lo_s, hi_s):
+        """(sigma_lo, sigma_hi, sigma'_lo, sigma'_hi, sigma''_lo, sigma''_hi) over each [lo, hi]."""
+        return self.ranges_with_jerk(lo_s, hi_s)[:6]
+
+    def ranges_with_jerk(self, lo_s, hi_s):
+        """As :meth:`ranges`, then sigma'''s (lo, hi): eight arrays."""
+        lo, hi = np.atleast_1d(np.asarray(lo_s, dtype=float)), np.atleast_1d(np.asarray(hi_s, dtype=float))
+        j_lo, a = self._local(lo)
+        j_hi, b_end = self._local(hi)
+        same = j_lo == j_hi
+        # A right end exactly on a breakpoint belongs to the segment before it.
+        at_knot = (~same) & (b_end == 0.0) & (j_hi == j_lo + 1)
+        j_hi = np.where(at_knot, j_lo, j_hi)
+        same = same | at_knot
+        widths = np.diff(self.breakpoints_s)
+        b = np.where(at_knot, widths[j_lo], np.where(same, b_end, widths[j_lo]))
+        out = [np.array(v, dtype=float) * np.ones_like(lo) for v in self._segment_ranges(j_lo, a, b)]
+        for row in np.flatnonzero(~same):  # several segments: the union of their ranges
+            last = self._segment_ranges(np.array([j_hi[row]]), np.zeros(1), np.array([b_end[row]]))
+            middle = np.arange(j_lo[row] + 1, j_hi[row])
+            parts = [last]
+            if middle.size:
+                parts.append(self._segment_ranges(middle, np.zeros(middle.size), widths[middle]))
+            for q in range(8):
+                values = np.concatenate([np.atleast_1d(p[q]) for p in parts] + [out[q][row : row + 1]])
+                out[q][row] = values.min() if q % 2 == 0 else values.max()
+        return tuple(out)
+
+    def jerk_ranges(self, lo_s, hi_s):
+        """sigma''' (lo, hi) over each [lo, hi]."""
+        return self.ranges_with_jerk(lo_s, hi_s)[6:]
+
+
+def smoothed(
+    step_times_s: np.ndarray, steps: np.ndarray, windows_s: np.ndarray, path_duration_s: float
+) -> tuple[SmoothTiming, float]:
+    """The timing whose sigma'' ramps through every step of a piecewise constant path
+    acceleration (module docstring).
+
+    Args:
+        step_times_s: (n + 1,) the times tau_k of the steps of the unsmoothed profile [s], from 0.
+        steps: (n + 1,) du_k, the steps of sigma'' there [1/s] (their sum is 0).
+        windows_s: (n + 1,) the ramps' widths delta_k > 0 [s].
+        path_duration_s: T [s], where sigma must end.
+
+    Returns:
+        (the timing, the factor sigma was scaled by to end at T).
+    """
+    times = np.asarray(step_times_s, dtype=float) + 0.5 * float(windows_s[0])
+    half = 0.5 * np.asarray(windows_s, dtype=float)
+    slope = np.asarray(steps, dtype=float) / np.asarray(windows_s, dtype=float)
+    events = np.concatenate([times - half, times + half])
+    change = np.concatenate([slope, -slope])
+    order = np.argsort(events, kind="stable")
+    events, change = events[order], change[order]
+    events[0] = 0.0
+    knots, first = np.unique(events, return_index=True)
+    jerk = np.add.reduceat(change, first).cumsum()[:-1]
+    h = np.diff(knots)
+    acc = np.concatenate([[0.0], np.cumsum(jerk * h)])
+    speed = np.concatenate([[0.0], np.cumsum(acc[:-1] * h + jerk * h * h / 2.0)])
+    sigma = np.concatenate([[0.0], np.cumsum(speed[:-1] * h + acc[:-1] * h * h / 2.0 + jerk * h**3 / 6.0)])
+    factor = float(path_duration_s) / float(sigma[-1])
+    if not (math.isfinite(factor) and factor > 0.0):
+        raise InvalidParameterError("steps", float(sigma[-1]), "a profile that moves along the path")
+    start = factor * np.column_stack([sigma[:-1], speed[:-1], acc[:-1]])
+    return SmoothTiming(float(path_duration_s), knots, start, factor * jerk), factor
