@@ -279,8 +279,8 @@ def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLi
 def _limit_vector(limits: ArmLimits) -> np.ndarray:
     """The limits in the order of :data:`_QUANTITIES`."""
     (lo1, hi1), (lo2, hi2) = limits.position_rad
-    speed, accel, effort, jerk = limits.velocity_rad_s, limits.acceleration_rad_s2, limits.effort_n_m, limits.jerk_rad_s3
-    return np.array([hi1, hi2, -lo1, -lo2, *speed, *accel, *effort, *jerk])
+    rates = (limits.velocity_rad_s, limits.acceleration_rad_s2, limits.effort_n_m, limits.jerk_rad_s3)
+    return np.array([hi1, hi2, -lo1, -lo2, *(value for pair in rates for value in pair)])
 
 
 def _certificate(timed: TimedTrajectory, bound, sampled, intervals: int, limits) -> ExecutionCertificate:

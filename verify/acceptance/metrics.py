@@ -16,11 +16,15 @@ For one case the verifier measures
   length;
 * **joint peaks**: closed-form max |dtheta/dt| [rad/s] and |d2theta/dt2| [rad/s^2], and the
   closed-form range of each joint angle [rad], against the URDF's limits, and a certified bound of
-  the torques (paper timing);
+  the torques (paper timing) against the largest sampled torque;
 * **rest-to-rest timing**: the shortest rest-to-rest timing within the arm's limits (the URDF's
   and the thresholds' acceleration limits), its T', certified bounds of |dq|, |ddq|, |tau| over
-  all of [0, T'] against the values at :data:`REST_TO_REST_SAMPLES` instants, and dq = ddq = 0
-  at both ends.
+  all of [0, T'] against the largest sampled values, and dq = ddq = 0 at both ends.
+
+The sampled maxima that check the execution certificates are found coarse first and refined
+around the coarse grid's highest local maxima (:mod:`verify.acceptance.sampling`), vectorised over
+the cases measured together (:func:`measure_trajectories`, :func:`measure_cases`); every case
+keeps its own clearance and execution certificates.
 
 The acceptance thresholds are :class:`AcceptanceThresholds`; the result is a
 :class:`verify.acceptance.results.CaseResult` made of typed parts, whose verdict says which check
@@ -31,6 +35,7 @@ from __future__ import annotations
 
 import math
 import weakref
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -65,6 +70,15 @@ from .results import (
     Tracking,
     Verdict,
     failed_case,
+)
+from .sampling import (
+    PAPER_GRID,
+    REST_TO_REST_GRID,
+    piecewise_grid,
+    refined_maxima,
+    sinusoid_states,
+    timed_states,
+    uniform_grid,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -188,6 +202,28 @@ def _pair(values: Any) -> Pair:
     return a, b
 
 
+@dataclass(frozen=True)
+class Subject:
+    """One trajectory to measure, with what placed it.
+
+    Attributes:
+        trajectory: The joint trajectory to judge.
+        path: The desired path (its P1, P5 and timing t = S / v).
+        obstacle: The rounded box.
+        index: Case number (kept in the result).
+        extrapolated: Whether (L, W) lies outside the coefficients' fitted range.
+        extra: The values of the scene variables beyond L and W that placed ``obstacle`` and
+            ``path`` ((name, value), ... [m]).
+    """
+
+    trajectory: JointTrajectory
+    path: QuarticPath
+    obstacle: Obstacle
+    index: int = 0
+    extrapolated: bool = False
+    extra: tuple[tuple[str, float], ...] = ()
+
+
 def measure_trajectory(
     trajectory: JointTrajectory,
     path: QuarticPath,
@@ -200,7 +236,8 @@ def measure_trajectory(
     reach: LinkReach | None = None,
     extra: tuple[tuple[str, float], ...] = (),
 ) -> CaseResult:
-    """Measure one trajectory against its obstacle and desired path.
+    """Measure one trajectory against its obstacle and desired path (:func:`measure_trajectories`
+    of one :class:`Subject`).
 
     Args:
         trajectory: The joint trajectory to judge.
@@ -217,30 +254,75 @@ def measure_trajectory(
     Returns:
         The :class:`CaseResult`.
     """
+    subject = Subject(trajectory, path, obstacle, index, bool(extrapolated), extra)
+    return measure_trajectories([subject], arm, settings, reach=reach)[0]
+
+
+def measure_trajectories(
+    subjects: Sequence[Subject],
+    arm: PlanarArm,
+    settings: MeasureSettings | None = None,
+    *,
+    reach: LinkReach | None = None,
+) -> list[CaseResult]:
+    """Measure many trajectories, each against its own obstacle and desired path; results in
+    the order of ``subjects``.
+
+    Each case gets its own clearance certificate and its own execution certificates (both
+    timings); the endpoint errors, the tracking errors and the sampled maxima that check the
+    execution certificates are computed for all the cases at once (vectorised over them: the
+    same numbers as case by case, to rounding).
+
+    Args:
+        subjects: The trajectories and what placed them.
+        arm: The arm (collision geometry, end-effector frame, joint limits).
+        settings: Sampling, certificate and thresholds; default :class:`MeasureSettings`.
+        reach: The links' reach for the certificate (computed from ``arm`` if None).
+    """
     settings = settings or MeasureSettings()
+    if not subjects:
+        return []
     reach = reach or LinkReach.from_arm(arm)
-    n = settings.time_samples or (
-        0 if settings.certify else samples_for_resolution(trajectory, reach, settings.resolution_m)
-    )
-    path_samples = settings.time_samples or max(7, math.ceil(path.length_m / settings.resolution_m) + 1)
-    measurement = Measurement(
-        T_s=float(trajectory.duration_s),
-        parameters=tuple(float(v) for v in trajectory.parameters),
-        clearance=measure_clearance(trajectory, obstacle, arm, reach, n, settings),
-        endpoints=endpoint_errors(trajectory, path, arm),
-        tracking=tracking_errors(trajectory, path, arm, path_samples),
-        joints=joint_check(trajectory, arm, settings.thresholds.acceleration_limits_rad_s2),
-    )
-    verdict = Verdict(failures=tuple(acceptance_failures(measurement, settings.thresholds)))
-    return CaseResult(
-        index=index,
-        L_m=float(obstacle.length_m),
-        W_m=float(obstacle.width_m),
-        extrapolated=bool(extrapolated),
-        measurement=measurement,
-        verdict=verdict,
-        extra=extra,
-    )
+    trajectories = [s.trajectory for s in subjects]
+    paths = [s.path for s in subjects]
+    clearances = [
+        measure_clearance(
+            s.trajectory,
+            s.obstacle,
+            arm,
+            reach,
+            settings.time_samples
+            or (0 if settings.certify else samples_for_resolution(s.trajectory, reach, settings.resolution_m)),
+            settings,
+        )
+        for s in subjects
+    ]
+    path_samples = [settings.time_samples or max(7, math.ceil(p.length_m / settings.resolution_m) + 1) for p in paths]
+    endpoints = endpoint_errors_of(trajectories, paths, arm)
+    tracking = tracking_errors_of(trajectories, paths, arm, path_samples)
+    joints = joint_checks(trajectories, arm, settings.thresholds.acceleration_limits_rad_s2)
+    results = []
+    for s, clearance, endpoint, track, joint in zip(subjects, clearances, endpoints, tracking, joints, strict=True):
+        measurement = Measurement(
+            T_s=float(s.trajectory.duration_s),
+            parameters=tuple(float(v) for v in s.trajectory.parameters),
+            clearance=clearance,
+            endpoints=endpoint,
+            tracking=track,
+            joints=joint,
+        )
+        results.append(
+            CaseResult(
+                index=s.index,
+                L_m=float(s.obstacle.length_m),
+                W_m=float(s.obstacle.width_m),
+                extrapolated=bool(s.extrapolated),
+                measurement=measurement,
+                verdict=Verdict(failures=tuple(acceptance_failures(measurement, settings.thresholds))),
+                extra=s.extra,
+            )
+        )
+    return results
 
 
 def measure_clearance(
@@ -316,13 +398,31 @@ def _certify(
     )
 
 
+def _parameters(trajectories: Sequence[JointTrajectory]) -> np.ndarray:
+    """The trajectories' parameters, (n, 8)."""
+    return np.array([t.parameters for t in trajectories], dtype=float).reshape(-1, 8)
+
+
+def _durations(trajectories: Sequence[JointTrajectory]) -> np.ndarray:
+    """The trajectories' durations T, (n,) [s]."""
+    return np.array([t.duration_s for t in trajectories], dtype=float)
+
+
 def endpoint_errors(trajectory: JointTrajectory, path: QuarticPath, arm: PlanarArm) -> EndpointErrors:
     """End effector (the URDF's frame, through Pinocchio) against P1 at t = 0 and P5 at t = T [m]."""
-    start, end = arm.to_plane(arm.end_effector_positions(trajectory.q(np.array([0.0, trajectory.duration_s]))))
-    return EndpointErrors(
-        start_m=float(np.linalg.norm(start - path.points_m[0])),
-        end_m=float(np.linalg.norm(end - path.points_m[-1])),
-    )
+    return endpoint_errors_of([trajectory], [path], arm)[0]
+
+
+def endpoint_errors_of(
+    trajectories: Sequence[JointTrajectory], paths: Sequence[QuarticPath], arm: PlanarArm
+) -> list[EndpointErrors]:
+    """:func:`endpoint_errors` of many trajectories, their forward kinematics in one Pinocchio pass."""
+    durations = _durations(trajectories)
+    q = sinusoid_states(_parameters(trajectories), np.column_stack([np.zeros_like(durations), durations]))[0]
+    tips = arm.to_plane(arm.end_effector_positions(q.reshape(-1, 2))).reshape(-1, 2, 2)
+    targets = np.array([(p.points_m[0], p.points_m[-1]) for p in paths], dtype=float)
+    errors = np.linalg.norm(tips - targets, axis=-1)
+    return [EndpointErrors(start_m=float(a), end_m=float(b)) for a, b in errors]
 
 
 def tracking_errors(trajectory: JointTrajectory, path: QuarticPath, arm: PlanarArm, samples: int) -> Tracking:
@@ -331,10 +431,26 @@ def tracking_errors(trajectory: JointTrajectory, path: QuarticPath, arm: PlanarA
     The path points are ``samples`` points uniform in x from P1 to P5, each with its time
     t = S(x) / v (:meth:`QuarticPath.uniform_samples`: one forward arc length, no inversion).
     """
-    times, desired = path.uniform_samples(samples)
-    times = np.clip(times, 0.0, trajectory.duration_s)  # S(x_end) / v is T up to rounding
-    deviation = np.linalg.norm(arm.end_effector_planar(trajectory.q(times)) - desired, axis=-1)
-    return Tracking(max_m=float(np.max(deviation)), rms_m=float(np.sqrt(np.mean(deviation**2))))
+    return tracking_errors_of([trajectory], [path], arm, [samples])[0]
+
+
+def tracking_errors_of(
+    trajectories: Sequence[JointTrajectory], paths: Sequence[QuarticPath], arm: PlanarArm, samples: Sequence[int]
+) -> list[Tracking]:
+    """:func:`tracking_errors` of many trajectories (``samples[k]`` path points for the k-th), the
+    end effector of all their points in one closed-form pass (Eq. 2)."""
+    pieces = [path.uniform_samples(int(m)) for path, m in zip(paths, samples, strict=True)]
+    counts = np.array([times.size for times, _ in pieces])
+    times = np.concatenate(
+        [np.clip(t, 0.0, trajectory.duration_s) for (t, _), trajectory in zip(pieces, trajectories, strict=True)]
+    )  # S(x_end) / v is T up to rounding
+    desired = np.concatenate([points for _, points in pieces])
+    q = sinusoid_states(np.repeat(_parameters(trajectories), counts, axis=0), times[:, None])[0][:, 0]
+    deviation = np.linalg.norm(arm.end_effector_planar(q) - desired, axis=-1)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    peak = np.maximum.reduceat(deviation, starts)
+    rms = np.sqrt(np.add.reduceat(deviation**2, starts) / counts)
+    return [Tracking(max_m=float(a), rms_m=float(b)) for a, b in zip(peak, rms, strict=True)]
 
 
 def joint_check(
@@ -342,71 +458,91 @@ def joint_check(
 ) -> JointCheck:
     """Closed-form joint peaks and ranges against the URDF's limits (and the given acceleration
     limits), the torques: a certified bound over all of [0, T] (paper timing, decided against
-    the URDF's effort limits) checked against the closed-form dynamics at :data:`TORQUE_SAMPLES`
-    instants (a bound below a sampled torque is a failure of the certificate, reported), and the
-    shortest rest-to-rest timing within the same limits (:func:`rest_to_rest_check`)."""
+    the URDF's effort limits) checked against the closed-form dynamics sampled at
+    :data:`verify.acceptance.sampling.PAPER_GRID` (coarse, refined at the peaks: a bound below a
+    sampled torque is a failure of the certificate, reported), and the shortest rest-to-rest
+    timing within the same limits (:func:`rest_to_rest_check`)."""
+    return joint_checks([trajectory], arm, acceleration_limits_rad_s2)[0]
+
+
+def joint_checks(
+    trajectories: Sequence[JointTrajectory], arm: PlanarArm, acceleration_limits_rad_s2: Pair | None = None
+) -> list[JointCheck]:
+    """:func:`joint_check` of many trajectories (the sampled maxima vectorised over them)."""
     from pipeline.model.limits import ArmLimits
     from pipeline.online.execution import dynamics_of
 
-    peak_velocity = _pair(trajectory.peak_velocity_rad_s())
-    peak_acceleration = _pair(trajectory.peak_acceleration_rad_s2())
-    ranges = joint_ranges(trajectory)
+    dynamics, limits = dynamics_of(arm), ArmLimits.from_arm(arm, acceleration_limits_rad_s2)
     velocity_limits = _pair(arm.velocity_limits_rad_s)
     position_limits = (_pair(arm.position_limits_rad[0]), _pair(arm.position_limits_rad[1]))
-    dynamics, limits = dynamics_of(arm), ArmLimits.from_arm(arm, acceleration_limits_rad_s2)
-    try:
-        rest_to_rest, rest_to_rest_error = rest_to_rest_check(trajectory, arm, dynamics, limits), None
-    except InvalidParameterError as exc:  # a limit binds at rest
-        rest_to_rest, rest_to_rest_error = None, f"no rest-to-rest timing keeps the limits ({exc})"
-    return JointCheck(
-        peak_velocity_rad_s=peak_velocity,
-        peak_acceleration_rad_s2=peak_acceleration,
-        range_rad=ranges,
-        velocity_limits_rad_s=velocity_limits,
-        position_limits_rad=position_limits,
-        acceleration_limits_rad_s2=acceleration_limits_rad_s2,
-        within_velocity_limits=all(p <= v for p, v in zip(peak_velocity, velocity_limits, strict=True)),
-        within_position_limits=all(
-            lim[0] <= r[0] and r[1] <= lim[1] for r, lim in zip(ranges, position_limits, strict=True)
-        ),
-        within_acceleration_limits=(
-            None
-            if acceleration_limits_rad_s2 is None
-            else all(p <= a for p, a in zip(peak_acceleration, acceleration_limits_rad_s2, strict=True))
-        ),
-        **_torque_check(trajectory, dynamics, limits),
-        rest_to_rest=rest_to_rest,
-        rest_to_rest_error=rest_to_rest_error,
-    )
+    torques = _torque_checks(trajectories, dynamics, limits)
+    rests = _rest_to_rest_checks(trajectories, arm, dynamics, limits)
+    checks = []
+    for trajectory, torque, (rest_to_rest, error) in zip(trajectories, torques, rests, strict=True):
+        peak_velocity = _pair(trajectory.peak_velocity_rad_s())
+        peak_acceleration = _pair(trajectory.peak_acceleration_rad_s2())
+        ranges = joint_ranges(trajectory)
+        checks.append(
+            JointCheck(
+                peak_velocity_rad_s=peak_velocity,
+                peak_acceleration_rad_s2=peak_acceleration,
+                range_rad=ranges,
+                velocity_limits_rad_s=velocity_limits,
+                position_limits_rad=position_limits,
+                acceleration_limits_rad_s2=acceleration_limits_rad_s2,
+                within_velocity_limits=all(p <= v for p, v in zip(peak_velocity, velocity_limits, strict=True)),
+                within_position_limits=all(
+                    lim[0] <= r[0] and r[1] <= lim[1] for r, lim in zip(ranges, position_limits, strict=True)
+                ),
+                within_acceleration_limits=(
+                    None
+                    if acceleration_limits_rad_s2 is None
+                    else all(p <= a for p, a in zip(peak_acceleration, acceleration_limits_rad_s2, strict=True))
+                ),
+                **torque,
+                rest_to_rest=rest_to_rest,
+                rest_to_rest_error=None if error is None else f"no rest-to-rest timing keeps the limits ({error})",
+            )
+        )
+    return checks
 
 
-#: Instants of the sweep's dense torque check.
-TORQUE_SAMPLES = 2001
-#: Instants of the rest-to-rest timing's sampled maxima: (per ramp, in the middle), each piece
-#: sampled uniformly. The peaks of |ddq| and |tau| lie in the ramps, which with the shipped arm's
-#: limits last a few hundredths of a second of a T' of seconds: 41 instants per ramp resolve them
-#: better than 2001 uniform instants over [0, T'] (about 15 per ramp) at under half the cost. The
-#: middle is the paper's sinusoids slowed by c, whose peaks 321 instants give to about 1e-5.
-REST_TO_REST_SAMPLES: tuple[int, int] = (41, 321)
+def paper_torque_maxima(trajectories: Sequence[JointTrajectory], dynamics: PlanarDynamics) -> np.ndarray:
+    """Largest |tau_i| (n, 2) [N m] of the paper timing by the closed-form dynamics, sampled
+    coarse and refined at the peaks (:data:`verify.acceptance.sampling.PAPER_GRID`)."""
+    parameters = _parameters(trajectories)
+
+    def evaluate(t: np.ndarray) -> np.ndarray:
+        return np.abs(dynamics.torque(*sinusoid_states(parameters, t)))
+
+    coarse, fine = PAPER_GRID
+    return refined_maxima(evaluate, uniform_grid(_durations(trajectories), coarse), fine)[0]
 
 
-def _torque_check(trajectory: JointTrajectory, dynamics: PlanarDynamics, limits: ArmLimits) -> dict:
+def _torque_checks(
+    trajectories: Sequence[JointTrajectory], dynamics: PlanarDynamics, limits: ArmLimits
+) -> list[dict[str, Any]]:
     from pipeline.model.limits import ArmLimits
     from pipeline.motion.execution_certificate import certify_execution
     from pipeline.motion.timed_trajectory import TimedTrajectory
     from pipeline.motion.timing import PAPER_TIMING
 
     effort = _pair(limits.effort_n_m)
-    certificate = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics, ArmLimits(effort_n_m=effort))
-    t = np.linspace(0.0, trajectory.duration_s, TORQUE_SAMPLES)
-    sampled = np.abs(dynamics.torque(trajectory.q(t), trajectory.dq(t), trajectory.ddq(t))).max(0)
-    bound = _pair(certificate.torque_bound_n_m)
-    return {
-        "torque_bound_n_m": bound,
-        "peak_torque_sampled_n_m": _pair(sampled),
-        "effort_limits_n_m": effort,
-        "within_effort_limits": all(b <= e for b, e in zip(bound, effort, strict=True)),
-    }
+    effort_only = ArmLimits(effort_n_m=effort)
+    sampled = paper_torque_maxima(trajectories, dynamics)
+    checks = []
+    for trajectory, peaks in zip(trajectories, sampled, strict=True):
+        certificate = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics, effort_only)
+        bound = _pair(certificate.torque_bound_n_m)
+        checks.append(
+            {
+                "torque_bound_n_m": bound,
+                "peak_torque_sampled_n_m": _pair(peaks),
+                "effort_limits_n_m": effort,
+                "within_effort_limits": all(b <= e for b, e in zip(bound, effort, strict=True)),
+            }
+        )
+    return checks
 
 
 _PINOCCHIO_DATA: weakref.WeakKeyDictionary[PlanarArm, Any] = weakref.WeakKeyDictionary()
@@ -420,13 +556,12 @@ def _pinocchio_data(arm: PlanarArm) -> Any:
     return data
 
 
-def rest_to_rest_instants(timing: RestToRestTiming, samples: tuple[int, int] = REST_TO_REST_SAMPLES) -> np.ndarray:
-    """Sorted distinct instants [s] over [0, T']: ``samples[0]`` uniform over each ramp (the
-    ends included) and ``samples[1]`` uniform over the middle [r, T' - r]."""
+def rest_to_rest_instants(timing: RestToRestTiming, samples: tuple[int, int] = REST_TO_REST_GRID[:2]) -> np.ndarray:
+    """The coarse grid of the rest-to-rest check, sorted distinct instants [s] over [0, T']:
+    ``samples[0]`` uniform over each ramp (the ends included) and ``samples[1]`` uniform over the
+    middle [r, T' - r] (:func:`verify.acceptance.sampling.piecewise_grid`)."""
     ramp, middle = (check_positive_int("samples", n, minimum=2) for n in samples)
-    end, r = timing.duration_s, timing.ramp_s
-    pieces = (np.linspace(0.0, r, ramp), np.linspace(r, end - r, middle), np.linspace(end - r, end, ramp))
-    return np.unique(np.concatenate(pieces))
+    return piecewise_grid(np.array([timing.duration_s]), np.array([timing.ramp_s]), ramp, middle)[0]
 
 
 def rest_to_rest_check(
@@ -434,56 +569,99 @@ def rest_to_rest_check(
     arm: PlanarArm,
     dynamics: PlanarDynamics,
     limits: ArmLimits,
-    samples: tuple[int, int] = REST_TO_REST_SAMPLES,
+    grid: tuple[int, int, int] = REST_TO_REST_GRID,
 ) -> RestToRestCheck:
     """The shortest rest-to-rest timing of ``trajectory``'s path within ``limits``
     (:func:`pipeline.motion.rest_to_rest.shortest_rest_to_rest`), certified over all of [0, T']
     (:func:`pipeline.motion.execution_certificate.certify_execution`, decide mode against
-    ``limits``), with the largest |dq|, |ddq| and |tau| at the instants :func:`rest_to_rest_instants`
-    (torques by the closed-form dynamics; at each joint's peak sample also by Pinocchio's RNEA,
-    the larger kept) and |dq|, |ddq| at both ends.
+    ``limits``), with the largest |dq|, |ddq| and |tau| found on the coarse grid
+    :func:`rest_to_rest_instants` (``grid[:2]``) refined by ``grid[2]`` instants around its
+    highest local maxima (:func:`verify.acceptance.sampling.refined_maxima`; torques by the
+    closed-form dynamics, at each joint's peak also by Pinocchio's RNEA, the larger kept) and
+    |dq|, |ddq| at both ends.
 
     Raises:
         InvalidParameterError: no rest-to-rest timing keeps ``limits`` (one binds at rest).
     """
+    check, error = _rest_to_rest_checks([trajectory], arm, dynamics, limits, grid)[0]
+    if error is not None:
+        raise error
+    return check
+
+
+def _rest_to_rest_checks(
+    trajectories: Sequence[JointTrajectory],
+    arm: PlanarArm,
+    dynamics: PlanarDynamics,
+    limits: ArmLimits,
+    grid: tuple[int, int, int] = REST_TO_REST_GRID,
+) -> list[tuple[RestToRestCheck | None, InvalidParameterError | None]]:
+    """:func:`rest_to_rest_check` of many trajectories, each (check, None) or (None, why there is
+    no rest-to-rest timing); the sampled maxima vectorised over them."""
     import pinocchio as pin
 
     from pipeline.motion.execution_certificate import certify_execution
     from pipeline.motion.rest_to_rest import shortest_rest_to_rest
     from pipeline.motion.timed_trajectory import TimedTrajectory
 
-    timing = shortest_rest_to_rest(trajectory, dynamics, limits)
-    timed = TimedTrajectory(trajectory, timing)
-    certificate = certify_execution(timed, dynamics, limits)
-    instants = rest_to_rest_instants(timing, samples)
-    q, dq, ddq = timed.states(instants)  # both ends included
-    torque = np.abs(dynamics.torque(q, dq, ddq))
-    peak_torque = torque.max(0)
+    out: list[tuple[RestToRestCheck | None, InvalidParameterError | None]] = []
+    timed: list[TimedTrajectory] = []
+    for trajectory in trajectories:
+        try:
+            timed.append(TimedTrajectory(trajectory, shortest_rest_to_rest(trajectory, dynamics, limits)))
+            out.append((None, None))
+        except InvalidParameterError as exc:  # a limit binds at rest
+            out.append((None, exc))
+    if not timed:
+        return out
+    certificates = [certify_execution(t, dynamics, limits) for t in timed]
+    parameters, timings = _parameters([t.trajectory for t in timed]), [t.timing for t in timed]
+    durations = np.array([t.duration_s for t in timed], dtype=float)
+    ramps = np.array([t.timing.ramp_s for t in timed], dtype=float)
+
+    def evaluate(tau: np.ndarray) -> np.ndarray:
+        q, dq, ddq = timed_states(parameters, timings, tau)
+        return np.concatenate([np.abs(dq), np.abs(ddq), np.abs(dynamics.torque(q, dq, ddq))], axis=-1)
+
+    ramp, middle, fine = grid
+    maxima, where, evaluated = refined_maxima(evaluate, piecewise_grid(durations, ramps, ramp, middle), fine)
+    # Both ends, then each joint's torque peak (for RNEA).
+    probe = np.column_stack([np.zeros_like(durations), durations, where[:, 4], where[:, 5]])
+    q, dq, ddq = timed_states(parameters, timings, probe)
     data = _pinocchio_data(arm)
-    for joint in (0, 1):
-        k = int(np.argmax(torque[:, joint]))
-        rnea = pin.rnea(arm.model, data, q[k], dq[k], ddq[k])
-        peak_torque[joint] = max(peak_torque[joint], abs(float(rnea[joint])))
-    ends = [0, -1]
-    return RestToRestCheck(
-        path_duration_s=float(trajectory.duration_s),
-        duration_s=float(timed.duration_s),
-        speed_scale=float(timing.speed_scale),
-        ramp_s=float(timing.ramp_s),
-        speed_bound_rad_s=_pair(certificate.speed_bound_rad_s),
-        acceleration_bound_rad_s2=_pair(certificate.acceleration_bound_rad_s2),
-        torque_bound_n_m=_pair(certificate.torque_bound_n_m),
-        sampled_speed_rad_s=_pair(np.abs(dq).max(0)),
-        sampled_acceleration_rad_s2=_pair(np.abs(ddq).max(0)),
-        sampled_torque_n_m=_pair(peak_torque),
-        samples=int(instants.size),
-        end_speed_rad_s=float(np.abs(dq[ends]).max()),
-        end_acceleration_rad_s2=float(np.abs(ddq[ends]).max()),
-        velocity_limits_rad_s=_pair(limits.velocity_rad_s),
-        acceleration_limits_rad_s2=_pair(limits.acceleration_rad_s2),
-        effort_limits_n_m=_pair(limits.effort_n_m),
-        intervals=int(certificate.intervals),
-    )
+    checks = iter(range(len(timed)))
+    for position, (_, error) in enumerate(out):
+        if error is not None:
+            continue
+        k = next(checks)
+        peak_torque = maxima[k, 4:6].copy()
+        for joint in (0, 1):
+            rnea = pin.rnea(arm.model, data, q[k, 2 + joint], dq[k, 2 + joint], ddq[k, 2 + joint])
+            peak_torque[joint] = max(peak_torque[joint], abs(float(rnea[joint])))
+        timing, certificate = timed[k].timing, certificates[k]
+        out[position] = (
+            RestToRestCheck(
+                path_duration_s=float(timed[k].trajectory.duration_s),
+                duration_s=float(timed[k].duration_s),
+                speed_scale=float(timing.speed_scale),
+                ramp_s=float(timing.ramp_s),
+                speed_bound_rad_s=_pair(certificate.speed_bound_rad_s),
+                acceleration_bound_rad_s2=_pair(certificate.acceleration_bound_rad_s2),
+                torque_bound_n_m=_pair(certificate.torque_bound_n_m),
+                sampled_speed_rad_s=_pair(maxima[k, 0:2]),
+                sampled_acceleration_rad_s2=_pair(maxima[k, 2:4]),
+                sampled_torque_n_m=_pair(peak_torque),
+                samples=int(evaluated),
+                end_speed_rad_s=float(np.abs(dq[k, :2]).max()),
+                end_acceleration_rad_s2=float(np.abs(ddq[k, :2]).max()),
+                velocity_limits_rad_s=_pair(limits.velocity_rad_s),
+                acceleration_limits_rad_s2=_pair(limits.acceleration_rad_s2),
+                effort_limits_n_m=_pair(limits.effort_n_m),
+                intervals=int(certificate.intervals),
+            ),
+            None,
+        )
+    return out
 
 
 def acceptance_failures(measurement: Measurement, thresholds: AcceptanceThresholds) -> list[str]:
@@ -579,27 +757,35 @@ def measure_case(
     ``error`` set; it does not raise. The generator uses the link lengths stored in the
     coefficients; :func:`check_arm_matches` tells whether they are ``arm``'s.
     """
-    values = {name: float(value) for name, value in extra}
-    extra = tuple(values.items())
-    try:
-        generated = generate(coefficients, L_m, W_m, out_of_range="ignore", **values)
-    except PipelineError as exc:
-        return failed_case(
-            index,
-            L_m,
-            W_m,
-            is_extrapolated(coefficients, L_m, W_m, **values),
-            f"{type(exc).__name__}: {exc}",
-            extra,
+    return measure_cases(coefficients, [(index, L_m, W_m, extra)], arm, settings, reach=reach)[0]
+
+
+def measure_cases(
+    coefficients: Coefficients,
+    cases: Sequence[tuple[int, float, float, tuple[tuple[str, float], ...]]],
+    arm: PlanarArm,
+    settings: MeasureSettings | None = None,
+    *,
+    reach: LinkReach | None = None,
+) -> list[CaseResult]:
+    """:func:`measure_case` of every case (index, L [m], W [m], extra), measured together
+    (:func:`measure_trajectories`); results in the order of ``cases``."""
+    results: list[CaseResult | None] = [None] * len(cases)
+    subjects: list[tuple[int, Subject]] = []
+    for position, (index, L_m, W_m, extra) in enumerate(cases):
+        values = {name: float(value) for name, value in extra}
+        named = tuple(values.items())
+        try:
+            generated = generate(coefficients, L_m, W_m, out_of_range="ignore", **values)
+        except PipelineError as exc:
+            extrapolated = is_extrapolated(coefficients, L_m, W_m, **values)
+            results[position] = failed_case(index, L_m, W_m, extrapolated, f"{type(exc).__name__}: {exc}", named)
+            continue
+        subject = Subject(
+            generated.trajectory, generated.path, generated.obstacle, index, bool(generated.extrapolated), named
         )
-    return measure_trajectory(
-        generated.trajectory,
-        generated.path,
-        generated.obstacle,
-        arm,
-        settings,
-        index=index,
-        extrapolated=bool(generated.extrapolated),
-        reach=reach,
-        extra=extra,
-    )
+        subjects.append((position, subject))
+    measured = measure_trajectories([s for _, s in subjects], arm, settings, reach=reach)
+    for (position, _), result in zip(subjects, measured, strict=True):
+        results[position] = result
+    return results  # type: ignore[return-value]

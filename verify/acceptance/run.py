@@ -39,7 +39,7 @@ from pipeline.online.execution import dynamics_of
 from pipeline.validation import check_non_negative, check_positive_int
 
 from .cases import SweepRange, case_study_sizes, sample_cases
-from .metrics import MeasureSettings, check_arm_matches, measure_case
+from .metrics import MeasureSettings, check_arm_matches, measure_case, measure_cases
 from .range_check import RangeCheck, check_range
 from .results import CaseResult
 from .summary import SweepSummary, summarize
@@ -112,6 +112,10 @@ def arm_for_sweep(coefficients: Coefficients, urdf_path: str | Path | None = Non
 
 #: Most cases per chunk of work sent to a worker process (progress is reported per chunk).
 MAX_CHUNK_CASES = 16
+#: Cases measured together (:func:`verify.acceptance.metrics.measure_cases`: their sampled checks
+#: vectorised over them): consecutive blocks of the cases, the same whatever the number of worker
+#: processes (so the results do not depend on it), each one unit of work and of progress.
+MEASURE_BATCH = 16
 
 
 def chunk_size(n_cases: int, jobs: int) -> int:
@@ -121,10 +125,9 @@ def chunk_size(n_cases: int, jobs: int) -> int:
     return max(1, min(MAX_CHUNK_CASES, math.ceil(n_cases / (64 * jobs))))
 
 
-def _measure_in_worker(context: _WorkerContext, case: tuple) -> CaseResult:
+def _measure_in_worker(context: _WorkerContext, batch: list[tuple]) -> list[CaseResult]:
     coefficients, arm, reach = _loaded(context.source, context.sha256, context.urdf_path)
-    index, length, width, extra = case
-    return measure_case(coefficients, length, width, arm, context.settings, index=index, reach=reach, extra=extra)
+    return measure_cases(coefficients, batch, arm, context.settings, reach=reach)
 
 
 def case_columns(coefficients: Coefficients) -> tuple[str, ...]:
@@ -173,25 +176,26 @@ def run_cases(
         (i, float(row[0]), float(row[1]), tuple(zip(extra, (float(v) for v in row[2:]), strict=True)))
         for i, row in enumerate(cases)
     ]
+    batches = [indexed[k : k + MEASURE_BATCH] for k in range(0, len(indexed), MEASURE_BATCH)]
     if jobs == 1:
         reach = LinkReach.from_arm(arm)
 
-        def function(case: tuple) -> CaseResult:
-            index, length, width, values = case
-            return measure_case(coefficients, length, width, arm, settings, index=index, reach=reach, extra=values)
+        def function(batch: list[tuple]) -> list[CaseResult]:
+            return measure_cases(coefficients, batch, arm, settings, reach=reach)
 
     else:
         context = _WorkerContext(source, coefficients.source_sha256, str(arm.urdf_path), settings)
         function = functools.partial(_measure_in_worker, context)
     shown = progress_enabled(progress)
     with tqdm(total=len(indexed), desc=label or "cases", unit="case", file=sys.stderr, disable=not shown) as bar:
-        results = process_map(
+        measured = process_map(
             function,
-            indexed,
+            batches,
             jobs=jobs,
-            chunk_size=chunk_size(len(indexed), jobs),
-            on_done=lambda done: bar.update(len(done)),
+            chunk_size=1,
+            on_done=lambda done: bar.update(sum(len(batch) for batch in done)),
         )
+    results = [result for batch in measured for result in batch]
     return tuple(results)
 
 
