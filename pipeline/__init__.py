@@ -32,6 +32,7 @@ from pipeline.exceptions import (
     RegionMapMismatchError,
     RegionMapMismatchWarning,
     SchedulerUnreachableError,
+    TimingRefusedError,
     UnreachableObstacleError,
     WorkerPoolError,
 )
@@ -59,11 +60,15 @@ _LAZY = {
     "PAPER_TIMING": "pipeline.motion.timing",
     "RestToRestTiming": "pipeline.motion.timing",
     "REST_TO_REST": "pipeline.motion.rest_to_rest",
+    "NEAR_OPTIMAL": "pipeline.motion.near_optimal",
+    "NearOptimal": "pipeline.motion.near_optimal",
+    "NearOptimalSettings": "pipeline.motion.near_optimal",
     "ExecutionBatch": "pipeline.online.batch_execution",
     "execution_batch": "pipeline.online.batch_execution",
 }
 
 __all__ = [
+    "NEAR_OPTIMAL",
     "PAPER_TIMING",
     "REST_TO_REST",
     "ArmLimits",
@@ -79,6 +84,8 @@ __all__ = [
     "GeneratedBatch",
     "GeneratedTrajectory",
     "InvalidParameterError",
+    "NearOptimal",
+    "NearOptimalSettings",
     "NoCertifiedTrajectoryError",
     "ObstacleSizeError",
     "OutOfFittedRangeError",
@@ -91,6 +98,7 @@ __all__ = [
     "RepairConfig",
     "RestToRestTiming",
     "SchedulerUnreachableError",
+    "TimingRefusedError",
     "UnreachableObstacleError",
     "WorkerPoolError",
     "certify_batch",

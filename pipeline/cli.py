@@ -34,6 +34,7 @@ __all__ = [
     "HelpFormatter",
     "Parser",
     "add_acceleration_limit_argument",
+    "add_jerk_limit_argument",
     "add_progress_argument",
     "arm_for_cli",
     "check_output_file",
@@ -162,15 +163,25 @@ def load_coefficients_for_cli(source: str | Path) -> Coefficients:
     return load_coefficients(source)
 
 
-def acceleration_limits(text: str) -> float:
-    """argparse type of ``--acceleration-limit``: a positive acceleration limit [rad/s^2]."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--acceleration-limit {text!r} is not a number [rad/s^2]") from None
-    if not value > 0.0:  # NaN too
-        raise argparse.ArgumentTypeError(f"--acceleration-limit {value} must be > 0 [rad/s^2]")
-    return value
+def _finite_positive(flag: str, unit: str):
+    """An argparse type for ``flag``: a finite value > 0 [``unit``] (zero, negative, NaN and inf refused)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{flag} {text!r} is not a number [{unit}]") from None
+        if not 0.0 < value < math.inf:  # NaN too
+            raise argparse.ArgumentTypeError(f"{flag} {value} must be > 0 and finite [{unit}]")
+        return value
+
+    return parse
+
+
+#: argparse type of ``--acceleration-limit``: a finite acceleration limit > 0 [rad/s^2].
+acceleration_limits = _finite_positive("--acceleration-limit", "rad/s^2")
+#: argparse type of ``--jerk-limit``: a finite jerk limit > 0 [rad/s^3].
+jerk_limits = _finite_positive("--jerk-limit", "rad/s^3")
 
 
 def add_acceleration_limit_argument(parser: argparse.ArgumentParser, use: str) -> None:
@@ -182,6 +193,18 @@ def add_acceleration_limit_argument(parser: argparse.ArgumentParser, use: str) -
         default=None,
         metavar=("A1", "A2"),
         help=f"the arm's joint acceleration limits [rad/s^2] (URDF carries none): {use}",
+    )
+
+
+def add_jerk_limit_argument(parser: argparse.ArgumentParser, use: str) -> None:
+    """``--jerk-limit J1 J2`` [rad/s^3] (URDF carries none); ``use`` says what the command does with it."""
+    parser.add_argument(
+        "--jerk-limit",
+        nargs=2,
+        type=jerk_limits,
+        default=None,
+        metavar=("J1", "J2"),
+        help=f"the arm's joint jerk limits [rad/s^3] (URDF carries none): {use}",
     )
 
 

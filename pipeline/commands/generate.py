@@ -13,26 +13,39 @@ take their values by flag: ``--x`` the obstacle's centre x [m] (``Scene.centre_x
 far edge y [m] (``Scene.top_y_m``). A variable the coefficients vary without its flag, or a flag
 for one they do not vary, is refused in one line (exit 2) before any work.
 
-``--timing rest-to-rest`` (the default of this command) executes the same path starting and
-ending at rest, in the shortest duration T' within the arm's limits: what a controller should be
-given, since the paper's timing (``--timing paper``, the default of :func:`pipeline.generate`)
-starts and ends at the path's full speed, a velocity step for an arm at rest. With ``--out FILE`` it writes the
-trajectory sampled at ``--rate`` (t = 0, 1/rate, 2/rate, ... and T itself as the last sample), in
-the format the suffix names:
+``--timing near-optimal`` (the default of this command) executes the same path starting and
+ending at rest, as fast as the arm's limits allow along it, with continuous accelerations and
+bounded jerk, certified over all of [0, T'] (:mod:`pipeline.motion.near_optimal`): what a
+controller should be given. The URDF gives no acceleration or jerk limit; where none is given
+(``--acceleration-limit``, ``--jerk-limit``, or the build's recorded acceleration limit) the servo
+defaults are used (:meth:`pipeline.model.limits.ArmLimits.with_servo_defaults`: 10 rad/s^2, and
+the acceleration limit / 50 ms), printed, and written into the file. ``--timing rest-to-rest``
+scales the paper's speed with smooth ramps at the ends; ``--timing paper`` (the default of
+:func:`pipeline.generate`) starts and ends at the path's full speed, a velocity step for an arm
+at rest. With ``--out FILE`` it writes the trajectory sampled at ``--rate`` (t = 0, 1/rate,
+2/rate, ... and T' itself as the last sample), in the format the suffix names:
 
-* ``.csv``: one row per sample, columns ``t_s, q1_rad, q2_rad, dq1_rad_s, dq2_rad_s,
-  ddq1_rad_s2, ddq2_rad_s2`` (units in the names);
+* ``.csv``: the header ``t_s, q1_rad, q2_rad, dq1_rad_s, dq2_rad_s, ddq1_rad_s2, ddq2_rad_s2,
+  tau1_n_m, tau2_n_m`` (units in the names), ``#`` comment lines with the timing and the limits it
+  keeps, then one row per sample (``numpy.loadtxt(f, delimiter=",", skiprows=1)``,
+  ``numpy.genfromtxt(f, delimiter=",", names=True)`` and ``pandas.read_csv(f, comment="#")`` skip
+  the comments);
 * ``.npz``: arrays ``t_s`` (n,), ``q_rad``, ``dq_rad_s``, ``ddq_rad_s2``, ``tau_n_m`` (n, 2),
   ``parameters`` (8,) with ``parameter_names``, ``duration_s``, ``path_duration_s``, ``timing``,
-  ``joint_names``, and the obstacle's scene variables ``variables_m`` (k,) [m] with
-  ``variable_names`` (``L``, ``W``, then ``x`` and ``d`` when the coefficients vary them);
+  ``joint_names``, the obstacle's scene variables ``variables_m`` (k,) [m] with
+  ``variable_names`` (``L``, ``W``, then ``x`` and ``d`` when the coefficients vary them), and
+  the limits ``velocity_limits_rad_s``, ``acceleration_limits_rad_s2``, ``effort_limits_n_m``,
+  ``jerk_limits_rad_s3`` (2,) (inf: none);
 * ``.json``: a ROS ``trajectory_msgs/JointTrajectory`` (``header``, ``joint_names`` from the URDF,
-  ``points`` with ``positions`` [rad], ``velocities`` [rad/s], ``accelerations`` [rad/s^2] and
-  ``time_from_start`` as ``{"sec", "nanosec"}``).
+  ``points`` with ``positions`` [rad], ``velocities`` [rad/s], ``accelerations`` [rad/s^2],
+  ``effort`` [N m] and ``time_from_start`` as ``{"sec", "nanosec"}``), and beside the message's
+  fields a ``metadata`` object with the timing and the limits (not a message field: a ROS
+  consumer drops it).
 
 The file is written atomically (a temporary file in the same folder, then a rename), only after
 everything else succeeded. Exit status: 0 done; 1 certification refused (the reason on stderr, no
-file written); 2 bad input (one line on stderr, no file written); 130 interrupted.
+file written), or no timing of the chosen kind keeps the limits; 2 bad input (one line on stderr,
+no file written); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -45,6 +58,7 @@ import sys
 import time
 import warnings
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +69,7 @@ from pipeline.cli import (
     EXIT_OK,
     Parser,
     add_acceleration_limit_argument,
+    add_jerk_limit_argument,
     arm_for_cli,
     check_output_file,
     describe_coefficients,
@@ -65,7 +80,8 @@ from pipeline.exceptions import ExecutionRefusedError, InvalidParameterError, No
 from pipeline.io.jsonio import dumps, write_bytes_atomic
 from pipeline.model.arm import PlanarArm
 from pipeline.model.dynamics import rnea_torques
-from pipeline.model.limits import ArmLimits
+from pipeline.model.limits import DEFAULT_ACCELERATION_RAD_S2, SHORTEST_ACCELERATION_RISE_S, ArmLimits
+from pipeline.motion.near_optimal import NEAR_OPTIMAL, NearOptimal
 from pipeline.motion.rest_to_rest import REST_TO_REST
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.timing import PAPER_TIMING
@@ -97,7 +113,7 @@ CSV_COLUMNS = (
     "tau2_n_m",
 )
 #: The timings of ``--timing``.
-TIMINGS = {"rest-to-rest": REST_TO_REST, "paper": PAPER_TIMING}
+TIMINGS = {"near-optimal": NEAR_OPTIMAL, "rest-to-rest": REST_TO_REST, "paper": PAPER_TIMING}
 #: The scene variables beyond (L, W) this command takes: name -> (flag, meaning).
 SCENE_VARIABLE_FLAGS = {
     "x": ("--x", "the obstacle's centre x"),
@@ -126,6 +142,26 @@ def joint_names(arm: PlanarArm | None) -> list[str]:
     if arm is None:
         return ["joint1", "joint2"]
     return [str(arm.model.names[1]), str(arm.model.names[2])]
+
+
+def export_metadata(executed, limits: ArmLimits | None) -> dict:
+    """What every written file records beside the samples: the timing, T', T and the limits the
+    motion keeps [rad/s, rad/s^2, N m, rad/s^3] (None: none, or no arm loaded)."""
+
+    def pair(name: str) -> list[float | None] | None:
+        if limits is None:
+            return None
+        return [float(v) if math.isfinite(v) else None for v in getattr(limits, name)]
+
+    return {
+        "timing": executed.timing.name,
+        "duration_s": float(executed.duration_s),
+        "path_duration_s": float(executed.trajectory.duration_s),
+        "velocity_limits_rad_s": pair("velocity_rad_s"),
+        "acceleration_limits_rad_s2": pair("acceleration_rad_s2"),
+        "effort_limits_n_m": pair("effort_n_m"),
+        "jerk_limits_rad_s3": pair("jerk_rad_s3"),
+    }
 
 
 def trajectory_document(samples: dict, names: Sequence[str], ros1: bool = False) -> dict:
@@ -163,12 +199,15 @@ def encode(
     names: Sequence[str],
     ros1: bool = False,
     variables: Mapping[str, float] | None = None,
+    limits: ArmLimits | None = None,
 ) -> bytes:
     """The file's bytes in the format of ``path``'s suffix; the NPZ records ``variables``, the
-    obstacle's scene variables (name -> value [m]: L, W and those of ``--x``, ``--d``)."""
+    obstacle's scene variables (name -> value [m]: L, W and those of ``--x``, ``--d``); every
+    format records :func:`export_metadata` (the timing and ``limits``)."""
     suffix = path.suffix.lower()
+    metadata = export_metadata(executed, limits)
     if suffix == ".json":
-        return dumps(trajectory_document(samples, names, ros1)).encode("utf-8")
+        return dumps({**trajectory_document(samples, names, ros1), "metadata": metadata}).encode("utf-8")
     times, q, dq, ddq, tau = (samples[k] for k in ("t", "q", "dq", "ddq", "tau"))
     if suffix == ".npz":
         buffer = io.BytesIO()
@@ -187,11 +226,19 @@ def encode(
             joint_names=np.array(list(names)),
             variables_m=np.array([float(v) for v in (variables or {}).values()]),
             variable_names=np.array(list(variables or {}), dtype=str),
+            **{
+                key: np.array([np.inf if v is None else v for v in value], dtype=float)
+                for key, value in metadata.items()
+                if "_limits_" in key and value is not None
+            },
         )
         return buffer.getvalue()
     text = io.StringIO()
     writer = csv.writer(text, lineterminator="\n")
     writer.writerow(CSV_COLUMNS)
+    for key, value in metadata.items():
+        shown = value if not isinstance(value, list) else " ".join("none" if v is None else repr(v) for v in value)
+        text.write(f"# {key}: {shown}\n")
     for row in np.column_stack([times, q, dq, ddq, tau]):
         writer.writerow([repr(float(v)) for v in row])
     return text.getvalue().encode("utf-8")
@@ -250,13 +297,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--timing",
         choices=tuple(TIMINGS),
-        default="rest-to-rest",
-        help="timing of the printed and written trajectory: rest-to-rest (starts and ends at rest, the shortest "
-        "duration T' within the arm's limits: what a controller should get) or paper (the path's full speed from "
+        default="near-optimal",
+        help="timing of the printed and written trajectory: near-optimal (at rest at both ends, as fast as the "
+        "limits allow along the path, continuous accelerations, certified: what a controller should get), "
+        "rest-to-rest (the paper's speed scaled, smooth ramps at the ends) or paper (the path's full speed from "
         "t = 0, the generator's own timing)",
     )
     add_acceleration_limit_argument(
-        p, "default: those recorded with the coefficients by python -m pipeline.build --acceleration-limit, else none"
+        p,
+        "default: those recorded with the coefficients by python -m pipeline.build --acceleration-limit, else none; "
+        f"the near-optimal timing then uses {DEFAULT_ACCELERATION_RAD_S2:g} rad/s^2",
+    )
+    add_jerk_limit_argument(
+        p,
+        "default: none; the near-optimal timing then uses the acceleration limit / "
+        f"{SHORTEST_ACCELERATION_RISE_S:g} s (the acceleration rises from zero to its limit in at least "
+        f"{1e3 * SHORTEST_ACCELERATION_RISE_S:g} ms)",
     )
     p.add_argument("--ros1", action="store_true", help="ROS 1 field names in the .json (secs/nsecs, header seq)")
     p.add_argument(
@@ -352,41 +408,69 @@ def _execution_lines(certified) -> list[str]:
     def pair(values, limit, unit: str) -> str:
         return ", ".join(f"{v:.4f} (limit {lim:g}) {unit}" for v, lim in zip(values, limit, strict=True))
 
+    measured, bounds = execution.endpoint_errors_m, execution.endpoint_error_bounds_m
     return [
-        f"executes: endpoint errors <= {1e3 * execution.endpoint_errors_m[0]:.3f} mm at P1, "
-        f"{1e3 * execution.endpoint_errors_m[1]:.3f} mm at P5 "
-        f"(tolerance {1e3 * execution.endpoint_tolerance_m:.3f} mm)",
+        f"executes: endpoint errors {1e3 * measured[0]:.3f} mm at P1, {1e3 * measured[1]:.3f} mm at P5 "
+        f"(bounds {1e3 * bounds[0]:.3f}, {1e3 * bounds[1]:.3f} mm <= tolerance "
+        f"{1e3 * execution.endpoint_tolerance_m:.3f} mm)",
         f"  {certificate.timing_name} timing, T' = {certificate.duration_s:.6f} s; over all of [0, T']: "
         f"q1 in [{lo1:.4f}, {hi1:.4f}] rad, q2 in [{lo2:.4f}, {hi2:.4f}] rad",
         f"  |dq| <= {pair(certificate.speed_bound_rad_s, limits.velocity_rad_s, 'rad/s')}",
         f"  |ddq| <= {pair(certificate.acceleration_bound_rad_s2, limits.acceleration_rad_s2, 'rad/s^2')}",
         f"  |tau| <= {pair(certificate.torque_bound_n_m, limits.effort_n_m, 'N m')} (RNEA, no gravity: vertical axes)",
+        f"  |jerk| <= {pair(certificate.jerk_bound_rad_s3, limits.jerk_rad_s3, 'rad/s^3')}",
     ]
+
+
+def _limits(args: argparse.Namespace, arm: PlanarArm | None, coefficients: Coefficients, timing):
+    """The limits the motion is held to (None without an arm), and where each kind comes from."""
+    if arm is None:
+        return None, {}
+    if args.acceleration_limit is None:
+        limits = ArmLimits.recorded(arm, coefficients.provenance)
+        recorded = math.isfinite(limits.acceleration_rad_s2[0])
+        sources = {"acceleration": "recorded by the build" if recorded else "none given"}
+    else:
+        limits = ArmLimits.from_arm(arm, tuple(args.acceleration_limit))
+        sources = {"acceleration": "--acceleration-limit"}
+    sources.update(speed="URDF", effort="URDF", jerk="none given")
+    if args.jerk_limit is not None:
+        limits = replace(limits, jerk_rad_s3=tuple(args.jerk_limit))
+        sources["jerk"] = "--jerk-limit"
+    if isinstance(timing, NearOptimal):
+        for kind in ("acceleration", "jerk"):
+            if sources[kind] == "none given":
+                sources[kind] = "servo default"
+        limits = limits.with_servo_defaults()
+    return limits, sources
+
+
+def _limits_line(limits: ArmLimits, sources: dict[str, str]) -> str:
+    """The limits in one line, each with where it comes from."""
+    parts = []
+    for kind, values, unit in (
+        ("speed", limits.velocity_rad_s, "rad/s"),
+        ("acceleration", limits.acceleration_rad_s2, "rad/s^2"),
+        ("jerk", limits.jerk_rad_s3, "rad/s^3"),
+        ("effort", limits.effort_n_m, "N m"),
+    ):
+        shown = "none" if math.isinf(values[0]) and math.isinf(values[1]) else f"{values[0]:g}, {values[1]:g} {unit}"
+        parts.append(f"{kind} {shown} ({sources[kind]})")
+    return "limits: " + "; ".join(parts)
 
 
 def work(args: argparse.Namespace) -> int:
     """Generate (and certify), print, write; see the module docstring for the exit status."""
     out = _check_inputs(args)
-    if args.acceleration_limit is not None:
-        limits_of_acceleration = tuple(args.acceleration_limit)
-        if not all(math.isfinite(a) and a > 0.0 for a in limits_of_acceleration) and not all(
-            a == math.inf for a in limits_of_acceleration
-        ):
-            raise InvalidParameterError(
-                "--acceleration-limit", args.acceleration_limit, "two positive limits [rad/s^2]"
-            )
     coefficients = load_coefficients_for_cli(args.coefficients)
     values = scene_variables(coefficients, args)
     print(describe_coefficients(coefficients))
     timing = TIMINGS[args.timing]
-    needs_arm = args.certify or args.urdf is not None or out is not None or timing is REST_TO_REST
+    needs_arm = args.certify or args.urdf is not None or out is not None or timing is not PAPER_TIMING
     arm = arm_for_cli(coefficients, args.urdf) if needs_arm else None
-    if arm is None:
-        limits = None
-    elif args.acceleration_limit is None:
-        limits = ArmLimits.recorded(arm, coefficients.provenance)
-    else:
-        limits = ArmLimits.from_arm(arm, args.acceleration_limit)
+    limits, sources = _limits(args, arm, coefficients, timing)
+    if limits is not None:
+        print(_limits_line(limits, sources))
     started = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -417,7 +501,11 @@ def work(args: argparse.Namespace) -> int:
         trajectory = certified.trajectory
         executed = certified.executed
     elif arm is not None:
-        executed = retime(generated, arm, limits, timing)
+        try:
+            executed = retime(generated, arm, limits, timing)
+        except ExecutionRefusedError as exc:
+            print(f"{PROG}: timing refused: {exc}", file=sys.stderr)
+            return EXIT_FAILED
     else:
         executed = TimedTrajectory(trajectory, PAPER_TIMING)
     elapsed = time.perf_counter() - started
@@ -461,7 +549,8 @@ def work(args: argparse.Namespace) -> int:
         samples = sample(executed, arm, args.rate)
         try:
             variables = {"L": generated.length_m, "W": generated.width_m, **values}
-            write_bytes_atomic(out, encode(out, executed, samples, joint_names(arm), args.ros1, variables))
+            document = encode(out, executed, samples, joint_names(arm), args.ros1, variables, limits)
+            write_bytes_atomic(out, document)
         except OSError as exc:
             raise InvalidParameterError("--out", str(out), f"a writable file ({exc.strerror})") from None
         print(f"wrote {out} ({samples['t'].size} samples at {args.rate:g} Hz, the last at T')")

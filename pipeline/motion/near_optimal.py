@@ -45,6 +45,9 @@ from pipeline.motion.speed_profile import fastest_profile
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.trajectory import JointTrajectory
 
+#: Rounds of sizing the ramps for the steps of one sign they overlap.
+_WINDOW_ROUNDS = 3
+
 __all__ = ["NEAR_OPTIMAL", "NearOptimal", "NearOptimalSettings", "NearOptimalTiming", "near_optimal_timing"]
 
 
@@ -57,12 +60,15 @@ class NearOptimalSettings:
         limit_share: Share of each speed, acceleration and effort limit the profile is built on, in (0, 1].
         jerk_share: Share of each jerk limit the ramps are sized for, in (0, 1].
         tries: Attempts before the timing is refused (>= 1).
+        longest_duration_s: A timing that needs longer than this [s] is refused: a limit far below
+            what the path needs (a jerk limit of 1e-6 rad/s^3 makes the motion last years).
     """
 
     pieces: int = 200
     limit_share: float = 0.99
     jerk_share: float = 0.9
     tries: int = 8
+    longest_duration_s: float = 3600.0
 
     def __post_init__(self) -> None:
         if not (isinstance(self.pieces, int) and not isinstance(self.pieces, bool) and self.pieces >= 2):
@@ -73,6 +79,8 @@ class NearOptimalSettings:
                 raise InvalidParameterError(name, value, "a share in (0, 1]")
         if not (isinstance(self.tries, int) and not isinstance(self.tries, bool) and self.tries >= 1):
             raise InvalidParameterError("tries", self.tries, "an integer >= 1")
+        if not (isinstance(self.longest_duration_s, int | float) and 0.0 < self.longest_duration_s < math.inf):
+            raise InvalidParameterError("longest_duration_s", self.longest_duration_s, "a finite duration > 0 [s]")
 
 
 @dataclass(frozen=True)
@@ -115,7 +123,7 @@ def _check_jerk(limits: ArmLimits) -> None:
         )
 
 
-def _windows(enclosures: PathEnclosures, x, u, steps, limits: ArmLimits, jerk_share: float) -> np.ndarray:
+def _windows(enclosures: PathEnclosures, x, u, times, steps, limits: ArmLimits, jerk_share: float) -> np.ndarray:
     """The ramps' widths delta_k [s] at the n + 1 steps (module docstring, step 3)."""
     speed = magnitude(enclosures.d1)  # (n, 2)
     at_knot = np.maximum(np.vstack([speed[:1], speed]), np.vstack([speed, speed[-1:]]))
@@ -127,8 +135,17 @@ def _windows(enclosures: PathEnclosures, x, u, steps, limits: ArmLimits, jerk_sh
     root = np.sqrt(x)[:, None]
     background = third * root**3 + 3.0 * second * root * u_near[:, None]
     allowed = jerk_share * np.asarray(limits.jerk_rad_s3)
-    room = np.maximum(allowed - background, 0.25 * allowed)
-    return np.max(at_knot * np.abs(steps)[:, None] / room, axis=1)
+    gain = np.max(at_knot / np.maximum(allowed - background, 0.25 * allowed), axis=1)  # [s] per unit of du
+    # Ramps of steps of one sign that overlap add their slopes: a cluster of them gets one width,
+    # sized for the cluster's sum (a few rounds: a wider window takes in more steps).
+    size = np.abs(steps)
+    same_sign = np.sign(steps)[:, None] == np.sign(steps)[None, :]
+    apart = np.abs(times[:, None] - times[None, :])
+    windows = gain * size
+    for _ in range(_WINDOW_ROUNDS):
+        cover = same_sign & (2.0 * apart < windows[:, None] + windows[None, :])
+        windows = np.maximum(gain * (cover * size[:, None]).sum(0), np.where(cover, windows[:, None], 0.0).max(0))
+    return windows
 
 
 def _smooth_timing(trajectory, enclosures, x, u, limits, jerk_share, widen) -> SmoothTiming:
@@ -138,7 +155,7 @@ def _smooth_timing(trajectory, enclosures, x, u, limits, jerk_share, widen) -> S
     durations = 2.0 * ds / (rates[:-1] + rates[1:])
     times = np.concatenate([[0.0], np.cumsum(durations)])
     steps = np.diff(np.concatenate([[0.0], u, [0.0]]))
-    windows = widen * _windows(enclosures, x, u, steps, limits, jerk_share)
+    windows = widen * _windows(enclosures, x, u, times, steps, limits, jerk_share)
     keep = np.abs(steps) > 0.0
     windows = np.maximum(windows, 1e-6)
     timing, _ = smoothed(times[keep], steps[keep], windows[keep], trajectory.duration_s)
@@ -182,6 +199,13 @@ def near_optimal_timing(
         if not np.all(x[1:-1] > 0.0):
             raise TimingRefusedError(("the limits leave the path no speed: a limit binds at rest",))
         timing = _smooth_timing(trajectory, enclosures, x, u, limits, settings.jerk_share, widen)
+        if timing.duration_s > settings.longest_duration_s:
+            raise TimingRefusedError(
+                (
+                    f"the limits need T' = {timing.duration_s:.4g} s, longer than {settings.longest_duration_s:g} s: "
+                    "a limit far below what the path needs",
+                )
+            )
         executed = TimedTrajectory(trajectory, timing)
         certificate = certify_execution(executed, dynamics, limits)
         found = certificate.violations(limits)

@@ -35,6 +35,9 @@ from pipeline.motion.timing import Timing
 
 __all__ = ["SmoothTiming", "smoothed"]
 
+#: sigma' down to this fraction of its largest value below 0 is rounding, not a reversal.
+_SPEED_ROUNDING = 1e-12
+
 
 @dataclass(frozen=True, eq=False)
 class SmoothTiming(Timing):
@@ -144,6 +147,14 @@ class SmoothTiming(Timing):
                 out[q][row] = values.min() if q % 2 == 0 else values.max()
         return tuple(out)
 
+    def lowest_speed(self) -> float:
+        """The least sigma' over the whole timing (exact: each segment's ends and vertex) [1]."""
+        return float(self.ranges(self.breakpoints_s[:-1], self.breakpoints_s[1:])[2].min())
+
+    def highest_speed(self) -> float:
+        """The largest sigma' over the whole timing [1]."""
+        return float(self.ranges(self.breakpoints_s[:-1], self.breakpoints_s[1:])[3].max())
+
     def jerk_ranges(self, lo_s, hi_s):
         """sigma''' (lo, hi) over each [lo, hi]."""
         return self.ranges_with_jerk(lo_s, hi_s)[6:]
@@ -155,6 +166,12 @@ def smoothed(
     """The timing whose sigma'' ramps through every step of a piecewise constant path
     acceleration (module docstring).
 
+    sigma must not decrease (the motion would go back along the path). Ramps of opposite signs
+    that overlap where the path speed is low could make sigma' negative; then every ramp is given
+    the widest width: with one width for all, sigma'' is the unsmoothed sigma'' averaged over a
+    sliding window (a box convolution), so sigma' is the unsmoothed one averaged, never negative,
+    and sigma ends at T exactly (factor 1).
+
     Args:
         step_times_s: (n + 1,) the times tau_k of the steps of the unsmoothed profile [s], from 0.
         steps: (n + 1,) du_k, the steps of sigma'' there [1/s] (their sum is 0).
@@ -164,6 +181,15 @@ def smoothed(
     Returns:
         (the timing, the factor sigma was scaled by to end at T).
     """
+    timing, factor = _superposed(step_times_s, steps, windows_s, path_duration_s)
+    if timing.lowest_speed() < -_SPEED_ROUNDING * timing.highest_speed():
+        widest = np.full_like(np.asarray(windows_s, dtype=float), float(np.max(windows_s)))
+        timing, factor = _superposed(step_times_s, steps, widest, path_duration_s)
+    return timing, factor
+
+
+def _superposed(step_times_s, steps, windows_s, path_duration_s) -> tuple[SmoothTiming, float]:
+    """:func:`smoothed`'s ramps, superposed and integrated (module docstring)."""
     times = np.asarray(step_times_s, dtype=float) + 0.5 * float(windows_s[0])
     half = 0.5 * np.asarray(windows_s, dtype=float)
     slope = np.asarray(steps, dtype=float) / np.asarray(windows_s, dtype=float)

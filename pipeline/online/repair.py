@@ -43,6 +43,7 @@ from pipeline.geometry.motion_certificate import DEFAULT_TOLERANCE_M, Certificat
 from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.arm import PlanarArm
 from pipeline.model.limits import ArmLimits
+from pipeline.motion.near_optimal import NearOptimal
 from pipeline.motion.rest_to_rest import ShortestRestToRest
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.timing import PAPER_TIMING, PaperTiming
@@ -50,7 +51,7 @@ from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.fitness import FitnessConfig, FitnessProblem, fitness_problem
 from pipeline.online.arm_check import arm_for, check_arm_matches
-from pipeline.online.execution import Execution, certify_answer_execution, dynamics_of, execution_from_map
+from pipeline.online.execution import Execution, certify_answer_execution, execution_from_map
 from pipeline.online.generator import ATTACHED, GeneratedTrajectory, _Attached, generate
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
@@ -136,8 +137,13 @@ class CertifiedTrajectory:
 
     @property
     def endpoint_errors_m(self) -> tuple[float, float]:
-        """Certified bounds on |tip(0) - P1| and |tip(T) - P5| [m]."""
+        """The measured |tip(0) - P1| and |tip(T) - P5| of the answer [m]."""
         return self.execution.endpoint_errors_m
+
+    @property
+    def endpoint_error_bounds_m(self) -> tuple[float, float]:
+        """Proven bounds on |tip(0) - P1| and |tip(T) - P5| [m] (the map's, or the measured ones plus rounding)."""
+        return self.execution.endpoint_error_bounds_m
 
     @property
     def certified_clearance_m(self) -> float:
@@ -265,7 +271,7 @@ def generate_certified(
     out_of_range: str = "warn",
     config: RepairConfig | None = None,
     region_map: RegionMap | _Attached | None = ATTACHED,
-    timing: PaperTiming | ShortestRestToRest = PAPER_TIMING,
+    timing: PaperTiming | ShortestRestToRest | NearOptimal = PAPER_TIMING,
     limits: ArmLimits | None = None,
 ) -> CertifiedTrajectory:
     """Generate, certify and if needed repair the trajectory for the obstacle L x W [m].
@@ -285,10 +291,13 @@ def generate_certified(
             least the margin the answer is returned at once, its bound taken from the map; elsewhere
             the per-query certify-or-repair runs.
         timing: ``PAPER_TIMING`` (default: the paper's constant path speed from t = 0, the
-            generator's own timing) or ``REST_TO_REST`` (the shortest timing within the limits that
-            starts and ends at rest, :mod:`pipeline.motion.timing`).
+            generator's own timing), ``NEAR_OPTIMAL`` (near time-optimal, smooth, at rest at both
+            ends, :mod:`pipeline.motion.near_optimal`: what a controller should get) or
+            ``REST_TO_REST`` (the paper's speed scaled, with smooth ramps, :mod:`pipeline.motion.timing`).
         limits: The limits to certify (default: the arm's URDF limits and the acceleration
-            limits recorded with the coefficients, if the build was given any).
+            limits recorded with the coefficients, if the build was given any; the near-optimal
+            timing fills in the servo defaults for acceleration and jerk where none is given,
+            :meth:`pipeline.model.limits.ArmLimits.with_servo_defaults`).
 
     Raises:
         InvalidParameterError: ``config`` is not a RepairConfig, ``arm`` not a PlanarArm.
@@ -309,8 +318,8 @@ def generate_certified(
         arm = arm_for(coefficients)
     else:
         check_arm_matches(coefficients, arm)
-    if not isinstance(timing, PaperTiming | ShortestRestToRest):
-        raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
+    if not isinstance(timing, PaperTiming | ShortestRestToRest | NearOptimal):
+        raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING, REST_TO_REST or NEAR_OPTIMAL")
     if limits is None:
         limits = _recorded_limits(arm, coefficients)
     elif not isinstance(limits, ArmLimits):
@@ -323,7 +332,7 @@ def generate_certified(
         execution = execution_from_map(
             answer.generated,
             coefficients.region_map if region_map is ATTACHED else region_map,
-            dynamics_of(arm),
+            arm,
             limits,
             tolerance,
             timing,
