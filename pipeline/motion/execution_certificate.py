@@ -2,18 +2,19 @@
 
 For ``q(tau) = theta(sigma(tau))`` (:mod:`pipeline.motion.timing`) it proves rigorous upper bounds,
 over the whole executed interval (continuous time, not samples), on: the joint angles' range,
-|dq_i|, |ddq_i| and the joint torques |tau_i| of the arm's inverse dynamics
-(:class:`pipeline.model.dynamics.PlanarDynamics`, identified from Pinocchio's RNEA).
+|dq_i|, |ddq_i|, the joint jerks |d3q_i/dt3| and the joint torques |tau_i| of the arm's inverse
+dynamics (:class:`pipeline.model.dynamics.PlanarDynamics`, identified from Pinocchio's RNEA).
 
 **Enclosures over a time interval [a, b].**
 
-* sigma is non-decreasing, so sigma([a, b]) = [sigma(a), sigma(b)]; sigma' and sigma'' are
-  piecewise polynomials whose extremes over [a, b] lie at a, b or at the timing's knots
-  (:meth:`pipeline.motion.timing.Timing.ranges`): their ranges are exact.
+* sigma, sigma', sigma'' and sigma''' are piecewise polynomials whose extremes over [a, b] lie at
+  a, b, at the timing's knots or at the critical points of each piece
+  (:meth:`pipeline.motion.timing.Timing.ranges_with_jerk`): their ranges are exact.
 * theta_i = A sin(w s + phi) + gamma over s in [sigma(a), sigma(b)]: the range of sin over the
   phase interval is exact (its ends, and -1 / +1 where the interval holds -pi/2 / pi/2 modulo
   2 pi); likewise theta_i' = A w cos(.) and theta_i'' = -A w^2 sin(.).
-* dq = theta' sigma', ddq = theta'' sigma'^2 + theta' sigma'', and the torques
+* dq = theta' sigma', ddq = theta'' sigma'^2 + theta' sigma'', the jerk
+  theta''' sigma'^3 + 3 theta'' sigma' sigma'' + theta' sigma''' (theta''' = -A w^3 cos(.)), and the torques
   ``tau1 = M11 ddq1 + M12 ddq2 + h (2 dq1 dq2 + dq2^2)``, ``tau2 = M12 ddq1 + M22 ddq2 - h dq1^2``
   with M_ij = m0 + mc cos q2 + ms sin q2 and h = (-mc11 sin q2 + ms11 cos q2) / 2 over the
   range of q2 (exact ranges of cos and sin), all in interval arithmetic: each result encloses
@@ -27,14 +28,16 @@ intervals, so intervals are bisected where the question is open, and only there:
   intervals' ends and midpoints, the exact values of q, dq, ddq and tau) by more than the
   tolerance; the bounds end within the tolerance of the true maxima;
 * **decide** (limits given): where a bound exceeds its limit while no sample does (a sample
-  beyond it proves the violation) and the tolerance allows, starting from the whole of [0, T']
-  as one interval. A coarser question is asked first, in closed form: the exact maxima V_i of
+  beyond it proves the violation) and the tolerance allows, starting from the timing's pieces
+  (one for the paper's and the rest-to-rest timings). A coarser question is asked first, in
+  closed form, for those two timings: the exact maxima V_i of
   |theta_i'| and A_i of |theta_i''| and the exact angle ranges of the sinusoids over [0, T]
   (:meth:`pipeline.motion.trajectory.JointTrajectory.peak_velocity_rad_s` and the like) give, for
   the paper timing, |dq_i| <= V_i and |ddq_i| <= A_i, and for a rest-to-rest timing (sigma' <= c,
   |sigma''| <= 1.5 c / r) |dq_i| <= c V_i and |ddq_i| <= c^2 A_i + 1.5 c V_i / r; the torque
   bound is ``sum_j Mmax_ij max|ddq_j| + Hmax c^2 Q_i`` with the suprema over q2 of |M_ij| and
-  |h| (Q_1 = 2 V_1 V_2 + V_2^2, Q_2 = V_1^2). If these keep every limit, nothing else runs.
+  |h| over the path's exact range of q2 (Q_1 = 2 V_1 V_2 + V_2^2, Q_2 = V_1^2). If these keep
+  every limit, nothing else runs. The jerk's closed-form bound is given at :func:`_closed_form`.
 
 The bound is the largest enclosure over the final partition (rigorous), the sampled maximum a
 value the quantity takes (so the true maximum lies between them).
@@ -268,12 +271,26 @@ def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLi
     jerk = c**3 * third + jerk_ramp
     (lo1, hi1), (lo2, hi2) = trajectory.angle_ranges_rad()
     quadratic = c * c * np.array([2.0 * V[0] * V[1] + V[1] ** 2, V[0] ** 2])
-    torque = dynamics.mass_matrix_sup() @ accel + dynamics.coriolis_sup() * quadratic
+    mass, coriolis = _inertia_sup(dynamics, lo2, hi2)
+    torque = mass @ accel + coriolis * quadratic
     bounds = np.array([hi1, hi2, -lo1, -lo2, *speed, *accel, *torque, *jerk])
     bounds = bounds + FLOAT_SLACK_RELATIVE * np.abs(bounds) + FLOAT_SLACK_ABSOLUTE
     if np.any(bounds > _limit_vector(limits)):
         return None
     return _certificate(timed, bounds, None, 0, limits)
+
+
+def _inertia_sup(dynamics: PlanarDynamics, q2_lo: float, q2_hi: float) -> tuple[np.ndarray, float]:
+    """sup of |M_ij(q2)| (2, 2) and of |h(q2)| over q2 in [q2_lo, q2_hi] (the path's exact range of
+    q2), in interval arithmetic; never above the suprema over all q2."""
+    lo, hi = np.array([q2_lo]), np.array([q2_hi])
+    sin2, cos2 = sin_range(lo, hi), sin_range(lo + np.pi / 2, hi + np.pi / 2)
+    m0, mc, ms = (np.asarray(m) for m in (dynamics.m0, dynamics.mc, dynamics.ms))
+    mass = np.array(
+        [[magnitude(affine_trig(m0[i, j], mc[i, j], ms[i, j], *cos2, *sin2))[0] for j in (0, 1)] for i in (0, 1)]
+    )
+    coriolis = magnitude(affine_trig(0.0, 0.5 * ms[0, 0], -0.5 * mc[0, 0], *cos2, *sin2))[0]
+    return np.minimum(mass, dynamics.mass_matrix_sup()), min(float(coriolis), dynamics.coriolis_sup())
 
 
 def _limit_vector(limits: ArmLimits) -> np.ndarray:

@@ -5,7 +5,8 @@ only the speed along it is chosen, as fast as the limits allow:
 
 1. **Constraints per piece.** The path time [0, T] is cut into n equal pieces; over each, the
    speed, acceleration and torque limits become linear constraints on (sdot^2, sddot) with
-   worst-case coefficients (:mod:`pipeline.motion.path_constraints`), on ``share`` of each limit.
+   worst-case coefficients (:mod:`pipeline.motion.path_constraints`), on a share of each limit
+   (:class:`NearOptimalSettings`: 98 % of the acceleration and effort limits, 99 % of the speed limits).
 2. **Fastest profile.** Reachability passes give the fastest profile with constant path
    acceleration per piece that keeps those constraints over every piece and starts and ends at
    rest (:mod:`pipeline.motion.speed_profile`).
@@ -18,8 +19,8 @@ only the speed along it is chosen, as fast as the limits allow:
 4. **Certified.** The execution certificate (:mod:`pipeline.motion.execution_certificate`)
    bounds the angles, speeds, accelerations, torques and jerks over all of [0, T'] in continuous
    time and decides every limit. If a bound other than the jerk exceeds its limit (the ramps
-   moved the profile off the constraints it was built on), the profile is rebuilt on a share
-   lowered by the bound's excess; if only the jerk does, the ramps are widened by its excess.
+   moved the profile off the constraints it was built on), the profile is rebuilt on the shares
+   lowered by the bounds' excess; if only the jerk does, the ramps are widened by its excess.
    After :attr:`NearOptimalSettings.tries` attempts the timing is refused with the last bounds.
 
 What the user receives is certified; steps 1 to 3 only make it likely to be certified at once and
@@ -57,7 +58,9 @@ class NearOptimalSettings:
 
     Attributes:
         pieces: Pieces of the path (n); more pieces enclose tighter and cost more.
-        limit_share: Share of each speed, acceleration and effort limit the profile is built on, in (0, 1].
+        limit_share: Share of each acceleration and effort limit the profile is built on, in (0, 1].
+        speed_share: Share of each speed limit the profile is built on, in (0, 1] (the ramps
+            move the speeds less than the accelerations and torques: a larger share).
         jerk_share: Share of each jerk limit the ramps are sized for, in (0, 1].
         tries: Attempts before the timing is refused (>= 1).
         longest_duration_s: A timing that needs longer than this [s] is refused: a limit far below
@@ -65,7 +68,8 @@ class NearOptimalSettings:
     """
 
     pieces: int = 200
-    limit_share: float = 0.99
+    limit_share: float = 0.98
+    speed_share: float = 0.99
     jerk_share: float = 0.9
     tries: int = 8
     longest_duration_s: float = 3600.0
@@ -73,7 +77,7 @@ class NearOptimalSettings:
     def __post_init__(self) -> None:
         if not (isinstance(self.pieces, int) and not isinstance(self.pieces, bool) and self.pieces >= 2):
             raise InvalidParameterError("pieces", self.pieces, "an integer >= 2")
-        for name in ("limit_share", "jerk_share"):
+        for name in ("limit_share", "speed_share", "jerk_share"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and 0.0 < value <= 1.0):
                 raise InvalidParameterError(name, value, "a share in (0, 1]")
@@ -106,7 +110,7 @@ class NearOptimalTiming:
     Attributes:
         executed: The path with its timing (``q``, ``dq``, ``ddq``, ``jerk`` at executed times).
         certificate: Its bounds over all of [0, T'], decided against the limits.
-        limit_share: The share of the limits the certified profile was built on.
+        limit_share: The share of the acceleration and effort limits the certified profile was built on.
         attempts: Profiles built until one was certified.
     """
 
@@ -191,10 +195,10 @@ def near_optimal_timing(
     _check_jerk(limits)
     edges = np.linspace(0.0, trajectory.duration_s, settings.pieces + 1)
     enclosures = enclose_path(trajectory.parameters, edges, dynamics)
-    share, widen = settings.limit_share, 1.0
+    share, speed_share, widen = settings.limit_share, settings.speed_share, 1.0
     found: list[LimitViolation] = []
     for attempt in range(1, settings.tries + 1):
-        rows = piece_constraints(enclosures, limits, share)
+        rows = piece_constraints(enclosures, limits, share, speed_share)
         x, u = fastest_profile(rows.cu, rows.cx, rows.rhs, rows.speed_cap, edges[1] - edges[0])
         if not np.all(x[1:-1] > 0.0):
             raise TimingRefusedError(("the limits leave the path no speed: a limit binds at rest",))
@@ -213,9 +217,9 @@ def near_optimal_timing(
             return NearOptimalTiming(executed, certificate, share, attempt)
         if any(v.quantity == "angle" for v in found):
             break
-        other = _excess(found, ("speed", "acceleration", "torque"))
-        if other > 1.0:
-            share *= 0.995 / other
-        else:
+        speed, other = _excess(found, ("speed",)), _excess(found, ("acceleration", "torque"))
+        speed_share *= 0.995 / speed if speed > 1.0 else 1.0
+        share *= 0.995 / other if other > 1.0 else 1.0
+        if max(speed, other) <= 1.0:
             widen *= 1.1 * _excess(found, ("jerk",))
     raise TimingRefusedError(tuple(str(v) for v in found))

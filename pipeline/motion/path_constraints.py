@@ -128,13 +128,16 @@ def _rows(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], li
     return cu, cx, np.full_like(cu, limit)
 
 
-def piece_constraints(enclosures: PathEnclosures, limits: ArmLimits, share: float = 1.0) -> PieceConstraints:
-    """The rows and speed caps of every piece for ``limits`` scaled by ``share`` (0 < share <= 1).
+def piece_constraints(
+    enclosures: PathEnclosures, limits: ArmLimits, share: float = 1.0, speed_share: float | None = None
+) -> PieceConstraints:
+    """The rows and speed caps of every piece for ``limits``, the acceleration and effort limits
+    scaled by ``share`` and the speed limits by ``speed_share`` (default ``share``), each in (0, 1].
 
     Raises:
         InvalidParameterError: no limit bounds the path's speed or acceleration (no fastest timing).
     """
-    velocity = share * np.asarray(limits.velocity_rad_s)
+    velocity = (share if speed_share is None else speed_share) * np.asarray(limits.velocity_rad_s)
     peak = magnitude(enclosures.d1)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(peak > 0.0, velocity / peak, np.inf)
