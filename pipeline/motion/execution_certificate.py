@@ -69,6 +69,7 @@ from pipeline.motion.interval_arithmetic import (
     square,
     widen,
 )
+from pipeline.motion.smooth_timing import SmoothTiming
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.timing import PaperTiming, RestToRestTiming
 
@@ -343,6 +344,8 @@ def certify_execution(
     dynamics: PlanarDynamics,
     limits: ArmLimits | None = None,
     relative_tolerance: float = DEFAULT_RELATIVE_TOLERANCE,
+    *,
+    compiled: bool = True,
 ) -> ExecutionCertificate:
     """Bound the angles, speeds, accelerations, torques and jerks of ``timed`` over all of [0, T'].
 
@@ -353,12 +356,22 @@ def certify_execution(
             whether each quantity stays within its limit (module docstring), the fastest question.
         relative_tolerance: Bisect while a bound exceeds the sampled maximum by more than this
             fraction of it (of 1e-3 for maxima below that).
+        compiled: For a smooth timing, run the same algorithm compiled
+            (:mod:`pipeline.motion.certificate_kernel`, equal to rounding); False: the NumPy route.
     """
     limit = None if limits is None else _limit_vector(limits)
     if limit is not None and isinstance(timed.timing, PaperTiming | RestToRestTiming):
         coarse = _closed_form(timed, dynamics, limits)
         if coarse is not None:
             return coarse
+    if isinstance(timed.timing, SmoothTiming) and compiled:
+        from pipeline.motion.certificate_kernel import certify_smooth_execution
+
+        mass_terms = np.array([dynamics.m0, dynamics.mc, dynamics.ms], dtype=float)
+        bound, sampled, total = certify_smooth_execution(
+            timed.parameters, timed.timing, mass_terms, limit, relative_tolerance, _MAX_INTERVALS, _MAX_ROUNDS
+        )
+        return _certificate(timed, bound, sampled, total, limits)
     lo, hi = _initial_partition(timed, limit is None)
     sampled = _values(timed, dynamics, np.concatenate([lo, hi[-1:]])).max(0)
     bound = np.full(len(_QUANTITIES), -np.inf)

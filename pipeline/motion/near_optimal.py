@@ -33,14 +33,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError, TimingRefusedError
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.execution_certificate import ExecutionCertificate, LimitViolation, certify_execution
-from pipeline.motion.interval_arithmetic import magnitude
-from pipeline.motion.path_constraints import PathEnclosures, enclose_path, piece_constraints
+from pipeline.motion.path_constraints import compiled_piece_constraints
 from pipeline.motion.smooth_timing import SmoothTiming, smoothed
 from pipeline.motion.speed_profile import fastest_profile
 from pipeline.motion.timed_trajectory import TimedTrajectory
@@ -127,11 +127,11 @@ def _check_jerk(limits: ArmLimits) -> None:
         )
 
 
-def _windows(enclosures: PathEnclosures, x, u, times, steps, limits: ArmLimits, jerk_share: float) -> np.ndarray:
-    """The ramps' widths delta_k [s] at the n + 1 steps (module docstring, step 3)."""
-    speed = magnitude(enclosures.d1)  # (n, 2)
+def _windows(peaks: np.ndarray, x, u, times, steps, limits: ArmLimits, jerk_share: float) -> np.ndarray:
+    """The ramps' widths delta_k [s] at the n + 1 steps (module docstring, step 3), from the peaks
+    (3, n, 2) of |theta'|, |theta''|, |theta'''| on each piece."""
+    speed, second, third = peaks
     at_knot = np.maximum(np.vstack([speed[:1], speed]), np.vstack([speed, speed[-1:]]))
-    second, third = (magnitude(d) for d in (enclosures.d2, enclosures.d3))
     second = np.maximum(np.vstack([second[:1], second]), np.vstack([second, second[-1:]]))
     third = np.maximum(np.vstack([third[:1], third]), np.vstack([third, third[-1:]]))
     padded = np.concatenate([[0.0], u, [0.0]])
@@ -140,26 +140,42 @@ def _windows(enclosures: PathEnclosures, x, u, times, steps, limits: ArmLimits, 
     background = third * root**3 + 3.0 * second * root * u_near[:, None]
     allowed = jerk_share * np.asarray(limits.jerk_rad_s3)
     gain = np.max(at_knot / np.maximum(allowed - background, 0.25 * allowed), axis=1)  # [s] per unit of du
-    # Ramps of steps of one sign that overlap add their slopes: a cluster of them gets one width,
-    # sized for the cluster's sum (a few rounds: a wider window takes in more steps).
-    size = np.abs(steps)
-    same_sign = np.sign(steps)[:, None] == np.sign(steps)[None, :]
-    apart = np.abs(times[:, None] - times[None, :])
-    windows = gain * size
-    for _ in range(_WINDOW_ROUNDS):
-        cover = same_sign & (2.0 * apart < windows[:, None] + windows[None, :])
-        windows = np.maximum(gain * (cover * size[:, None]).sum(0), np.where(cover, windows[:, None], 0.0).max(0))
+    return _clustered(times, steps, gain, _WINDOW_ROUNDS)
+
+
+@numba.njit(cache=True, nogil=True)
+def _clustered(times, steps, gain, rounds):
+    """Widths gain_k |du_k|, then, for a few rounds, each the larger of gain_k times the sum of the
+    steps of its sign whose ramps overlap its own and the widest of those ramps: ramps of steps of
+    one sign that overlap add their slopes, so a cluster of them gets one width sized for its sum."""
+    n = steps.size
+    windows = gain * np.abs(steps)
+    for _ in range(rounds):
+        wider = windows.copy()
+        reach = windows.max()  # times are increasing: no ramp farther than this overlaps
+        for k in range(n):
+            total, widest = 0.0, windows[k]
+            for direction in (-1, 1):
+                j = k if direction < 0 else k + 1
+                while 0 <= j < n and 2.0 * abs(times[j] - times[k]) < reach + windows[k]:
+                    same = (steps[j] > 0.0) == (steps[k] > 0.0)
+                    if same and 2.0 * abs(times[j] - times[k]) < windows[j] + windows[k]:
+                        total += abs(steps[j])
+                        widest = max(widest, windows[j])
+                    j += direction
+            wider[k] = max(gain[k] * total, widest)
+        windows = wider
     return windows
 
 
-def _smooth_timing(trajectory, enclosures, x, u, limits, jerk_share, widen) -> SmoothTiming:
+def _smooth_timing(trajectory, edges, peaks, x, u, limits, jerk_share, widen) -> SmoothTiming:
     """Steps 2 to 3 of the module docstring, the ramps widened by ``widen``."""
-    ds = enclosures.edges_s[1] - enclosures.edges_s[0]
+    ds = edges[1] - edges[0]
     rates = np.sqrt(x)
     durations = 2.0 * ds / (rates[:-1] + rates[1:])
     times = np.concatenate([[0.0], np.cumsum(durations)])
     steps = np.diff(np.concatenate([[0.0], u, [0.0]]))
-    windows = widen * _windows(enclosures, x, u, times, steps, limits, jerk_share)
+    windows = widen * _windows(peaks, x, u, times, steps, limits, jerk_share)
     keep = np.abs(steps) > 0.0
     windows = np.maximum(windows, 1e-6)
     timing, _ = smoothed(times[keep], steps[keep], windows[keep], trajectory.duration_s)
@@ -194,15 +210,14 @@ def near_optimal_timing(
     """
     _check_jerk(limits)
     edges = np.linspace(0.0, trajectory.duration_s, settings.pieces + 1)
-    enclosures = enclose_path(trajectory.parameters, edges, dynamics)
     share, speed_share, widen = settings.limit_share, settings.speed_share, 1.0
     found: list[LimitViolation] = []
     for attempt in range(1, settings.tries + 1):
-        rows = piece_constraints(enclosures, limits, share, speed_share)
+        rows, peaks = compiled_piece_constraints(trajectory.parameters, edges, dynamics, limits, share, speed_share)
         x, u = fastest_profile(rows.cu, rows.cx, rows.rhs, rows.speed_cap, edges[1] - edges[0])
         if not np.all(x[1:-1] > 0.0):
             raise TimingRefusedError(("the limits leave the path no speed: a limit binds at rest",))
-        timing = _smooth_timing(trajectory, enclosures, x, u, limits, settings.jerk_share, widen)
+        timing = _smooth_timing(trajectory, edges, peaks, x, u, limits, settings.jerk_share, widen)
         if timing.duration_s > settings.longest_duration_s:
             raise TimingRefusedError(
                 (

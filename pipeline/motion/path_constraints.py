@@ -31,14 +31,28 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
-from pipeline.motion.interval_arithmetic import affine_trig, magnitude, mul, scale, sin_range, square, widen
+from pipeline.motion.interval_arithmetic import (
+    FLOAT_SLACK_ABSOLUTE,
+    FLOAT_SLACK_RELATIVE,
+    affine_trig,
+    magnitude,
+    mul,
+    scale,
+    sin_range,
+    square,
+    widen,
+)
 
-__all__ = ["PathEnclosures", "PieceConstraints", "enclose_path", "piece_constraints"]
+__all__ = ["PathEnclosures", "PieceConstraints", "compiled_piece_constraints", "enclose_path", "piece_constraints"]
+
+_HALF_PI = 0.5 * math.pi
+_TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,3 +171,122 @@ def piece_constraints(
     n = cap.size
     cu, cx, rhs = (np.concatenate([p[k] for p in parts], 1) if parts else np.zeros((n, 0)) for k in range(3))
     return PieceConstraints(enclosures.edges_s, cu, cx, rhs, cap)
+
+
+@numba.njit(cache=True, nogil=True)
+def _sin_range(lo, hi):
+    top = math.ceil((lo - _HALF_PI) / _TWO_PI) * _TWO_PI + _HALF_PI <= hi
+    bottom = math.ceil((lo + _HALF_PI) / _TWO_PI) * _TWO_PI - _HALF_PI <= hi
+    a, b = math.sin(lo), math.sin(hi)
+    return (-1.0 if bottom else min(a, b)), (1.0 if top else max(a, b))
+
+
+@numba.njit(cache=True, nogil=True)
+def _scaled(k, lo, hi):
+    a, b = k * lo, k * hi
+    return min(a, b), max(a, b)
+
+
+@numba.njit(cache=True, nogil=True)
+def _times(a_lo, a_hi, b_lo, b_hi):
+    p, q, r, s = a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi
+    return min(min(p, q), min(r, s)), max(max(p, q), max(r, s))
+
+
+@numba.njit(cache=True, nogil=True)
+def _widened(lo, hi):
+    slack = FLOAT_SLACK_RELATIVE * max(abs(lo), abs(hi)) + FLOAT_SLACK_ABSOLUTE
+    return lo - slack, hi + slack
+
+
+@numba.njit(cache=True, nogil=True)
+def _compiled_rows(p, edges, mass, bounds, share, speed_share, velocity):
+    """The compiled twin of :func:`enclose_path` then :func:`piece_constraints` (same arithmetic)."""
+    n = edges.size - 1
+    finite = np.array([math.isfinite(b) for b in bounds])
+    m = 4 * int(finite.sum())
+    cu, cx, rhs = np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    cap = np.empty(n)
+    peaks = np.empty((3, n, 2))  # max |theta'|, |theta''|, |theta'''| per piece and joint
+    d1 = np.empty((2, 2))
+    d2 = np.empty((2, 2))
+    for k in range(n):
+        sin2_lo, sin2_hi = 0.0, 0.0
+        for i in range(2):
+            amplitude, w, phi = p[4 * i], p[4 * i + 1], p[4 * i + 2]
+            ph_a, ph_b = w * edges[k] + phi, w * edges[k + 1] + phi
+            ph_lo, ph_hi = min(ph_a, ph_b), max(ph_a, ph_b)
+            s_lo, s_hi = _sin_range(ph_lo, ph_hi)
+            c_lo, c_hi = _sin_range(ph_lo + _HALF_PI, ph_hi + _HALF_PI)
+            d1[i, 0], d1[i, 1] = _widened(*_scaled(amplitude * w, c_lo, c_hi))
+            d2[i, 0], d2[i, 1] = _widened(*_scaled(-amplitude * w * w, s_lo, s_hi))
+            third = _widened(*_scaled(-amplitude * w**3, c_lo, c_hi))
+            peaks[0, k, i] = max(abs(d1[i, 0]), abs(d1[i, 1]))
+            peaks[1, k, i] = max(abs(d2[i, 0]), abs(d2[i, 1]))
+            peaks[2, k, i] = max(abs(third[0]), abs(third[1]))
+            if i == 1:
+                sin2_lo, sin2_hi = s_lo, s_hi
+        q_lo, q_hi = _scaled(p[4], sin2_lo, sin2_hi)
+        q_lo, q_hi = _widened(q_lo + p[7], q_hi + p[7])
+        sn = _sin_range(q_lo, q_hi)
+        cs = _sin_range(q_lo + _HALF_PI, q_hi + _HALF_PI)
+        ratio = np.inf
+        for i in range(2):
+            if peaks[0, k, i] > 0.0:
+                ratio = min(ratio, speed_share * velocity[i] / peaks[0, k, i])
+        cap[k] = ratio**2
+        cross = _times(d1[0, 0], d1[0, 1], d1[1, 0], d1[1, 1])
+        sq2_lo = 0.0 if (d1[1, 0] <= 0.0 and d1[1, 1] >= 0.0) else min(d1[1, 0] ** 2, d1[1, 1] ** 2)
+        sq1_lo = 0.0 if (d1[0, 0] <= 0.0 and d1[0, 1] >= 0.0) else min(d1[0, 0] ** 2, d1[0, 1] ** 2)
+        sq2_hi, sq1_hi = max(d1[1, 0] ** 2, d1[1, 1] ** 2), max(d1[0, 0] ** 2, d1[0, 1] ** 2)
+        quad = ((2.0 * cross[0] + sq2_lo, 2.0 * cross[1] + sq2_hi), (-sq1_hi, -sq1_lo))
+        h_lo = 0.0 + min(0.5 * mass[2, 0, 0] * cs[0], 0.5 * mass[2, 0, 0] * cs[1])
+        h_lo += min(-0.5 * mass[1, 0, 0] * sn[0], -0.5 * mass[1, 0, 0] * sn[1])
+        h_hi = 0.0 + max(0.5 * mass[2, 0, 0] * cs[0], 0.5 * mass[2, 0, 0] * cs[1])
+        h_hi += max(-0.5 * mass[1, 0, 0] * sn[0], -0.5 * mass[1, 0, 0] * sn[1])
+        column = 0
+        for kind in range(2):  # acceleration, then effort
+            for i in range(2):
+                if not finite[2 * kind + i]:
+                    continue
+                if kind == 0:
+                    a_lo, a_hi, b_lo, b_hi = d1[i, 0], d1[i, 1], d2[i, 0], d2[i, 1]
+                else:
+                    a_lo, a_hi, b_lo, b_hi = 0.0, 0.0, 0.0, 0.0
+                    for j in range(2):
+                        mj = _scaled(mass[1, i, j], cs[0], cs[1])
+                        ms = _scaled(mass[2, i, j], sn[0], sn[1])
+                        m_lo, m_hi = mass[0, i, j] + mj[0] + ms[0], mass[0, i, j] + mj[1] + ms[1]
+                        u_part = _times(m_lo, m_hi, d1[j, 0], d1[j, 1])
+                        x_part = _times(m_lo, m_hi, d2[j, 0], d2[j, 1])
+                        a_lo, a_hi = a_lo + u_part[0], a_hi + u_part[1]
+                        b_lo, b_hi = b_lo + x_part[0], b_hi + x_part[1]
+                    c_part = _times(h_lo, h_hi, quad[i][0], quad[i][1])
+                    a_lo, a_hi = _widened(a_lo, a_hi)
+                    b_lo, b_hi = _widened(b_lo + c_part[0], b_hi + c_part[1])
+                limit = share * bounds[2 * kind + i]
+                cu[k, column : column + 4] = (a_hi, a_lo, -a_lo, -a_hi)
+                cx[k, column : column + 4] = (b_hi, b_hi, -b_lo, -b_lo)
+                rhs[k, column : column + 4] = limit
+                column += 4
+    return cu, cx, rhs, cap, peaks
+
+
+def compiled_piece_constraints(
+    parameters, edges_s: np.ndarray, dynamics: PlanarDynamics, limits: ArmLimits, share: float, speed_share: float
+) -> tuple[PieceConstraints, np.ndarray]:
+    """:func:`enclose_path` then :func:`piece_constraints`, compiled (the same arithmetic in scalar
+    loops; tests prove the two equal). Also returns the peaks (3, n, 2): the largest |theta'|,
+    |theta''|, |theta'''| of each piece and joint."""
+    velocity = np.asarray(limits.velocity_rad_s, dtype=float)
+    bounds = np.array([*limits.acceleration_rad_s2, *limits.effort_n_m], dtype=float)
+    if not np.any(np.isfinite(bounds)) and not np.all(np.isfinite(velocity)):
+        raise InvalidParameterError(
+            "limits", limits, "a finite speed, acceleration or effort limit (else no timing is fastest)"
+        )
+    mass = np.array([dynamics.m0, dynamics.mc, dynamics.ms], dtype=float)
+    edges = np.ascontiguousarray(edges_s, dtype=float)
+    cu, cx, rhs, cap, peaks = _compiled_rows(
+        np.asarray(parameters, dtype=float), edges, mass, bounds, float(share), float(speed_share), velocity
+    )
+    return PieceConstraints(edges, cu, cx, rhs, cap), peaks

@@ -147,13 +147,15 @@ class SmoothTiming(Timing):
                 out[q][row] = values.min() if q % 2 == 0 else values.max()
         return tuple(out)
 
-    def lowest_speed(self) -> float:
-        """The least sigma' over the whole timing (exact: each segment's ends and vertex) [1]."""
-        return float(self.ranges(self.breakpoints_s[:-1], self.breakpoints_s[1:])[2].min())
-
-    def highest_speed(self) -> float:
-        """The largest sigma' over the whole timing [1]."""
-        return float(self.ranges(self.breakpoints_s[:-1], self.breakpoints_s[1:])[3].max())
+    def speed_range(self) -> tuple[float, float]:
+        """The least and largest sigma' over the whole timing (exact: each segment's ends and the
+        vertex of its quadratic) [1]."""
+        c1, c2, k = self.start[:, 1], self.start[:, 2], self.jerk
+        h = np.diff(self.breakpoints_s)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            vertex = np.clip(np.where(k != 0.0, -c2 / k, 0.0), 0.0, h)
+        values = np.concatenate([c1, c1 + h * (c2 + h * k / 2.0), c1 + vertex * (c2 + vertex * k / 2.0)])
+        return float(values.min()), float(values.max())
 
     def jerk_ranges(self, lo_s, hi_s):
         """sigma''' (lo, hi) over each [lo, hi]."""
@@ -182,7 +184,8 @@ def smoothed(
         (the timing, the factor sigma was scaled by to end at T).
     """
     timing, factor = _superposed(step_times_s, steps, windows_s, path_duration_s)
-    if timing.lowest_speed() < -_SPEED_ROUNDING * timing.highest_speed():
+    lowest, highest = timing.speed_range()
+    if lowest < -_SPEED_ROUNDING * highest:
         widest = np.full_like(np.asarray(windows_s, dtype=float), float(np.max(windows_s)))
         timing, factor = _superposed(step_times_s, steps, widest, path_duration_s)
     return timing, factor

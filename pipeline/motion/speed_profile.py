@@ -14,7 +14,8 @@ with each piece's constraints imposed over the piece rather than at grid points.
   side), ``F(x) = uhi(x) - ulo(x)`` is concave and piecewise linear, and F(0) >= 0 (x = u = 0 keeps
   every row, each limit being positive); X_k is its largest root, found by Newton steps from the
   right (the tangent of a concave function lies above it, so every step stays at or right of the
-  root and the steps end on it), with bisection as the fallback.
+  root and the steps end on it); where rounding stalls them at the root, x (1 - 1e-9) is taken if
+  feasible, and bisection is the fallback.
 * **Forward pass** (greedy): ``x_0 = 0`` (rest at the start), then on each piece the largest u
   that keeps the rows and x_k+1 within K_k+1.
 
@@ -32,6 +33,8 @@ __all__ = ["fastest_profile"]
 _NEWTON_STEPS = 60
 _BISECTIONS = 80
 _START_X = 1e12
+#: Where Newton's steps stall on rounding, x (1 - this) is tried before bisecting.
+_NEAR_ROOT = 1e-9
 
 
 @numba.njit(cache=True, nogil=True)
@@ -69,7 +72,11 @@ def _largest_feasible_x(cu, cx, rhs, cap, ds, top):
         if not slope < 0.0:
             break
         step = x - gap / slope
-        if not step < x:
+        if not step < x:  # at the root up to rounding: look just below it first
+            below = x * (1.0 - _NEAR_ROOT)
+            ulo, uhi, _, _ = _u_range(cu, cx, rhs, below, ds, top)
+            if uhi >= ulo:
+                return below
             break
         x = max(step, 0.0)
     lo, hi = 0.0, x
