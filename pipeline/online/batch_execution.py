@@ -17,6 +17,7 @@ import numpy as np
 from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import InvalidParameterError
 from pipeline.model.limits import ArmLimits
+from pipeline.motion.near_optimal import NearOptimal
 from pipeline.motion.rest_to_rest import ShortestRestToRest
 from pipeline.motion.timing import PAPER_TIMING, PaperTiming
 from pipeline.offline.coefficients import Coefficients
@@ -87,6 +88,13 @@ def execution_batch(
         )
     if not isinstance(batch, GeneratedBatch) or batch.leaf is None:
         raise InvalidParameterError("batch", type(batch).__name__, "a GeneratedBatch made with the region map")
+    if isinstance(timing, NearOptimal):
+        raise InvalidParameterError(
+            "timing",
+            timing.name,
+            "PAPER_TIMING or REST_TO_REST: the map holds no near-optimal profile; "
+            "generate_certified(..., timing=NEAR_OPTIMAL) certifies it per query",
+        )
     if not isinstance(timing, PaperTiming | ShortestRestToRest):
         raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
     leaf = batch.leaf

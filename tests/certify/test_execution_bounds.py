@@ -19,10 +19,11 @@ from pipeline.certify.execution_bounds import SIGNIFICANT_DIGITS, ExecutionBound
 from pipeline.certify.map_for_coefficients import summary_lines, with_execution_bounds
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import RegionMap, region_map_text
-from pipeline.exceptions import RegionMapLimitsError
+from pipeline.exceptions import InvalidParameterError, RegionMapLimitsError
 from pipeline.model.arm import PlanarArm
 from pipeline.model.dynamics import identify_dynamics
 from pipeline.model.limits import ArmLimits
+from pipeline.motion.near_optimal import NEAR_OPTIMAL
 from pipeline.motion.rest_to_rest import REST_TO_REST, _widened, rest_to_rest_scales, shortest_rest_to_rest
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.timing import PAPER_TIMING, RestToRestTiming
@@ -248,3 +249,9 @@ def test_bounds_do_not_depend_on_the_workers(paper, arm: PlanarArm, limits: ArmL
         assert values.shape == (n,)
         np.testing.assert_array_equal(pooled.columns[key], values, err_msg=key)
     assert np.isfinite(here.columns["speed_scale"]).any()
+
+
+def test_the_batch_refuses_the_near_optimal_timing_and_names_the_per_query_call(paper, exec_map: RegionMap) -> None:
+    batch = generate_batch(paper, np.array([0.25]), np.array([0.1]), region_map=exec_map)
+    with pytest.raises(InvalidParameterError, match=r"generate_certified\(\.\.\., timing=NEAR_OPTIMAL\)"):
+        execution_batch(paper, batch, NEAR_OPTIMAL, region_map=exec_map)
