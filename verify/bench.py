@@ -2,7 +2,8 @@
 
 On the same ``--n`` random obstacles it times side by side the regression generator (per query
 and batched), the generator with the range certificate (per query and batched), the generator
-with certification, the PSO re-run online and OMPL's RRT-Connect (:mod:`verify.benchmark`), and
+with certification, the generator with the near time-optimal timing certified and TOPP-RA on its
+paths, the PSO re-run online and OMPL's RRT-Connect (:mod:`verify.benchmark`), and
 prints the medians, their ratios and how many answers are certified collision-free. With
 coefficients over (L, W, x) (``--coefficients-x``, or ``results-x/coefficients.json``), it also times
 the generator with their map on random (L, W, x) and OMPL on the same moved obstacles.
@@ -103,7 +104,19 @@ def _add_method_options(parser: argparse.ArgumentParser, defaults: BenchSettings
         "--slow-repeats",
         type=int,
         default=defaults.slow_repeats,
-        help="timed passes over the obstacles for (b) and (d) [passes]",
+        help="timed passes over the obstacles for (r*), (b), (n*), (tp) and (d) [passes]",
+    )
+    parser.add_argument(
+        "--toppra-gridpoints",
+        type=int,
+        default=defaults.toppra_gridpoints,
+        help="TOPP-RA's gridpoints in (tp), on (n*)'s paths and limits; its output is checked at 100x as many "
+        "instants [gridpoints]",
+    )
+    parser.add_argument(
+        "--no-near-optimal",
+        action="store_true",
+        help="skip (n*) the near-optimal certified timing and (tp) TOPP-RA on its paths (default: run them)",
     )
 
 
@@ -204,7 +217,9 @@ def build_parser() -> argparse.ArgumentParser:
         description=(
             "Time, on the same random obstacles in one run: (a) the regression generator per query and "
             "batched, (a*) the same with the range certificate's bounds (region map), (b) the generator "
-            "with certification, (c) re-running the PSO online, (d) OMPL "
+            "with certification, (n*) the generator with the near time-optimal timing certified and (tp) TOPP-RA "
+            "on its paths and limits (with T'/T_TOPP-RA and each one's sampled excess over a limit), (c) re-running "
+            "the PSO online, (d) OMPL "
             "RRT-Connect with a Coal validity checker, then our certificate of its path; with coefficients over "
             "(L, W, x), (a*) over (L, W, x) and (d) on the same moved obstacles. Prints median "
             "time per query, ratios to (a) and (b), the fraction of answers certified collision-free, the "
@@ -243,6 +258,8 @@ def settings_from_args(args: argparse.Namespace) -> BenchSettings:
         region_map=args.region_map,
         coefficients_x=args.coefficients_x,
         run_x=not args.no_x,
+        run_near_optimal=not args.no_near_optimal,
+        toppra_gridpoints=args.toppra_gridpoints,
     )
 
 

@@ -259,7 +259,7 @@ def _joint_plot(args: argparse.Namespace) -> int:
         print(f"{PROG}: certification refused: {exc}", file=sys.stderr)
         return EXIT_FAILED
     where = "".join(f", {name} = {value} m" for name, value in values.items())
-    title = f"L = {args.L} m, W = {args.W} m{where}: q, dq, ddq, τ (dotted: certified bounds, dashed: limits)"
+    title = f"L = {args.L} m, W = {args.W} m{where}: q, dq, ddq, τ, jerk (dotted: certified bounds, dashed: limits)"
     plot_joint_states(answer.executed, arm, answer.execution, args.joint_plot, title=title)
     print(
         f"wrote {args.joint_plot} ({answer.execution.certificate.timing_name} timing, T' = {answer.duration_s:.3f} s)"

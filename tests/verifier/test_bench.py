@@ -39,6 +39,7 @@ from verify.benchmark import ompl_planner as planner
 from verify.benchmark import range_map as bench_range_map
 from verify.benchmark import results as bench_results
 from verify.benchmark import run as bench_run
+from verify.benchmark import toppra_peer
 from verify.benchmark.per_query import PerQueryRow, time_side_by_side
 
 
@@ -175,6 +176,7 @@ def test_tiny_run_prints_the_table_and_writes_the_json_schema(tiny_run: tuple[in
         "cases",
         "methods",
         "a_range",
+        "near_optimal",
         "ratios",
         "sweep",
         "build",
@@ -184,8 +186,9 @@ def test_tiny_run_prints_the_table_and_writes_the_json_schema(tiny_run: tuple[in
     assert data["command"].startswith("python -m verify.bench --coefficients ")
     assert len(data["cases"]) == 3
     keys = [m["key"] for m in data["methods"]]
-    expected = ["a", "a_batch", "a_range", "a_range_batch", "b", "c"]
-    assert keys == expected + (["d", "d_cert"] if planner.ompl_available() else [])
+    expected = ["a", "a_batch", "a_range", "a_range_batch", "b", "n_opt"]
+    expected += ["toppra"] if toppra_peer.toppra_available() else []
+    assert keys == [*expected, "c"] + (["d", "d_cert"] if planner.ompl_available() else [])
     for method in data["methods"]:
         for key in METHOD_KEYS:
             assert key in method, (method["key"], key)
@@ -217,6 +220,32 @@ def test_tiny_run_prints_the_table_and_writes_the_json_schema(tiny_run: tuple[in
     for text in ("median/query", "vs (a)", "vs (b)", "cert. free", "cases/s", "123,456 Coal distance queries"):
         assert text in out
     assert "not absolute claims" in out
+
+
+def test_near_optimal_rows_time_n_star_and_toppra_on_the_same_paths(tiny_run: tuple[int, str, dict]) -> None:
+    """(n*) and (tp): timed per query ((slow-repeats) passes over the obstacles), T'/T_TOPP-RA and
+    the sampled excesses reported in the JSON and the text; ours is certified, so its excess is 0."""
+    _, out, data = tiny_run
+    methods = {m["key"]: m for m in data["methods"]}
+    n_star = methods["n_opt"]
+    assert n_star["timed_runs"] == 3 * 1 and n_star["answered"] == 3  # --slow-repeats 1 over 3 obstacles
+    assert n_star["extra"]["sampled_excess_max"] == {"speed": 0.0, "acceleration": 0.0, "torque": 0.0, "jerk": 0.0}
+    summary = data["near_optimal"]
+    assert summary["ours_excess_max"] == n_star["extra"]["sampled_excess_max"]
+    assert summary["limits"] and all(math.isfinite(j) for j in summary["limits"][0]["jerk_rad_s3"])
+    assert "(n*) near-optimal certified per query" in out
+    assert "Largest relative excess over a limit, sampled at 100x the grid" in out
+    if not toppra_peer.toppra_available():
+        assert "(tp) toppra skipped: toppra is not installed" in out and summary["paths"] == 0
+        return
+    toppra = methods["toppra"]
+    assert toppra["timed_runs"] == 3 and toppra["extra"]["gridpoints"] == 100
+    assert summary["paths"] == 3 and summary["toppra_gridpoints"] == 100
+    assert 0.0 < summary["duration_ratio_min"] <= summary["duration_ratio_median"] <= summary["duration_ratio_max"]
+    assert all(v >= 0.0 for v in summary["toppra_excess_max"].values())
+    assert math.isclose(data["ratios"]["n_opt_over_toppra"], n_star["median_s"] / toppra["median_s"], rel_tol=1e-12)
+    assert "(tp) toppra (100 grid points) per query" in out and "(n*) / (tp) = " in out
+    assert f"T'/T_TOPP-RA median {summary['duration_ratio_median']:.4f}" in out
 
 
 def test_a_range_row_certifies_every_in_range_query_of_a_clean_map(tiny_run: tuple[int, str, dict]) -> None:
@@ -344,10 +373,11 @@ def test_a_named_region_map_replaces_the_one_beside_unread_and_the_arm_is_the_re
     (tmp_path / DEFAULT_MAP_NAME).write_text("{not json")
     common = ["--coefficients", str(source), "--n", "2", "--repeats", "2", "--batch-repeats", "2"]
     common += ["--slow-repeats", "1"]
-    common += ["--pso-cases", "0", "--no-ompl", "--build-timing", str(tmp_path / "none.json")]
+    common += ["--pso-cases", "0", "--no-ompl", "--no-near-optimal", "--build-timing", str(tmp_path / "none.json")]
     named = ["--region-map", str(built.with_name(DEFAULT_MAP_NAME))]
     status, out, err = run_main(capsys, *common, *named, "--no-progress", "--json", str(tmp_path / "b.json"))
     assert status == EXIT_OK and "named by --region-map" in out and "Traceback" not in err
+    assert "(n*) and (tp) toppra skipped: --no-near-optimal" in out and "(n*) near-optimal" not in out
     assert "%" not in err  # progress lines only, no bar
     status, _, err = run_main(capsys, *common, "--quiet")  # the broken map beside them, found: one line
     assert status == EXIT_USAGE and str(tmp_path / DEFAULT_MAP_NAME) in err and len(err.strip().splitlines()) == 1
@@ -379,6 +409,7 @@ def test_missing_ompl_skips_d_with_a_clear_line(
     assert "(d) skipped: ompl is not installed" in out
     assert "(c) skipped: --pso-cases 0" in out
     assert "OMPL RRT-Connect" not in out
+    assert "(n*) near-optimal certified per query" in out
     assert "none.json not found" in out
 
 
@@ -393,6 +424,7 @@ def test_missing_ompl_skips_d_with_a_clear_line(
         (["--ompl-time", "nan"], "--ompl-time"),
         (["--ompl-margin", "-0.001"], "--ompl-margin"),
         (["--repeats", "0"], "--repeats"),
+        (["--toppra-gridpoints", "1"], "--toppra-gridpoints"),
         (["--batch-repeats", "0"], "--batch-repeats"),
         (["--pso-swarm-size", "1"], "--pso-swarm-size"),
         (["--n", "three"], "--n"),

@@ -11,7 +11,12 @@ if TYPE_CHECKING:  # pragma: no cover
     from .results import BenchReport
 
 #: How a skipped row is named where its key is not its name (the rows over (L, W, x)).
-_SKIPPED_NAMES = {"a_range_x": "(a*) over (L, W, x)", "d_x": "(d) over (L, W, x)"}
+_SKIPPED_NAMES = {
+    "a_range_x": "(a*) over (L, W, x)",
+    "d_x": "(d) over (L, W, x)",
+    "n_opt": "(n*) and (tp) toppra",
+    "toppra": "(tp) toppra",
+}
 
 
 def _format_time(seconds: float) -> str:
@@ -96,6 +101,8 @@ def _ratio_lines(report: BenchReport) -> list[str]:
         shown.append(f"(b) / (a*) = {_format_ratio(ratios['b_over_a_range'])}")
     if ratios.get("d_x_over_a_range_x") is not None:
         shown.append(f"over (L, W, x): (d) / (a*) = {_format_ratio(ratios['d_x_over_a_range_x'])}")
+    if ratios.get("n_opt_over_toppra") is not None:
+        shown.append(f"(n*) / (tp) = {_format_ratio(ratios['n_opt_over_toppra'])}")
     lines = [f"Ratios of the medians per query (this run): {', '.join(shown)}."] if shown else []
     summary = report.a_range_summary()
     if summary is not None:
@@ -116,7 +123,43 @@ def _ratio_lines(report: BenchReport) -> list[str]:
             f"(a*) over (L, W, x): median {summary_x['median_us']:.3g} us per query, certified clearance > 0 on "
             f"{certified} and >= the margin on {margin} of {summary_x['in_range_queries']} in-range queries."
         )
+    lines += _near_optimal_lines(report)
     return lines + [""] if lines else lines
+
+
+def _format_excess(excess: dict[str, float | None]) -> str:
+    """``speed 0, acceleration 0.012 %, ...``: relative excesses as percentages (0 where none)."""
+    return ", ".join(
+        f"{name} {'-' if value is None else ('0' if value == 0.0 else f'{100 * value:.3g} %')}"
+        for name, value in excess.items()
+    )
+
+
+def _near_optimal_lines(report: BenchReport) -> list[str]:
+    """The (n*) against TOPP-RA lines: T'/T_TOPP-RA over the same paths and limits, and each
+    method's largest sampled excess over a limit."""
+    summary = report.near_optimal
+    if summary is None:
+        return []
+    lines = []
+    if summary["paths"]:
+        lines.append(
+            f"(n*) near-optimal vs (tp) toppra ({summary['toppra_gridpoints']} grid points), same paths and limits: "
+            f"T'/T_TOPP-RA median {summary['duration_ratio_median']:.4f}, max {summary['duration_ratio_max']:.4f} "
+            f"(min {summary['duration_ratio_min']:.4f}) over {summary['paths']} paths."
+        )
+    lines.append(
+        f"Largest relative excess over a limit, sampled at {summary['oversample']}x the grid: (n*) at "
+        f"{summary['ours_samples_per_breakpoint']}x the breakpoints of its timing: "
+        f"{_format_excess(summary['ours_excess_max'])}"
+        + (
+            f"; (tp) at {summary['toppra_samples_per_gridpoint']}x its grid points: "
+            f"{_format_excess(summary['toppra_excess_max'])}."
+            if summary["paths"]
+            else "."
+        )
+    )
+    return lines
 
 
 def _nan(value: float | None) -> float:

@@ -30,6 +30,8 @@ DEFAULT_BATCH_SIZE = 1000
 DEFAULT_SLOW_REPEATS = 3
 DEFAULT_PSO_CASES = 3
 DEFAULT_OMPL_TIME_S = 1.0
+#: TOPP-RA's gridpoints in the row beside (n*) [gridpoints] (verify.benchmark.near_optimal).
+DEFAULT_TOPPRA_GRIDPOINTS = 100
 
 #: Warm-up calls of the cheap methods before timing.
 WARMUP_CALLS = 20
@@ -40,8 +42,8 @@ class MethodResult:
     """Timings and answer quality of one method.
 
     Attributes:
-        key: Short key: "a", "a_batch", "a_range", "a_range_batch", "b", "c", "d", "d_cert", and over
-            (L, W, x) "a_range_x", "d_x", "d_x_cert".
+        key: Short key: "a", "a_batch", "a_range", "a_range_batch", "r_range", "r_range_batch", "b",
+            "n_opt", "toppra", "c", "d", "d_cert", and over (L, W, x) "a_range_x", "d_x", "d_x_cert".
         label: Row label of the table.
         obstacles: Distinct obstacles queried.
         times_s: Every timed run, as time per query [s].
@@ -120,7 +122,7 @@ class BenchSettings:
         batch_repeats: Timed passes of the batched rows (a'), (a*') and (r*').
         batch_size: Obstacles per call of the batched rows (a') and (a*'): the n obstacles cycled to
             this many (at least n), so that a call's fixed cost is spread as a batch user's is.
-        slow_repeats: Timed passes over all obstacles for (b) and (d).
+        slow_repeats: Timed passes over all obstacles for (r*), (b), (n*), TOPP-RA and (d).
         pso_cases: Obstacles (the first ones) on which (c) re-runs the PSO; 0 skips (c).
         pso_swarm_size, pso_iterations, pso_restarts: PSO settings of (c) and --run-build; None: the
             coefficients' build settings if recorded (provenance), else PsoConfig's defaults.
@@ -140,6 +142,8 @@ class BenchSettings:
             (a*) over (L, W, x) and OMPL on the same moved obstacles (None: ``DEFAULT_COEFFICIENTS_X``
             if it exists, else the rows are left out).
         run_x: Run the rows over (L, W, x) (False: left out, even with ``coefficients_x``).
+        run_near_optimal: Run (n*) and TOPP-RA on its paths (:mod:`verify.benchmark.near_optimal`).
+        toppra_gridpoints: TOPP-RA's gridpoints in that row [gridpoints] (>= 2).
     """
 
     n: int = DEFAULT_N
@@ -164,6 +168,8 @@ class BenchSettings:
     region_map: Path | None = None
     coefficients_x: Path | None = None
     run_x: bool = True
+    run_near_optimal: bool = True
+    toppra_gridpoints: int = DEFAULT_TOPPRA_GRIDPOINTS
 
     def __post_init__(self) -> None:
         check_positive_int("--n", self.n)
@@ -172,6 +178,7 @@ class BenchSettings:
         check_positive_int("--batch-repeats", self.batch_repeats)
         check_positive_int("--batch-size", self.batch_size)
         check_positive_int("--slow-repeats", self.slow_repeats)
+        check_positive_int("--toppra-gridpoints", self.toppra_gridpoints, minimum=2)
         check_positive_int("--pso-cases", self.pso_cases, minimum=0)
         if self.pso_cases > self.n:
             raise InvalidParameterError("--pso-cases", self.pso_cases, f"at most --n = {self.n}")
@@ -215,6 +222,8 @@ class BenchReport:
         elapsed_s: Wall time of the whole benchmark [s].
         over_x: The coefficients over (L, W, x), their map and obstacles of the row (a*) over (L, W, x)
             (None if it did not run).
+        near_optimal: (n*) against TOPP-RA on the same paths and limits: duration ratios and sampled
+            excesses (:meth:`verify.benchmark.near_optimal.NearOptimalRows.summary`; None if (n*) did not run).
     """
 
     coefficients: dict[str, Any]
@@ -230,14 +239,16 @@ class BenchReport:
     command: str
     elapsed_s: float
     over_x: dict[str, Any] | None = None
+    near_optimal: dict[str, Any] | None = None
 
     def method(self, key: str) -> MethodResult | None:
         """The result of method ``key``, or None if it was not run."""
         return next((m for m in self.methods if m.key == key), None)
 
     def ratios(self) -> dict[str, float | None]:
-        """(d) / (a), (d) / (a*), (d) / (b), (b) / (a*) and, over (L, W, x), OMPL on the moved obstacles
-        over (a*) on them: medians per query measured in this run (None where a method did not run)."""
+        """(d) / (a), (d) / (a*), (d) / (b), (b) / (a*), over (L, W, x) OMPL on the moved obstacles
+        over (a*) on them, and (n*) over TOPP-RA on its paths: medians per query measured in this run
+        (None where a method did not run)."""
 
         def ratio(numerator: str, denominator: str) -> float | None:
             top, bottom = self.method(numerator), self.method(denominator)
@@ -249,6 +260,7 @@ class BenchReport:
             "d_over_b": ratio("d", "b"),
             "b_over_a_range": ratio("b", "a_range"),
             "d_x_over_a_range_x": ratio("d_x", "a_range_x"),
+            "n_opt_over_toppra": ratio("n_opt", "toppra"),
         }
 
     def a_range_summary(self) -> dict[str, Any] | None:
@@ -304,6 +316,7 @@ class BenchReport:
             "methods": [m.to_json(reference_a, reference_b) for m in self.methods],
             "a_range": self.a_range_summary(),
             "a_range_x": self.a_range_x_summary(),
+            "near_optimal": self.near_optimal,
             "ratios": self.ratios(),
             "skipped": dict(self.skipped),
             "sweep": self.sweep,

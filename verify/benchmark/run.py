@@ -11,6 +11,10 @@ in one run on this machine, it times side by side:
   time and batched (:func:`pipeline.online.batch.generate_batch` with the map, per obstacle); the
   map is the one beside the coefficients, ``--region-map``'s, or certified in-process
   (:mod:`verify.benchmark.range_map`);
+* **(n*)** the generator with the near time-optimal timing, certified (``generate_certified(...,
+  timing=NEAR_OPTIMAL, region_map=m)``), per query, and **TOPP-RA** (the ``toppra`` library) on
+  its paths and limits, per query; with the ratio T'/T_TOPP-RA and each method's largest sampled
+  excess over a limit (:mod:`verify.benchmark.near_optimal`);
 * **(b)** the generator with certification (:func:`pipeline.online.repair.generate_certified`:
   certify, repair if needed, or refuse);
 * **(c)** re-running the PSO online for that (L, W) (:func:`pipeline.offline.experiment.solve_experiment`,
@@ -39,6 +43,7 @@ interleaved passes, so that they sample the same stretches of a shared machine's
 
 from __future__ import annotations
 
+import math
 import os
 import platform
 import time
@@ -66,8 +71,9 @@ from verify.acceptance.cases import SweepRange, sample_cases
 from verify.acceptance.metrics import check_arm_matches
 from verify.acceptance.run import arm_for_sweep
 
+from . import near_optimal as near
 from . import ompl_planner as planner
-from . import over_x
+from . import over_x, toppra_peer
 from .methods import (
     batch_range_counts,
     bench_batched,
@@ -374,6 +380,82 @@ def _certified_method(ctx: _Context) -> MethodResult:
     )
 
 
+def _near_optimal_methods(
+    ctx: _Context, bench_map: BenchRegionMap, skipped: dict[str, str]
+) -> tuple[list[MethodResult], dict[str, Any] | None]:
+    """(n*) and TOPP-RA on its paths (:mod:`verify.benchmark.near_optimal`), and their summary;
+    TOPP-RA is skipped (reason in ``skipped``) if toppra is not installed."""
+    settings, cases = ctx.settings, ctx.cases
+    if not settings.run_near_optimal:
+        skipped[near.KEY] = "--no-near-optimal"
+        return [], None
+    with_toppra = toppra_peer.toppra_available()
+    if not with_toppra:
+        skipped[near.TOPPRA_KEY] = "toppra is not installed (pip install toppra, or the project's 'bench' extra)"
+    grid = settings.toppra_gridpoints
+    ctx.log(
+        f"timing (n*) near-optimal certified per query{f' and toppra ({grid} grid points)' if with_toppra else ''}, "
+        f"interleaved ({settings.slow_repeats} passes) ..."
+    )
+    rows = near.bench_near_optimal(
+        ctx.coefficients, cases, ctx.arm, bench_map.region_map, settings.slow_repeats, grid, with_toppra=with_toppra
+    )
+    answered = [a for a in rows.answers if a is not None]
+    clearances = [a.certified_clearance_m for a in answered]
+    certified, keeps = certificate_counts(clearances, ctx.margin_m)
+    summary = rows.summary()
+    ours = summary["ours_excess_max"]
+    methods = [
+        MethodResult(
+            key=near.KEY,
+            label="(n*) near-optimal certified per query",
+            obstacles=len(cases),
+            times_s=rows.near_times_s,
+            queries=len(rows.answers),
+            answered=len(answered),
+            certified=certified,
+            keeps_margin=keeps,
+            note="generate_certified(coefficients, L, W, timing=NEAR_OPTIMAL, region_map=m): clearance (map or "
+            "per query), endpoints, and the near time-optimal timing certified over [0, T'] against the limits "
+            f"with the servo defaults; passes: {settings.slow_repeats}, interleaved with TOPP-RA's; refusals "
+            f"(last pass): {sum(rows.refusals.values())} {rows.refusals or ''}".rstrip(),
+            extra={
+                "refusals": rows.refusals,
+                "sampled_excess_max": ours,
+                "duration_s_median": float(np.median([a.duration_s for a in answered])) if answered else None,
+            },
+        )
+    ]
+    if with_toppra:
+        timed = [r for r in rows.toppra if r is not None]
+        paired = [a for a, r in zip(rows.answers, rows.toppra, strict=True) if a is not None and r is not None]
+        certified_t, keeps_t = certificate_counts([a.certified_clearance_m for a in paired], ctx.margin_m)
+        methods.append(
+            MethodResult(
+                key=near.TOPPRA_KEY,
+                label=f"(tp) toppra ({grid} grid points) per query",
+                obstacles=len(cases),
+                times_s=rows.toppra_times_s or (math.nan,),
+                queries=len(answered),
+                answered=len(timed),
+                certified=certified_t,
+                keeps_margin=keeps_t,
+                note=f"toppra_timing(answer.trajectory, answer.execution.limits, dynamics, {grid} gridpoints) on "
+                "(n*)'s paths and limits (speed, acceleration, closed-form torque; no jerk), the toppra call "
+                "timed (constraints, set-up, compute_parameterization); the path's clearance is (n*)'s, which "
+                f"holds for any timing; its limits are not certified; passes: {settings.slow_repeats}; failures "
+                f"(last pass): {len(rows.toppra_failures)}",
+                extra={
+                    "gridpoints": grid,
+                    "failures": list(rows.toppra_failures),
+                    "sampled_excess_max": summary["toppra_excess_max"],
+                    "duration_s_median": float(np.median([r.duration_s for r in timed])) if timed else None,
+                },
+            )
+        )
+    return methods, summary
+
+
 def _pso_method(ctx: _Context, config: SolverConfig, pso_source: str) -> MethodResult:
     """(c): the PSO re-run online on the first ``pso_cases`` obstacles."""
     n = ctx.settings.pso_cases
@@ -496,6 +578,8 @@ def run_bench(
     methods.extend(_rest_to_rest_methods(ctx, bench_map))
     methods.append(_certified_method(ctx))
     skipped: dict[str, str] = {}
+    near_methods, near_summary = _near_optimal_methods(ctx, bench_map, skipped)
+    methods.extend(near_methods)
     if settings.pso_cases > 0:
         methods.append(_pso_method(ctx, config, pso_source))
     else:
@@ -531,4 +615,5 @@ def run_bench(
         command=command,
         elapsed_s=time.perf_counter() - started,
         over_x=info_x,
+        near_optimal=near_summary,
     )
