@@ -73,9 +73,13 @@ from .results import (
 )
 from .sampling import (
     PAPER_GRID,
+    PAPER_ROOM,
     REST_TO_REST_GRID,
+    REST_TO_REST_ROOM,
+    path_samples,
     piecewise_grid,
     refined_maxima,
+    sinusoid_angles,
     sinusoid_states,
     timed_states,
     uniform_grid,
@@ -214,6 +218,10 @@ class Subject:
         extrapolated: Whether (L, W) lies outside the coefficients' fitted range.
         extra: The values of the scene variables beyond L and W that placed ``obstacle`` and
             ``path`` ((name, value), ... [m]).
+        torque_ceiling_n_m: Another proven upper bound of the paper timing's |tau_i| for this
+            case (the region map's, of the leaf holding it) [N m], against which the sampled torque
+            is also checked later: the torque samples are refined where they come near it, too
+            (None: none).
     """
 
     trajectory: JointTrajectory
@@ -222,6 +230,7 @@ class Subject:
     index: int = 0
     extrapolated: bool = False
     extra: tuple[tuple[str, float], ...] = ()
+    torque_ceiling_n_m: Pair | None = None
 
 
 def measure_trajectory(
@@ -300,7 +309,8 @@ def measure_trajectories(
     path_samples = [settings.time_samples or max(7, math.ceil(p.length_m / settings.resolution_m) + 1) for p in paths]
     endpoints = endpoint_errors_of(trajectories, paths, arm)
     tracking = tracking_errors_of(trajectories, paths, arm, path_samples)
-    joints = joint_checks(trajectories, arm, settings.thresholds.acceleration_limits_rad_s2)
+    ceilings = [s.torque_ceiling_n_m for s in subjects]
+    joints = joint_checks(trajectories, arm, settings.thresholds.acceleration_limits_rad_s2, ceilings)
     results = []
     for s, clearance, endpoint, track, joint in zip(subjects, clearances, endpoints, tracking, joints, strict=True):
         measurement = Measurement(
@@ -439,17 +449,13 @@ def tracking_errors_of(
 ) -> list[Tracking]:
     """:func:`tracking_errors` of many trajectories (``samples[k]`` path points for the k-th), the
     end effector of all their points in one closed-form pass (Eq. 2)."""
-    pieces = [path.uniform_samples(int(m)) for path, m in zip(paths, samples, strict=True)]
-    counts = np.array([times.size for times, _ in pieces])
-    times = np.concatenate(
-        [np.clip(t, 0.0, trajectory.duration_s) for (t, _), trajectory in zip(pieces, trajectories, strict=True)]
-    )  # S(x_end) / v is T up to rounding
-    desired = np.concatenate([points for _, points in pieces])
-    q = sinusoid_states(np.repeat(_parameters(trajectories), counts, axis=0), times[:, None])[0][:, 0]
+    times, desired, valid = path_samples(paths, samples)
+    times = np.minimum(times, _durations(trajectories)[:, None])  # S(x_end) / v is T up to rounding
+    q = sinusoid_angles(_parameters(trajectories), times)
     deviation = np.linalg.norm(arm.end_effector_planar(q) - desired, axis=-1)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    peak = np.maximum.reduceat(deviation, starts)
-    rms = np.sqrt(np.add.reduceat(deviation**2, starts) / counts)
+    deviation[~valid] = 0.0
+    peak = deviation.max(axis=1)
+    rms = np.sqrt((deviation**2).sum(axis=1) / valid.sum(axis=1))
     return [Tracking(max_m=float(a), rms_m=float(b)) for a, b in zip(peak, rms, strict=True)]
 
 
@@ -466,16 +472,21 @@ def joint_check(
 
 
 def joint_checks(
-    trajectories: Sequence[JointTrajectory], arm: PlanarArm, acceleration_limits_rad_s2: Pair | None = None
+    trajectories: Sequence[JointTrajectory],
+    arm: PlanarArm,
+    acceleration_limits_rad_s2: Pair | None = None,
+    torque_ceilings: Sequence[Pair | None] | None = None,
 ) -> list[JointCheck]:
-    """:func:`joint_check` of many trajectories (the sampled maxima vectorised over them)."""
+    """:func:`joint_check` of many trajectories (the sampled maxima vectorised over them);
+    ``torque_ceilings``: per trajectory, another bound its sampled paper-timing torque will be
+    checked against (:attr:`Subject.torque_ceiling_n_m`), or None."""
     from pipeline.model.limits import ArmLimits
     from pipeline.online.execution import dynamics_of
 
     dynamics, limits = dynamics_of(arm), ArmLimits.from_arm(arm, acceleration_limits_rad_s2)
     velocity_limits = _pair(arm.velocity_limits_rad_s)
     position_limits = (_pair(arm.position_limits_rad[0]), _pair(arm.position_limits_rad[1]))
-    torques = _torque_checks(trajectories, dynamics, limits)
+    torques = _torque_checks(trajectories, dynamics, limits, torque_ceilings)
     rests = _rest_to_rest_checks(trajectories, arm, dynamics, limits)
     checks = []
     for trajectory, torque, (rest_to_rest, error) in zip(trajectories, torques, rests, strict=True):
@@ -507,21 +518,31 @@ def joint_checks(
     return checks
 
 
-def paper_torque_maxima(trajectories: Sequence[JointTrajectory], dynamics: PlanarDynamics) -> np.ndarray:
+def paper_torque_maxima(
+    trajectories: Sequence[JointTrajectory], dynamics: PlanarDynamics, bounds: np.ndarray | None = None
+) -> np.ndarray:
     """Largest |tau_i| (n, 2) [N m] of the paper timing by the closed-form dynamics, sampled
-    coarse and refined at the peaks (:data:`verify.acceptance.sampling.PAPER_GRID`)."""
+    coarse and refined at the peaks (:data:`verify.acceptance.sampling.PAPER_GRID`): at every
+    peak, or, given the bounds (n, 2) [N m] the samples are checked against, only where the coarse
+    samples come within :data:`verify.acceptance.sampling.PAPER_ROOM` of them."""
     parameters = _parameters(trajectories)
 
-    def evaluate(t: np.ndarray) -> np.ndarray:
-        return np.abs(dynamics.torque(*sinusoid_states(parameters, t)))
+    def evaluate(rows: np.ndarray, t: np.ndarray) -> np.ndarray:
+        return np.abs(dynamics.torque(*sinusoid_states(parameters[rows], t)))
 
     coarse, fine = PAPER_GRID
-    return refined_maxima(evaluate, uniform_grid(_durations(trajectories), coarse), fine)[0]
+    return refined_maxima(evaluate, uniform_grid(_durations(trajectories), coarse), fine, bounds, PAPER_ROOM)[0]
 
 
 def _torque_checks(
-    trajectories: Sequence[JointTrajectory], dynamics: PlanarDynamics, limits: ArmLimits
+    trajectories: Sequence[JointTrajectory],
+    dynamics: PlanarDynamics,
+    limits: ArmLimits,
+    ceilings: Sequence[Pair | None] | None = None,
 ) -> list[dict[str, Any]]:
+    """The paper timing's certified torque bounds, decided against the effort limits, and the
+    sampled torques that check them (refined where the samples come near the bound or the
+    ``ceilings``, the other bounds they will be checked against)."""
     from pipeline.model.limits import ArmLimits
     from pipeline.motion.execution_certificate import certify_execution
     from pipeline.motion.timed_trajectory import TimedTrajectory
@@ -529,20 +550,24 @@ def _torque_checks(
 
     effort = _pair(limits.effort_n_m)
     effort_only = ArmLimits(effort_n_m=effort)
-    sampled = paper_torque_maxima(trajectories, dynamics)
-    checks = []
-    for trajectory, peaks in zip(trajectories, sampled, strict=True):
-        certificate = certify_execution(TimedTrajectory(trajectory, PAPER_TIMING), dynamics, effort_only)
-        bound = _pair(certificate.torque_bound_n_m)
-        checks.append(
-            {
-                "torque_bound_n_m": bound,
-                "peak_torque_sampled_n_m": _pair(peaks),
-                "effort_limits_n_m": effort,
-                "within_effort_limits": all(b <= e for b, e in zip(bound, effort, strict=True)),
-            }
-        )
-    return checks
+    bounds = [
+        _pair(certify_execution(TimedTrajectory(t, PAPER_TIMING), dynamics, effort_only).torque_bound_n_m)
+        for t in trajectories
+    ]
+    checked = np.array(bounds, dtype=float).reshape(-1, 2)
+    for k, ceiling in enumerate(ceilings or ()):
+        if ceiling is not None:
+            checked[k] = np.minimum(checked[k], ceiling)
+    sampled = paper_torque_maxima(trajectories, dynamics, checked)
+    return [
+        {
+            "torque_bound_n_m": bound,
+            "peak_torque_sampled_n_m": _pair(peaks),
+            "effort_limits_n_m": effort,
+            "within_effort_limits": all(b <= e for b, e in zip(bound, effort, strict=True)),
+        }
+        for bound, peaks in zip(bounds, sampled, strict=True)
+    ]
 
 
 _PINOCCHIO_DATA: weakref.WeakKeyDictionary[PlanarArm, Any] = weakref.WeakKeyDictionary()
@@ -619,12 +644,20 @@ def _rest_to_rest_checks(
     durations = np.array([t.duration_s for t in timed], dtype=float)
     ramps = np.array([t.timing.ramp_s for t in timed], dtype=float)
 
-    def evaluate(tau: np.ndarray) -> np.ndarray:
-        q, dq, ddq = timed_states(parameters, timings, tau)
+    def evaluate(rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        q, dq, ddq = timed_states(parameters[rows], [timings[r] for r in rows], tau)
         return np.concatenate([np.abs(dq), np.abs(ddq), np.abs(dynamics.torque(q, dq, ddq))], axis=-1)
 
+    bounds = np.array(
+        [
+            (*c.speed_bound_rad_s, *c.acceleration_bound_rad_s2, *c.torque_bound_n_m)  # evaluate's order
+            for c in certificates
+        ],
+        dtype=float,
+    )
     ramp, middle, fine = grid
-    maxima, where, evaluated = refined_maxima(evaluate, piecewise_grid(durations, ramps, ramp, middle), fine)
+    grid_s = piecewise_grid(durations, ramps, ramp, middle)
+    maxima, where, evaluated = refined_maxima(evaluate, grid_s, fine, bounds, REST_TO_REST_ROOM)
     # Both ends, then each joint's torque peak (for RNEA).
     probe = np.column_stack([np.zeros_like(durations), durations, where[:, 4], where[:, 5]])
     q, dq, ddq = timed_states(parameters, timings, probe)
@@ -651,7 +684,7 @@ def _rest_to_rest_checks(
                 sampled_speed_rad_s=_pair(maxima[k, 0:2]),
                 sampled_acceleration_rad_s2=_pair(maxima[k, 2:4]),
                 sampled_torque_n_m=_pair(peak_torque),
-                samples=int(evaluated),
+                samples=int(evaluated[k]),
                 end_speed_rad_s=float(np.abs(dq[k, :2]).max()),
                 end_acceleration_rad_s2=float(np.abs(ddq[k, :2]).max()),
                 velocity_limits_rad_s=_pair(limits.velocity_rad_s),
@@ -737,6 +770,25 @@ def check_arm_matches(coefficients: Coefficients, arm: PlanarArm, option: str = 
         ) from None
 
 
+@dataclass(frozen=True)
+class SweepCase:
+    """One case of a sweep, to generate and measure.
+
+    Attributes:
+        index: Case number (kept in the result).
+        L_m, W_m: The obstacle's size [m].
+        extra: The extra variables' values ((name, value), ... [m], e.g. (("x", 0.01),)).
+        torque_ceiling_n_m: The region map's bound of the paper timing's |tau_i| in the leaf
+            holding the case, when the sweep checks the case against it (:attr:`Subject.torque_ceiling_n_m`).
+    """
+
+    index: int
+    L_m: float
+    W_m: float
+    extra: tuple[tuple[str, float], ...] = ()
+    torque_ceiling_n_m: Pair | None = None
+
+
 def measure_case(
     coefficients: Coefficients,
     L_m: float,
@@ -757,32 +809,39 @@ def measure_case(
     ``error`` set; it does not raise. The generator uses the link lengths stored in the
     coefficients; :func:`check_arm_matches` tells whether they are ``arm``'s.
     """
-    return measure_cases(coefficients, [(index, L_m, W_m, extra)], arm, settings, reach=reach)[0]
+    return measure_cases(coefficients, [SweepCase(index, L_m, W_m, extra)], arm, settings, reach=reach)[0]
 
 
 def measure_cases(
     coefficients: Coefficients,
-    cases: Sequence[tuple[int, float, float, tuple[tuple[str, float], ...]]],
+    cases: Sequence[SweepCase],
     arm: PlanarArm,
     settings: MeasureSettings | None = None,
     *,
     reach: LinkReach | None = None,
 ) -> list[CaseResult]:
-    """:func:`measure_case` of every case (index, L [m], W [m], extra), measured together
-    (:func:`measure_trajectories`); results in the order of ``cases``."""
+    """:func:`measure_case` of every case, measured together (:func:`measure_trajectories`);
+    results in the order of ``cases``."""
     results: list[CaseResult | None] = [None] * len(cases)
     subjects: list[tuple[int, Subject]] = []
-    for position, (index, L_m, W_m, extra) in enumerate(cases):
-        values = {name: float(value) for name, value in extra}
+    for position, case in enumerate(cases):
+        values = {name: float(value) for name, value in case.extra}
         named = tuple(values.items())
+        L_m, W_m = case.L_m, case.W_m
         try:
             generated = generate(coefficients, L_m, W_m, out_of_range="ignore", **values)
         except PipelineError as exc:
             extrapolated = is_extrapolated(coefficients, L_m, W_m, **values)
-            results[position] = failed_case(index, L_m, W_m, extrapolated, f"{type(exc).__name__}: {exc}", named)
+            results[position] = failed_case(case.index, L_m, W_m, extrapolated, f"{type(exc).__name__}: {exc}", named)
             continue
         subject = Subject(
-            generated.trajectory, generated.path, generated.obstacle, index, bool(generated.extrapolated), named
+            generated.trajectory,
+            generated.path,
+            generated.obstacle,
+            case.index,
+            bool(generated.extrapolated),
+            named,
+            case.torque_ceiling_n_m,
         )
         subjects.append((position, subject))
     measured = measure_trajectories([s for _, s in subjects], arm, settings, reach=reach)

@@ -31,7 +31,9 @@ FLOAT_SLACK_M`` (1e-9 m, for rounding only) must hold.
 
 **Execution bounds** (a map that has them, :mod:`pipeline.certify.execution_bounds`). Each
 case's joint check gives the exact closed-form peaks of |dq| and |ddq| and the angle range of
-the paper timing (``JointCheck``), and its torques at the dense samples (RNEA's closed form). The
+the paper timing (``JointCheck``), and its largest sampled torque (RNEA's closed form; sampled
+coarse and refined wherever it comes within 1 % of the leaf's bound, which the sweep hands to the
+measurement: :func:`verify.acceptance.run.torque_ceilings`). The
 leaf's bounds are rigorous upper bounds of all of them (the angle range encloses), so each
 ``bound - value`` must be >= -:data:`EXECUTION_SLACK` (rounding only); the torques are compared
 only when the sweep's arm has the map's inertias (``dynamics``).

@@ -142,8 +142,9 @@ class JointCheck:
         within_acceleration_limits: Likewise; None if there are no acceleration limits.
         torque_bound_n_m: Certified upper bound of |tau_i| over all of [0, T] (paper timing;
             Pinocchio's dynamics in closed form, decided against the effort limits) [N m].
-        peak_torque_sampled_n_m: Largest |tau_i| at the dense check's samples [N m]; the bound
-            must not lie below it.
+        peak_torque_sampled_n_m: Largest |tau_i| the sampled check found [N m] (a coarse grid,
+            refined at its peaks where they come near the bound or the region map's:
+            :mod:`verify.acceptance.sampling`); the bound must not lie below it.
         effort_limits_n_m: The URDF's effort limits [N m].
         within_effort_limits: Whether the torque bound respects them.
         rest_to_rest: The shortest rest-to-rest timing within the limits, certified (None if
@@ -202,8 +203,9 @@ class RestToRestCheck:
         speed_bound_rad_s, acceleration_bound_rad_s2, torque_bound_n_m: Certified upper bounds of
             |dq_i|, |ddq_i|, |tau_i| over [0, T'] (decided against the limits).
         sampled_speed_rad_s, sampled_acceleration_rad_s2, sampled_torque_n_m: Their largest values
-            at ``samples`` uniform instants (torques by the closed-form dynamics and, at each
-            joint's peak sample, Pinocchio's RNEA; the larger).
+            at ``samples`` instants: a coarse grid over each ramp and the middle, refined at its
+            peaks where they come near the bound (:mod:`verify.acceptance.sampling`) (torques by
+            the closed-form dynamics and, at each joint's peak sample, Pinocchio's RNEA; the larger).
         samples: Number of those instants.
         end_speed_rad_s, end_acceleration_rad_s2: Largest |dq_i|, |ddq_i| at tau = 0 and T'.
         velocity_limits_rad_s, acceleration_limits_rad_s2, effort_limits_n_m: The limits (inf: none).

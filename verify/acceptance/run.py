@@ -3,7 +3,7 @@ either way), then summarise and record where the numbers came from.
 
 :func:`run_sweep` judges one coefficients set on n seeded cases: each trajectory is generated as
 an online user would (:func:`pipeline.online.generator.generate`) and measured by
-:func:`verify.acceptance.metrics.measure_case`.
+:func:`verify.acceptance.metrics.measure_cases`, :data:`MEASURE_BATCH` cases at a time.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from pipeline.online.execution import dynamics_of
 from pipeline.validation import check_non_negative, check_positive_int
 
 from .cases import SweepRange, case_study_sizes, sample_cases
-from .metrics import MeasureSettings, check_arm_matches, measure_case, measure_cases
+from .metrics import MeasureSettings, SweepCase, check_arm_matches, measure_cases
 from .range_check import RangeCheck, check_range
 from .results import CaseResult
 from .summary import SweepSummary, summarize
@@ -125,7 +125,7 @@ def chunk_size(n_cases: int, jobs: int) -> int:
     return max(1, min(MAX_CHUNK_CASES, math.ceil(n_cases / (64 * jobs))))
 
 
-def _measure_in_worker(context: _WorkerContext, batch: list[tuple]) -> list[CaseResult]:
+def _measure_in_worker(context: _WorkerContext, batch: list[SweepCase]) -> list[CaseResult]:
     coefficients, arm, reach = _loaded(context.source, context.sha256, context.urdf_path)
     return measure_cases(coefficients, batch, arm, context.settings, reach=reach)
 
@@ -146,14 +146,21 @@ def run_cases(
     label: str = "",
     coefficients: Coefficients | None = None,
     arm: PlanarArm | None = None,
+    region_map: RegionMap | None = None,
 ) -> tuple[CaseResult, ...]:
     """Measure every case of ``cases_m`` (shape (n, k) [m]: L, W, then the coefficients' extra
     variables, :func:`case_columns`); results in case order.
 
-    The results do not depend on ``jobs``: each case is measured independently and
-    deterministically (:func:`pipeline.io.parallel.process_map`). ``jobs`` > 1 uses that many
-    worker processes; each loads the coefficients and the arm (from its URDF file) itself and
-    checks the coefficients' hash.
+    The cases are measured in consecutive blocks of :data:`MEASURE_BATCH`
+    (:func:`verify.acceptance.metrics.measure_cases`), the same blocks whatever ``jobs``, so the
+    results do not depend on it (:func:`pipeline.io.parallel.process_map`). ``jobs`` > 1 uses
+    that many worker processes; each loads the coefficients and the arm (from its URDF file)
+    itself and checks the coefficients' hash.
+
+    The region map the cases will be checked against (``region_map``, else the one attached to
+    ``coefficients``), if it belongs to them and bounds the torques of this arm, gives each case
+    its leaf's torque bound (:func:`torque_ceilings`): the sampled torques are refined where they
+    come near it.
 
     Args:
         source: Coefficients file, or the paper's name.
@@ -165,6 +172,8 @@ def run_cases(
         progress: Show a tqdm progress bar on stderr (only if it is a terminal).
         label: Progress-bar label.
         coefficients, arm: Already loaded objects (optional); ``arm`` must be the coefficients'.
+        region_map: The region map the cases will be checked against (default: the one attached
+            to ``coefficients``, if any).
     """
     jobs = resolve_jobs(jobs)
     coefficients = coefficients if coefficients is not None else load_coefficients(source, region_map=None)
@@ -172,15 +181,22 @@ def run_cases(
     cases = _cases_array(cases_m, columns)
     arm = arm if arm is not None else arm_for_sweep(coefficients, urdf_path)
     extra = columns[2:]
+    ceilings = torque_ceilings(region_map or coefficients.region_map, coefficients, arm, cases)
     indexed = [
-        (i, float(row[0]), float(row[1]), tuple(zip(extra, (float(v) for v in row[2:]), strict=True)))
+        SweepCase(
+            i,
+            float(row[0]),
+            float(row[1]),
+            tuple(zip(extra, (float(v) for v in row[2:]), strict=True)),
+            None if ceilings is None or not np.all(np.isfinite(ceilings[i])) else _pair(ceilings[i]),
+        )
         for i, row in enumerate(cases)
     ]
     batches = [indexed[k : k + MEASURE_BATCH] for k in range(0, len(indexed), MEASURE_BATCH)]
     if jobs == 1:
         reach = LinkReach.from_arm(arm)
 
-        def function(batch: list[tuple]) -> list[CaseResult]:
+        def function(batch: list[SweepCase]) -> list[CaseResult]:
             return measure_cases(coefficients, batch, arm, settings, reach=reach)
 
     else:
@@ -197,6 +213,34 @@ def run_cases(
         )
     results = [result for batch in measured for result in batch]
     return tuple(results)
+
+
+def _pair(values: Any) -> tuple[float, float]:
+    a, b = (float(v) for v in values)
+    return a, b
+
+
+def torque_ceilings(
+    region_map: RegionMap | None, coefficients: Coefficients, arm: PlanarArm, cases: np.ndarray
+) -> np.ndarray | None:
+    """Per case of ``cases`` ((n, k) [m], columns :func:`case_columns`), the paper timing's torque
+    bound (n, 2) [N m] of the map's leaf holding it (inf outside the map), or None when there is
+    no map, it belongs to other coefficients, has no execution bounds, bounds another arm's
+    torques, or lacks one of its axes among the cases' columns (the cases are then checked
+    against no torque bound of a map: :mod:`verify.acceptance.range_check`)."""
+    if region_map is None or region_map.execution is None or not region_map.belongs_to(coefficients):
+        return None
+    if region_map.execution.dynamics != dynamics_of(arm):
+        return None
+    columns = case_columns(coefficients)
+    if any(name not in columns for name in region_map.axes[2:]):
+        return None
+    extra = [cases[:, columns.index(name)] for name in region_map.axes[2:]]
+    leaf = region_map.cells_at(cases[:, 0], cases[:, 1], *extra)["leaf"]
+    out = np.full((cases.shape[0], 2), np.inf)
+    inside = leaf >= 0
+    out[inside] = region_map.execution.paper_torque_n_m[leaf[inside]]
+    return out
 
 
 def _cases_array(cases_m: np.ndarray, columns: Sequence[str]) -> np.ndarray:
@@ -357,6 +401,7 @@ def run_sweep(
         label=name,
         coefficients=coefficients,
         arm=arm,
+        region_map=region_map,
     )
     elapsed = time.perf_counter() - start
     studies = measure_case_studies(coefficients, arm, settings, fitted) if case_studies else ()
@@ -395,10 +440,8 @@ def measure_case_studies(
     0..3); each extra variable of ``fitted`` (e.g. the obstacle's centre x) at its range's midpoint."""
     reach = LinkReach.from_arm(arm)
     extra = tuple((name, 0.5 * (lo + hi)) for name, (lo, hi) in fitted.extra_m)
-    return tuple(
-        measure_case(coefficients, length, width, arm, settings, index=i, reach=reach, extra=extra)
-        for i, (length, width) in enumerate(case_study_sizes(fitted))
-    )
+    cases = [SweepCase(i, length, width, extra) for i, (length, width) in enumerate(case_study_sizes(fitted))]
+    return tuple(measure_cases(coefficients, cases, arm, settings, reach=reach))
 
 
 def _provenance(
