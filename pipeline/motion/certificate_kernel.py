@@ -95,9 +95,13 @@ def _timing_ranges(start, jerk, j, a, b):
 
 
 @numba.njit(cache=True, nogil=True)
-def _upper(p, start, jerk, knots, mass, lo, hi, j, out):
+def _upper(p, start, jerk, knots, path_duration, mass, lo, hi, j, out):
     """Upper bounds of the 12 quantities over [lo, hi] in segment j, into ``out``."""
     s_lo, s_hi, d1_lo, d1_hi, d2_lo, d2_hi, d3_lo, d3_hi = _timing_ranges(start, jerk, j, lo - knots[j], hi - knots[j])
+    if hi >= knots[-1]:  # at T' itself: exactly at rest at T (as SmoothTiming.ranges_with_jerk)
+        s_lo, s_hi = min(s_lo, path_duration), max(s_hi, path_duration)
+        d1_lo, d1_hi, d2_lo, d2_hi = min(d1_lo, 0.0), max(d1_hi, 0.0), min(d2_lo, 0.0), max(d2_hi, 0.0)
+        d3_lo, d3_hi = min(d3_lo, 0.0), max(d3_hi, 0.0)
     sq_lo, sq_hi = _square(d1_lo, d1_hi)
     cube_lo, cube_hi = _mul(sq_lo, sq_hi, d1_lo, d1_hi)
     dd_lo, dd_hi = _mul(d1_lo, d1_hi, d2_lo, d2_hi)
@@ -196,7 +200,7 @@ def _certify(p, start, jerk, knots, path_duration, mass, limit, decide, toleranc
         is_open = np.zeros(n, dtype=np.bool_)
         uppers = np.empty((n, _QUANTITIES))
         for k in range(n):
-            _upper(p, start, jerk, knots, mass, lo[k], hi[k], seg[k], upper)
+            _upper(p, start, jerk, knots, path_duration, mass, lo[k], hi[k], seg[k], upper)
             uppers[k] = upper
             for q in range(_QUANTITIES):
                 loose = upper[q] > sampled[q] + tolerance * max(abs(sampled[q]), 1e-3)

@@ -52,6 +52,7 @@ within rounding of a phase interval's end changes the range by the square of tha
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -281,17 +282,31 @@ def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLi
     return _certificate(timed, bounds, None, 0, limits)
 
 
+def _scalar_sin_range(lo: float, hi: float) -> tuple[float, float]:
+    """:func:`pipeline.motion.interval_arithmetic.sin_range` for one interval, in plain floats."""
+    two_pi, half_pi = 2.0 * math.pi, 0.5 * math.pi
+    top = math.ceil((lo - half_pi) / two_pi) * two_pi + half_pi <= hi
+    bottom = math.ceil((lo + half_pi) / two_pi) * two_pi - half_pi <= hi
+    a, b = math.sin(lo), math.sin(hi)
+    return (-1.0 if bottom else min(a, b)), (1.0 if top else max(a, b))
+
+
 def _inertia_sup(dynamics: PlanarDynamics, q2_lo: float, q2_hi: float) -> tuple[np.ndarray, float]:
     """sup of |M_ij(q2)| (2, 2) and of |h(q2)| over q2 in [q2_lo, q2_hi] (the path's exact range of
-    q2), in interval arithmetic; never above the suprema over all q2."""
-    lo, hi = np.array([q2_lo]), np.array([q2_hi])
-    sin2, cos2 = sin_range(lo, hi), sin_range(lo + np.pi / 2, hi + np.pi / 2)
-    m0, mc, ms = (np.asarray(m) for m in (dynamics.m0, dynamics.mc, dynamics.ms))
-    mass = np.array(
-        [[magnitude(affine_trig(m0[i, j], mc[i, j], ms[i, j], *cos2, *sin2))[0] for j in (0, 1)] for i in (0, 1)]
-    )
-    coriolis = magnitude(affine_trig(0.0, 0.5 * ms[0, 0], -0.5 * mc[0, 0], *cos2, *sin2))[0]
-    return np.minimum(mass, dynamics.mass_matrix_sup()), min(float(coriolis), dynamics.coriolis_sup())
+    q2): max |k0 + kc cos + ks sin| over the exact ranges of cos and sin, as interval arithmetic
+    gives it; never above the suprema over all q2."""
+    s_lo, s_hi = _scalar_sin_range(q2_lo, q2_hi)
+    c_lo, c_hi = _scalar_sin_range(q2_lo + 0.5 * math.pi, q2_hi + 0.5 * math.pi)
+
+    def sup(k0: float, kc: float, ks: float) -> float:
+        low = k0 + min(kc * c_lo, kc * c_hi) + min(ks * s_lo, ks * s_hi)
+        high = k0 + max(kc * c_lo, kc * c_hi) + max(ks * s_lo, ks * s_hi)
+        return max(abs(low), abs(high))
+
+    m0, mc, ms = dynamics.m0, dynamics.mc, dynamics.ms
+    mass = np.array([[sup(m0[i][j], mc[i][j], ms[i][j]) for j in (0, 1)] for i in (0, 1)])
+    coriolis = sup(0.0, 0.5 * ms[0][0], -0.5 * mc[0][0])
+    return np.minimum(mass, dynamics.mass_matrix_sup()), min(coriolis, dynamics.coriolis_sup())
 
 
 def _limit_vector(limits: ArmLimits) -> np.ndarray:

@@ -16,7 +16,9 @@ the same integral as the step beyond the window (their difference is odd about t
 is unchanged outside every window and the end is still at rest: ``sigma'(end) = sum_k du_k (end -
 tau_k)``, as before. sigma itself moves by ``du_k delta_k^2 / 24`` per window; the whole timing is
 scaled by the one factor that puts its end at exactly T (a factor within 1e-3 of 1, reported).
-The windows at the start and the end lengthen the motion by half of each; the others do not.
+The motion is lengthened by as much as the ramps reach before the first step and after the last
+(half of the first and last ramps' widths, unless a wider one reaches farther); the others do not
+lengthen it.
 
 **Ranges over an interval** (for the certificates): within a segment, sigma''' is constant,
 sigma'' linear (its range is at the interval's ends), sigma' quadratic (ends and vertex) and sigma
@@ -145,16 +147,28 @@ class SmoothTiming(Timing):
             for q in range(8):
                 values = np.concatenate([np.atleast_1d(p[q]) for p in parts] + [out[q][row : row + 1]])
                 out[q][row] = values.min() if q % 2 == 0 else values.max()
+        # At T' itself the timing is exactly at rest at T (the last cubic ends there up to the
+        # rounding of its sums): an interval reaching T' holds those values too.
+        end = hi >= self.duration_s
+        for q, value in enumerate((self.path_duration_s, 0.0, 0.0, 0.0)):
+            out[2 * q][end] = np.minimum(out[2 * q][end], value)
+            out[2 * q + 1][end] = np.maximum(out[2 * q + 1][end], value)
         return tuple(out)
 
-    def speed_range(self) -> tuple[float, float]:
+    def speed_range(self, inner: bool = False) -> tuple[float, float]:
         """The least and largest sigma' over the whole timing (exact: each segment's ends and the
-        vertex of its quadratic) [1]."""
+        vertex of its quadratic) [1]. ``inner``: leave out the last segment's end, where sigma' is
+        0 by construction (the cubic's own value there is 0 up to the rounding of its sums)."""
         c1, c2, k = self.start[:, 1], self.start[:, 2], self.jerk
         h = np.diff(self.breakpoints_s)
         with np.errstate(divide="ignore", invalid="ignore"):
             vertex = np.clip(np.where(k != 0.0, -c2 / k, 0.0), 0.0, h)
-        values = np.concatenate([c1, c1 + h * (c2 + h * k / 2.0), c1 + vertex * (c2 + vertex * k / 2.0)])
+        ends = c1 + h * (c2 + h * k / 2.0)
+        vertices = c1 + vertex * (c2 + vertex * k / 2.0)
+        if inner:
+            ends = ends[:-1]
+            vertices = vertices[:-1] if vertex[-1] >= h[-1] else vertices  # a vertex at the end is the end
+        values = np.concatenate([c1, ends, vertices])
         return float(values.min()), float(values.max())
 
     def jerk_ranges(self, lo_s, hi_s):
@@ -169,7 +183,8 @@ def smoothed(
     acceleration (module docstring).
 
     sigma must not decrease (the motion would go back along the path). Ramps of opposite signs
-    that overlap where the path speed is low could make sigma' negative; then every ramp is given
+    that overlap where the path speed is low could make sigma' negative (or even end sigma below
+    0); then every ramp is given
     the widest width: with one width for all, sigma'' is the unsmoothed sigma'' averaged over a
     sliding window (a box convolution), so sigma' is the unsmoothed one averaged, never negative,
     and sigma ends at T exactly (factor 1).
@@ -183,18 +198,24 @@ def smoothed(
     Returns:
         (the timing, the factor sigma was scaled by to end at T).
     """
-    timing, factor = _superposed(step_times_s, steps, windows_s, path_duration_s)
-    lowest, highest = timing.speed_range()
-    if lowest < -_SPEED_ROUNDING * highest:
-        widest = np.full_like(np.asarray(windows_s, dtype=float), float(np.max(windows_s)))
-        timing, factor = _superposed(step_times_s, steps, widest, path_duration_s)
-    return timing, factor
+    found = _superposed(step_times_s, steps, windows_s, path_duration_s)
+    if found is not None:
+        lowest, highest = found[0].speed_range(inner=True)
+        if lowest >= -_SPEED_ROUNDING * highest:
+            return found
+    widest = np.full_like(np.asarray(windows_s, dtype=float), float(np.max(windows_s)))
+    found = _superposed(step_times_s, steps, widest, path_duration_s)
+    if found is None:
+        raise InvalidParameterError("steps", np.abs(np.asarray(steps)).max(), "a profile that moves along the path")
+    return found
 
 
-def _superposed(step_times_s, steps, windows_s, path_duration_s) -> tuple[SmoothTiming, float]:
-    """:func:`smoothed`'s ramps, superposed and integrated (module docstring)."""
-    times = np.asarray(step_times_s, dtype=float) + 0.5 * float(windows_s[0])
+def _superposed(step_times_s, steps, windows_s, path_duration_s) -> tuple[SmoothTiming, float] | None:
+    """:func:`smoothed`'s ramps, superposed and integrated (module docstring); None where sigma
+    does not end above 0 (ramps of opposite signs that reverse the motion)."""
     half = 0.5 * np.asarray(windows_s, dtype=float)
+    times = np.asarray(step_times_s, dtype=float)
+    times = times + max(0.0, float(np.max(half - times)))  # the earliest ramp starts at 0
     slope = np.asarray(steps, dtype=float) / np.asarray(windows_s, dtype=float)
     events = np.concatenate([times - half, times + half])
     change = np.concatenate([slope, -slope])
@@ -207,8 +228,8 @@ def _superposed(step_times_s, steps, windows_s, path_duration_s) -> tuple[Smooth
     acc = np.concatenate([[0.0], np.cumsum(jerk * h)])
     speed = np.concatenate([[0.0], np.cumsum(acc[:-1] * h + jerk * h * h / 2.0)])
     sigma = np.concatenate([[0.0], np.cumsum(speed[:-1] * h + acc[:-1] * h * h / 2.0 + jerk * h**3 / 6.0)])
+    if not (math.isfinite(sigma[-1]) and sigma[-1] > 0.0):
+        return None
     factor = float(path_duration_s) / float(sigma[-1])
-    if not (math.isfinite(factor) and factor > 0.0):
-        raise InvalidParameterError("steps", float(sigma[-1]), "a profile that moves along the path")
     start = factor * np.column_stack([sigma[:-1], speed[:-1], acc[:-1]])
     return SmoothTiming(float(path_duration_s), knots, start, factor * jerk), factor

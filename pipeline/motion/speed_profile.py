@@ -32,7 +32,10 @@ __all__ = ["fastest_profile"]
 
 _NEWTON_STEPS = 60
 _BISECTIONS = 80
-_START_X = 1e12
+#: Newton's first point is found by quadrupling x from the next piece's bound (at least this) until
+#: it is infeasible or reaches the speed cap; beyond _LARGEST_X no row bounds x.
+_SMALLEST_START_X = 1e-12
+_LARGEST_X = 1e300
 #: Where Newton's steps stall on rounding, x (1 - this) is tried before bisecting.
 _NEAR_ROOT = 1e-9
 
@@ -62,7 +65,15 @@ def _u_range(cu, cx, rhs, x, ds, top):
 @numba.njit(cache=True, nogil=True)
 def _largest_feasible_x(cu, cx, rhs, cap, ds, top):
     """The largest x in [0, cap] with ulo(x) <= uhi(x) (module docstring)."""
-    x = min(cap, _START_X)
+    # Start Newton within a factor 4 of the root (from far above, its first step would cancel).
+    x = min(cap, max(top, _SMALLEST_START_X))
+    while x < cap:
+        ulo, uhi, _, _ = _u_range(cu, cx, rhs, x, ds, top)
+        if uhi < ulo:
+            break
+        if x > _LARGEST_X:  # no row bounds x: the cap, if any, does
+            return min(cap, x)
+        x = min(4.0 * x, cap)
     for _ in range(_NEWTON_STEPS):
         ulo, uhi, slo, shi = _u_range(cu, cx, rhs, x, ds, top)
         gap = uhi - ulo

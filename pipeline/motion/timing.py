@@ -73,7 +73,9 @@ class Timing:
 
     @property
     def knots_s(self) -> np.ndarray:
-        """Times [s] between which sigma is one polynomial (the certificates start from them)."""
+        """Times [s] the execution certificate's first partition starts from: [0, T'] for the
+        paper's and the rest-to-rest timings (bounded in closed form, or bisected from one
+        interval); a smooth timing's breakpoints, between which its sigma is one cubic."""
         return np.array([0.0, self.duration_s])
 
 

@@ -179,7 +179,7 @@ def test_monotone_and_unchanged_outside_the_windows(profile) -> None:
     seed, pieces, share, zeros = profile
     times, steps, windows, path, durations, speeds = _profile(seed, pieces, min(share, 0.5), zeros)
     timing, factor = smoothed(times, steps, windows, path)
-    windows = _windows_used(times, steps, windows, timing)  # see the xfail test below for why not the given ones
+    windows = _windows_used(times, steps, windows, timing)  # the given ones, or the fallback's
     tau = np.linspace(0.0, timing.duration_s, 20001)
     sigma = timing.sigma(tau)
     assert np.all(np.diff(sigma) >= -4.0 * np.spacing(path))
@@ -192,7 +192,9 @@ def test_monotone_and_unchanged_outside_the_windows(profile) -> None:
     piece = np.clip(np.searchsorted(times, shifted[outside], side="right") - 1, 0, pieces - 1)
     u = np.diff(speeds) / durations
     original = speeds[piece] + u[piece] * (shifted[outside] - times[piece])
-    atol = max(1e-9 * speeds.max(), _rounding(timing)[1])
+    # A few times the rounding estimate: over a long profile with very narrow windows (jerks of 1e5
+    # and more) the cumulative sums drift by up to 1.4 times it (seen: 1.6e-8 against 1.1e-8).
+    atol = max(1e-9 * speeds.max(), 4.0 * _rounding(timing)[1])
     assert np.allclose(timing.dsigma(tau[outside]), factor * original, rtol=0.0, atol=atol)
 
 
@@ -301,23 +303,11 @@ def test_modest_windows_barely_scale_the_timing(seed, pieces) -> None:
     assert abs(factor - 1.0) <= 1e-2
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=ZeroDivisionError,
-    reason="BUG (smooth_timing._superposed): float(T) / float(sigma[-1]) raises ZeroDivisionError when the "
-    "steps do not move sigma (sigma[-1] == 0.0), before the InvalidParameterError check is reached",
-)
 def test_a_profile_that_does_not_move_is_refused() -> None:
     with pytest.raises(InvalidParameterError):
         smoothed(np.array([0.0, 1.0]), np.array([0.0, 0.0]), np.array([0.1, 0.1]), 2.0)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG (smoothed): the fallback to one ramp width fires on rounding: lowest_speed() includes the "
-    "last cubic's end, where sigma' is 0 in exact arithmetic but its cumulative sums give about -6e-12, below "
-    "-_SPEED_ROUNDING * highest_speed() = -2.7e-12; the windows here do not overlap, so sigma' cannot dip",
-)
 def test_no_fallback_when_the_windows_do_not_overlap() -> None:
     times, steps, windows, path, _, _ = _profile(5, 12, 0.5, zero_steps=True)
     assert _lowest_reference_speed(times, steps, windows) > 0.05  # truly positive between the end windows

@@ -152,13 +152,6 @@ def test_profile_with_no_rows_is_the_speed_cap() -> None:
     assert np.allclose(x, [0.0, 1.0, 2.0, 2.0, 0.0], rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG (speed_profile._largest_feasible_x): with an infinite speed cap the first Newton step starts "
-    "at _START_X = 1e12 and x - gap / slope cancels catastrophically (ulp(1e12) ~ 1.2e-4 in x): the step lands "
-    "left of the largest root, is feasible, and is returned as X_k. Here X = 2 a ds = 2e-5 comes out as 0: "
-    "the profile never moves (near_optimal_timing would refuse with 'a limit binds at rest').",
-)
 @pytest.mark.parametrize(("a", "ds", "pieces"), [(1e-3, 1e-2, 2), (1.5285422968826818, 0.0625, 2), (1e-2, 1e-2, 10)])
 def test_trapezoid_without_a_speed_cap(a, ds, pieces) -> None:
     cu = np.tile([1.0, -1.0], (pieces, 1))
