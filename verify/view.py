@@ -22,6 +22,7 @@ server is announced.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import signal
 import sys
@@ -38,6 +39,7 @@ from pipeline.cli import (
     EXIT_OK,
     Parser,
     add_acceleration_limit_argument,
+    add_jerk_limit_argument,
     describe_coefficients,
     run_cli,
 )
@@ -114,11 +116,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--timing",
-        choices=("rest-to-rest", "paper"),
-        default="rest-to-rest",
-        help="--joint-plot: the timing to plot",
+        choices=("near-optimal", "rest-to-rest", "paper"),
+        default="near-optimal",
+        help="--joint-plot: the timing to plot (default: near-optimal, what python -m pipeline.generate exports)",
     )
-    add_acceleration_limit_argument(parser, "--joint-plot's limits (default: those recorded with the coefficients)")
+    add_acceleration_limit_argument(
+        parser,
+        "--joint-plot's limits (default: those recorded with the coefficients; the near-optimal timing fills in "
+        "the servo default, 10 rad/s^2)",
+    )
+    add_jerk_limit_argument(
+        parser, "--joint-plot's limits (default: none; the near-optimal timing fills in the acceleration limit / 50 ms)"
+    )
     parser.add_argument(
         "--size", type=_size, default=(1200, 800), metavar="WxH", help="screenshot size [px] (default: 1200x800)"
     )
@@ -231,6 +240,7 @@ def _joint_plot(args: argparse.Namespace) -> int:
     """Certify the answer with the chosen timing and plot its joint states."""
     from pipeline.exceptions import ExecutionRefusedError, NoCertifiedTrajectoryError
     from pipeline.model.limits import ArmLimits
+    from pipeline.motion.near_optimal import NEAR_OPTIMAL
     from pipeline.motion.rest_to_rest import REST_TO_REST
     from pipeline.motion.timing import PAPER_TIMING
     from pipeline.online.repair import RepairConfig, generate_certified
@@ -243,7 +253,9 @@ def _joint_plot(args: argparse.Namespace) -> int:
         limits = ArmLimits.recorded(arm, coefficients.provenance)
     else:
         limits = ArmLimits.from_arm(arm, tuple(args.acceleration_limit))
-    timing = REST_TO_REST if args.timing == "rest-to-rest" else PAPER_TIMING
+    if args.jerk_limit is not None:
+        limits = dataclasses.replace(limits, jerk_rad_s3=tuple(args.jerk_limit))
+    timing = {"near-optimal": NEAR_OPTIMAL, "rest-to-rest": REST_TO_REST, "paper": PAPER_TIMING}[args.timing]
     try:
         answer = generate_certified(
             coefficients,

@@ -176,8 +176,11 @@ def _smooth_timing(trajectory, edges, peaks, x, u, limits, jerk_share, widen) ->
     times = np.concatenate([[0.0], np.cumsum(durations)])
     steps = np.diff(np.concatenate([[0.0], u, [0.0]]))
     windows = widen * _windows(peaks, x, u, times, steps, limits, jerk_share)
+    # Ramps at least as wide as the pieces beside them: the small steps between pieces then blend
+    # into one another (sigma'' close to linear between the pieces' midpoints) instead of short bursts of jerk.
+    spacing = np.concatenate([[0.0], np.minimum(durations[:-1], durations[1:]), [0.0]])  # not at the ends
     keep = np.abs(steps) > 0.0
-    windows = np.maximum(windows, 1e-6)
+    windows = np.maximum(windows, spacing)
     timing, _ = smoothed(times[keep], steps[keep], windows[keep], trajectory.duration_s)
     return timing
 

@@ -93,7 +93,7 @@ def test_joint_plot_writes_a_png_of_the_certified_answer(tmp_path, capsys) -> No
     )
     assert status == 0, capsys.readouterr().err
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "rest-to-rest timing, T' = " in capsys.readouterr().out
+    assert "near-optimal timing, T' = " in capsys.readouterr().out
     slow = tmp_path / "slow.urdf"
     from pipeline.model.arm import DEFAULT_URDF
 
