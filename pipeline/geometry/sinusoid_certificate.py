@@ -65,6 +65,7 @@ import weakref
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
+from pipeline.geometry.adaptive_kernel import merge_round, plan_round
 from pipeline.geometry.clearance import (
     COAL,
     COAL_DISTANCE_ERROR_M,
@@ -173,6 +174,7 @@ def certify(
     decide_above_m: float | None = None,
     max_evaluations: int = DEFAULT_MAX_EVALUATIONS,
     link_clearance: LinkClearanceFunction | None = None,
+    compiled: bool = True,
 ) -> Certificate:
     """Certify a lower bound on the clearance of ``trajectory`` over the continuous interval [0, T].
 
@@ -191,6 +193,9 @@ def certify(
         link_clearance: One link's clearance, (m, 2) [rad] and link 0 / 1 -> (m,) [m] (e.g.
             ``CoalClearance.link_distances``), for the adaptive route's per-link bisection; default
             from ``clearance`` (which then computes both links).
+        compiled: For the adaptive route, run each refinement round's bookkeeping compiled
+            (:mod:`pipeline.geometry.adaptive_kernel`, the same operations, tested equal); False:
+            the readable NumPy route.
 
     Returns:
         The :class:`Certificate`.
@@ -243,6 +248,7 @@ def certify(
         tolerance_m,
         decide_above_m,
         max_evaluations,
+        compiled,
     )
 
 
@@ -262,6 +268,11 @@ class _AdaptiveCertificate:
         # The link_point_speed_bounds factors, inflated by SPEED_SLACK against rounding.
         self.link1_factor = rho1 * SPEED_SLACK
         self.link2_factors = ((e + rho2) * SPEED_SLACK, rho2 * SPEED_SLACK, e * SPEED_SLACK)
+        # The same constants for the compiled rounds (adaptive_kernel.MOTION_FIELDS order).
+        self.motion = np.array(
+            [*self.half_w, *self.phi, *self.half_abs_w, *self.rate_peak, *self.acceleration_peak]
+            + [*self.rate_amplitude, self.link1_factor, *self.link2_factors, *self.w, *self.amplitude, *self.gamma]
+        )
 
     def q(self, t: np.ndarray) -> np.ndarray:
         """Joint angles (m, 2) [rad] at times t (m,) [s] (Eq. 1)."""
@@ -324,6 +335,7 @@ class _AdaptiveCertificate:
         tolerance: float,
         decide: float | None,
         max_evaluations: int,
+        compiled: bool = False,
     ) -> Certificate:
         # The initial grid of each link (one grid, both links at once, when they are the same).
         if n[0] == n[1]:
@@ -365,6 +377,17 @@ class _AdaptiveCertificate:
         global_speed = (rate1 * self.link1_factor, rate1 * self.link2_factors[0] + rate2 * self.link2_factors[1])
         speed = np.where(link, global_speed[1], global_speed[0])
         own = np.zeros(ta.size, dtype=bool)  # True where ``speed`` is the interval's own bound
+        if compiled:
+            evaluations, rounds, converged = self._compiled_rounds(
+                (ta, tb, da, db, link, speed, own),
+                link_clearance,
+                (error, tolerance, decide),
+                max_evaluations - (evaluations - initial),
+                best,
+                (observed, observed_time),
+            )
+            evaluations += initial
+            ta = ta[:0]  # done
         while ta.size:
             h = tb - ta
             lower = interval_lower_bound(da, db, speed, h)
@@ -445,6 +468,60 @@ class _AdaptiveCertificate:
             refinement_rounds=rounds,
             converged=converged,
         )
+
+    def _compiled_rounds(
+        self,
+        state: tuple[np.ndarray, ...],
+        link_clearance: LinkClearanceFunction,
+        settings: tuple[float, float, float | None],
+        budget: int,
+        best: list[tuple[float, float]],
+        seen: tuple[list[float], list[float]],
+    ) -> tuple[int, int, bool]:
+        """The refinement rounds of :meth:`run` with their bookkeeping compiled
+        (:func:`pipeline.geometry.adaptive_kernel.plan_round`, :func:`~pipeline.geometry.adaptive_kernel.merge_round`),
+        the clearance evaluated between them; ``best`` and the observed minima ``seen`` updated in place.
+
+        Returns:
+            (refinement evaluations, rounds, converged).
+        """
+        ta, tb, da, db, link, speed, own = state
+        error, tolerance, decide = settings
+        observed, observed_time = seen
+        best_value = np.array([best[0][0], best[1][0]])
+        best_time = np.array([best[0][1], best[1][1]])
+        has_decide = decide is not None
+        decide_value = float(decide) if has_decide else 0.0
+        evaluations, rounds, converged = 0, 0, True
+        while ta.size:
+            floor = min(observed) - error
+            count, over_budget, refine, _, points, point_link, q, owner, j, last = plan_round(
+                ta, tb, da, db, link, speed, own, floor, tolerance, decide_value, has_decide,
+                budget - evaluations, SPLIT_SAFETY, float(MAX_SPLIT), best_value, best_time, self.motion,
+            )  # fmt: skip
+            if over_budget:
+                converged = False
+            if not count:
+                break
+            rounds += 1
+            values = np.empty(count)
+            for k, mask in ((0, ~point_link), (1, point_link)):
+                if mask.any():
+                    got = np.asarray(link_clearance(q[mask], k), dtype=float)
+                    if not math.isfinite(float(got.sum())):
+                        raise InvalidParameterError(
+                            "clearance", "non-finite values", "finite distances from the clearance function"
+                        )
+                    i = int(got.argmin())
+                    if got[i] < observed[k]:
+                        observed[k], observed_time[k] = float(got[i]), float(points[mask][i])
+                    values[mask] = got - error
+            evaluations += count
+            ta, tb, da, db, link, speed, own = merge_round(
+                ta, tb, da, db, link, speed, refine, points, values, point_link, owner, j, last
+            )
+        best[0], best[1] = (float(best_value[0]), float(best_time[0])), (float(best_value[1]), float(best_time[1]))
+        return evaluations, rounds, converged
 
 
 _REACH: weakref.WeakKeyDictionary[PlanarArm, LinkReach] = weakref.WeakKeyDictionary()

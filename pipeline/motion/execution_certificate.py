@@ -52,6 +52,7 @@ within rounding of a phase interval's end changes the range by the square of tha
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -259,27 +260,36 @@ def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLi
     |sigma'''| <= 6 c / r^2) the speeds scale by c, the accelerations are bounded by
     c^2 max|theta''| + 1.5 c max|theta'| / r, the jerks by c^3 |A| w^3 + 4.5 c^2 max|theta''| / r +
     6 c max|theta'| / r^2, and the torques follow from the speeds and accelerations as for the
-    paper timing (c = 1, no ramp)."""
-    trajectory = timed.trajectory
-    V, acc = np.asarray(trajectory.peak_velocity_rad_s()), np.asarray(trajectory.peak_acceleration_rad_s2())
-    p = np.asarray(trajectory.parameters).reshape(2, 4)
-    third = np.abs(p[:, 0]) * p[:, 1] ** 3
-    c, ramp_term, jerk_ramp = 1.0, 0.0, np.zeros(2)
+    paper timing (c = 1, no ramp).
+
+    In plain floats: the path's exact peaks and angle ranges are computed once per trajectory
+    (:attr:`pipeline.motion.trajectory.JointTrajectory.peaks`) and the inertia suprema once per
+    range of q2 (:func:`_inertia_sup`), so both timings of one path share them; each bound is a few
+    products and sums, widened by the same slack as every enclosure."""
+    peaks = timed.trajectory.peaks
+    (V1, V2), (acc1, acc2), (third1, third2) = peaks.velocity_rad_s, peaks.acceleration_rad_s2, peaks.third_rad_s3
+    (lo1, hi1), (lo2, hi2) = peaks.angle_ranges_rad
+    c, ramp_term, jerk1, jerk2 = 1.0, 0.0, 0.0, 0.0
     if isinstance(timed.timing, RestToRestTiming):
         c, r = timed.timing.speed_scale, timed.timing.ramp_s
         ramp_term = 1.5 * c / r
-        jerk_ramp = 4.5 * c * c * acc / r + 6.0 * c * V / r**2
-    speed, accel = c * V, c * c * acc + ramp_term * V
-    jerk = c**3 * third + jerk_ramp
-    (lo1, hi1), (lo2, hi2) = trajectory.angle_ranges_rad()
-    quadratic = c * c * np.array([2.0 * V[0] * V[1] + V[1] ** 2, V[0] ** 2])
-    mass, coriolis = _inertia_sup(dynamics, lo2, hi2)
-    torque = mass @ accel + coriolis * quadratic
-    bounds = np.array([hi1, hi2, -lo1, -lo2, *speed, *accel, *torque, *jerk])
-    bounds = bounds + FLOAT_SLACK_RELATIVE * np.abs(bounds) + FLOAT_SLACK_ABSOLUTE
-    if np.any(bounds > _limit_vector(limits)):
+        jerk1 = 4.5 * c * c * acc1 / r + 6.0 * c * V1 / r**2
+        jerk2 = 4.5 * c * c * acc2 / r + 6.0 * c * V2 / r**2
+    accel1, accel2 = c * c * acc1 + ramp_term * V1, c * c * acc2 + ramp_term * V2
+    (m11, m12), (m21, m22), coriolis = _inertia_sup(dynamics, lo2, hi2)
+    quadratic1, quadratic2 = c * c * (2.0 * V1 * V2 + V2**2), c * c * V1**2
+    raw = (
+        hi1, hi2, -lo1, -lo2,
+        c * V1, c * V2,
+        accel1, accel2,
+        m11 * accel1 + m12 * accel2 + coriolis * quadratic1, m21 * accel1 + m22 * accel2 + coriolis * quadratic2,
+        c**3 * third1 + jerk1, c**3 * third2 + jerk2,
+    )  # fmt: skip
+    relative, absolute = FLOAT_SLACK_RELATIVE, FLOAT_SLACK_ABSOLUTE
+    bounds = [b + relative * abs(b) + absolute for b in raw]
+    if any(b > limit for b, limit in zip(bounds, _limit_tuple(limits), strict=True)):
         return None
-    return _certificate(timed, bounds, None, 0, limits)
+    return _certificate(timed, np.array(bounds), None, 0, limits)
 
 
 def _scalar_sin_range(lo: float, hi: float) -> tuple[float, float]:
@@ -291,10 +301,14 @@ def _scalar_sin_range(lo: float, hi: float) -> tuple[float, float]:
     return (-1.0 if bottom else min(a, b)), (1.0 if top else max(a, b))
 
 
-def _inertia_sup(dynamics: PlanarDynamics, q2_lo: float, q2_hi: float) -> tuple[np.ndarray, float]:
-    """sup of |M_ij(q2)| (2, 2) and of |h(q2)| over q2 in [q2_lo, q2_hi] (the path's exact range of
-    q2): max |k0 + kc cos + ks sin| over the exact ranges of cos and sin, as interval arithmetic
-    gives it; never above the suprema over all q2."""
+@functools.lru_cache(maxsize=64)
+def _inertia_sup(
+    dynamics: PlanarDynamics, q2_lo: float, q2_hi: float
+) -> tuple[tuple[float, float], tuple[float, float], float]:
+    """sup of |M_ij(q2)| (rows (M11, M12), (M21, M22)) and of |h(q2)| over q2 in [q2_lo, q2_hi]
+    (the path's exact range of q2): max |k0 + kc cos + ks sin| over the exact ranges of cos and sin,
+    as interval arithmetic gives it; never above the suprema over all q2. Plain floats, memoised on
+    (dynamics, range): both timings of one path ask for the same range."""
     s_lo, s_hi = _scalar_sin_range(q2_lo, q2_hi)
     c_lo, c_hi = _scalar_sin_range(q2_lo + 0.5 * math.pi, q2_hi + 0.5 * math.pi)
 
@@ -304,16 +318,30 @@ def _inertia_sup(dynamics: PlanarDynamics, q2_lo: float, q2_hi: float) -> tuple[
         return max(abs(low), abs(high))
 
     m0, mc, ms = dynamics.m0, dynamics.mc, dynamics.ms
-    mass = np.array([[sup(m0[i][j], mc[i][j], ms[i][j]) for j in (0, 1)] for i in (0, 1)])
-    coriolis = sup(0.0, 0.5 * ms[0][0], -0.5 * mc[0][0])
-    return np.minimum(mass, dynamics.mass_matrix_sup()), min(coriolis, dynamics.coriolis_sup())
+    everywhere, coriolis_everywhere = _inertia_sup_everywhere(dynamics)
+    row1, row2 = (tuple(min(sup(m0[i][j], mc[i][j], ms[i][j]), everywhere[i][j]) for j in (0, 1)) for i in (0, 1))
+    coriolis = min(sup(0.0, 0.5 * ms[0][0], -0.5 * mc[0][0]), coriolis_everywhere)
+    return row1, row2, coriolis  # type: ignore[return-value]
+
+
+@functools.lru_cache(maxsize=8)
+def _inertia_sup_everywhere(dynamics: PlanarDynamics) -> tuple[tuple[tuple[float, float], ...], float]:
+    """The suprema over all q2 (:meth:`PlanarDynamics.mass_matrix_sup`, :meth:`PlanarDynamics.coriolis_sup`)
+    in plain floats, once per dynamics."""
+    return tuple(tuple(float(v) for v in row) for row in dynamics.mass_matrix_sup()), float(dynamics.coriolis_sup())
 
 
 def _limit_vector(limits: ArmLimits) -> np.ndarray:
     """The limits in the order of :data:`_QUANTITIES`."""
+    return np.array(_limit_tuple(limits))
+
+
+@functools.lru_cache(maxsize=16)
+def _limit_tuple(limits: ArmLimits) -> tuple[float, ...]:
+    """:func:`_limit_vector` as plain floats, once per limits."""
     (lo1, hi1), (lo2, hi2) = limits.position_rad
     rates = (limits.velocity_rad_s, limits.acceleration_rad_s2, limits.effort_n_m, limits.jerk_rad_s3)
-    return np.array([hi1, hi2, -lo1, -lo2, *(value for pair in rates for value in pair)])
+    return tuple(float(v) for v in (hi1, hi2, -lo1, -lo2, *(value for pair in rates for value in pair)))
 
 
 def _certificate(timed: TimedTrajectory, bound, sampled, intervals: int, limits) -> ExecutionCertificate:

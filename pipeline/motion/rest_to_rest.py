@@ -20,12 +20,20 @@ coefficients above); a c where some ``limit <= c^2 G`` is infeasible. ``T'(c) = 
 is then evaluated on :data:`SPEED_SCALES` values of c, geometrically spaced below the cap (one
 NumPy expression), and the smallest T' taken: the shortest duration these bounds allow, to the
 grid's 2 % in c. The result is certified afterwards like any timing.
+
+:func:`rest_to_rest_scales` is the canonical route (NumPy, many paths at once);
+:func:`shortest_rest_to_rest`, for one path, runs the same grid search compiled
+(:func:`_shortest_on_grid`, the same operations in the same order on the same grid, tested equal to
+the canonical route), its inputs from the path's peaks computed once per trajectory.
 """
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
@@ -43,6 +51,9 @@ LIMIT_SHARE = 0.999
 SPEED_SCALES = 360
 #: Shortest ramp [s] (when no acceleration or torque limit binds).
 MIN_RAMP_S = 1e-3
+#: The speed scales tried, relative to the cap: from 1 down to 1/1000, geometrically spaced.
+_SCALE_GRID = np.geomspace(1.0, 1e-3, SPEED_SCALES)
+_SCALE_GRID.flags.writeable = False
 
 
 @dataclass(frozen=True)
@@ -95,7 +106,7 @@ def rest_to_rest_scales(
     velocity = share * np.asarray(limits.velocity_rad_s)
     with np.errstate(divide="ignore"):
         cap = np.minimum(1.0, np.min(np.where(V > 0.0, velocity / V, np.inf), axis=1))
-    c = cap[:, None] * np.geomspace(1.0, 1e-3, SPEED_SCALES)[None, :]  # (n, S)
+    c = cap[:, None] * _SCALE_GRID[None, :]  # (n, S)
     mass = dynamics.mass_matrix_sup()
     h = dynamics.coriolis_sup()
     # Constraints limit >= c^2 G + 1.5 c K / r: two for acceleration, two for torque.
@@ -147,9 +158,51 @@ def rest_to_rest_bounds(
     return _widened(speed), _widened(acceleration), _widened(torque)
 
 
+@numba.njit(cache=True, nogil=True)
+def _shortest_on_grid(
+    duration: float, cap: float, grid: np.ndarray, G: np.ndarray, K: np.ndarray, bound: np.ndarray, min_ramp: float
+) -> tuple[float, float]:
+    """The grid search of :func:`rest_to_rest_scales` for one path, compiled: for each
+    c = cap * grid[s], the shortest ramp of the constraints ``bound_k >= c^2 G_k + 1.5 c K_k / r``
+    (an infinite bound: none), and the first c of least T' = T / c + r; (nan, nan) if none is
+    feasible. The same operations, in the same order, as the NumPy route."""
+    best_total, best_c, best_r = math.inf, math.nan, math.nan
+    for s in range(grid.size):
+        c = cap * grid[s]
+        feasible, needed = True, -math.inf
+        for k in range(bound.size):
+            if math.isinf(bound[k]):
+                need = 0.0
+            else:
+                room = bound[k] - (c * c) * G[k]
+                if not room > 0.0:
+                    feasible = False
+                    break
+                need = 1.5 * c * K[k] / room
+            if need > needed:
+                needed = need
+        if not feasible:
+            continue
+        ramp = max(needed, min_ramp)
+        if not ramp <= duration / c:
+            continue
+        total = duration / c + ramp
+        if total < best_total:
+            best_total, best_c, best_r = total, c, ramp
+    return best_c, best_r
+
+
+def _widened_float(value: float) -> float:
+    """:func:`_widened` of one float (the same operations)."""
+    return value + FLOAT_SLACK_RELATIVE * abs(value) + FLOAT_SLACK_ABSOLUTE
+
+
 def shortest_rest_to_rest(trajectory: JointTrajectory, dynamics: PlanarDynamics, limits: ArmLimits) -> RestToRestTiming:
     """The shortest rest-to-rest timing of ``trajectory``'s path that the closed-form bounds
-    (module docstring) keep within ``limits``; a few hundred microseconds.
+    (module docstring) keep within ``limits``: :func:`rest_to_rest_scales` of one path, its
+    constraint terms in plain floats from the path's peaks
+    (:attr:`pipeline.motion.trajectory.JointTrajectory.peaks`) and its grid search compiled
+    (:func:`_shortest_on_grid`); a few microseconds.
 
     Args:
         trajectory: The path (the paper's sinusoids over [0, T]).
@@ -159,12 +212,30 @@ def shortest_rest_to_rest(trajectory: JointTrajectory, dynamics: PlanarDynamics,
     Raises:
         InvalidParameterError: no timing keeps the limits (a limit that binds at rest).
     """
-    path_duration_s = trajectory.duration_s
-    V = _widened(np.asarray(trajectory.peak_velocity_rad_s(), dtype=float))
-    acc = _widened(np.asarray(trajectory.peak_acceleration_rad_s2(), dtype=float))
-    c, r = rest_to_rest_scales(np.array([path_duration_s]), V[None, :], acc[None, :], dynamics, limits)
-    if not np.isfinite(c[0]):
+    peaks = trajectory.peaks
+    V1, V2 = (_widened_float(v) for v in peaks.velocity_rad_s)
+    acc1, acc2 = (_widened_float(a) for a in peaks.acceleration_rad_s2)
+    share = LIMIT_SHARE
+    cap = 1.0
+    for peak, limit in ((V1, limits.velocity_rad_s[0]), (V2, limits.velocity_rad_s[1])):
+        if peak > 0.0:
+            cap = min(cap, share * limit / peak)
+    (m11, m12), (m21, m22) = _mass_sup(dynamics)
+    h = dynamics.coriolis_sup()
+    quadratic1, quadratic2 = 2 * V1 * V2 + V2 * V2, V1 * V1  # as NumPy's V**2: one product
+    G = np.array([acc1, acc2, acc1 * m11 + acc2 * m12 + h * quadratic1, acc1 * m21 + acc2 * m22 + h * quadratic2])
+    K = np.array([V1, V2, V1 * m11 + V2 * m12, V1 * m21 + V2 * m22])
+    bound = np.array([share * v for v in (*limits.acceleration_rad_s2, *limits.effort_n_m)])
+    c, r = _shortest_on_grid(float(trajectory.duration_s), cap, _SCALE_GRID, G, K, bound, MIN_RAMP_S)
+    if not math.isfinite(c):
         raise InvalidParameterError(
             "limits", limits, "limits a rest-to-rest timing can keep (an acceleration or effort limit binds at rest)"
         )
-    return RestToRestTiming(float(path_duration_s), float(c[0]), float(r[0]))
+    return RestToRestTiming(float(trajectory.duration_s), float(c), float(r))
+
+
+@functools.lru_cache(maxsize=8)
+def _mass_sup(dynamics: PlanarDynamics) -> tuple[tuple[float, float], tuple[float, float]]:
+    """:meth:`PlanarDynamics.mass_matrix_sup` as plain floats, once per dynamics."""
+    mass = dynamics.mass_matrix_sup()
+    return (float(mass[0, 0]), float(mass[0, 1])), (float(mass[1, 0]), float(mass[1, 1]))

@@ -7,6 +7,7 @@ w in rad/s, t in s.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -96,6 +97,39 @@ def _sin_extremes(lo: float, hi: float) -> tuple[float, float]:
     bottom = math.ceil((lo + math.pi / 2) / (2 * math.pi)) * 2 * math.pi - math.pi / 2 <= hi
     ends = (math.sin(lo), math.sin(hi))
     return (-1.0 if bottom else min(ends), 1.0 if top else max(ends))
+
+
+@dataclass(frozen=True)
+class PathPeaks:
+    """The closed-form extremes of one trajectory over [0, T] (plain floats), per joint (index 0:
+    joint 1): what every closed-form bound of the path's timings is made of.
+
+    Attributes:
+        velocity_rad_s: max |dtheta_i/dt| [rad/s].
+        acceleration_rad_s2: max |d2theta_i/dt2| [rad/s^2].
+        third_rad_s3: |A_i| w_i^3 [rad/s^3], the peak of |d3theta_i/dt3| over all t (a bound over [0, T]).
+        angle_ranges_rad: (min, max) of each joint angle [rad].
+    """
+
+    velocity_rad_s: tuple[float, float]
+    acceleration_rad_s2: tuple[float, float]
+    third_rad_s3: tuple[float, float]
+    angle_ranges_rad: tuple[tuple[float, float], tuple[float, float]]
+
+
+def path_peaks(parameters: tuple[float, ...], duration_s: float) -> PathPeaks:
+    """:class:`PathPeaks` of the sinusoids ``parameters`` over [0, ``duration_s``], in closed form."""
+    p, T = parameters, duration_s
+    velocity = tuple(_peak_abs(p[4 * i] * p[4 * i + 1], p[4 * i + 1], p[4 * i + 2], T, math.pi / 2) for i in (0, 1))
+    acceleration = tuple(_peak_abs(p[4 * i] * p[4 * i + 1] ** 2, p[4 * i + 1], p[4 * i + 2], T, 0.0) for i in (0, 1))
+    third = tuple(abs(p[4 * i]) * abs(p[4 * i + 1]) ** 3 for i in (0, 1))
+    ranges = []
+    for i in (0, 1):
+        amplitude, w, phi, gamma = p[4 * i : 4 * i + 4]
+        s_min, s_max = _sin_extremes(*sorted((phi, w * T + phi)))
+        values = (gamma + amplitude * s_min, gamma + amplitude * s_max)
+        ranges.append((min(values), max(values)))
+    return PathPeaks(velocity, acceleration, third, (ranges[0], ranges[1]))  # type: ignore[arg-type]
 
 
 def checked_times(t_s: float | np.ndarray, duration_s: float, outside: str, name: str) -> np.ndarray:
@@ -206,29 +240,20 @@ class JointTrajectory:
     def __call__(self, t_s: float | np.ndarray, *, outside: str = "error") -> np.ndarray:
         return self.q(t_s, outside=outside)
 
+    @functools.cached_property
+    def peaks(self) -> PathPeaks:
+        """The closed-form extremes over [0, T] (:func:`path_peaks`), computed once per trajectory
+        (the instance is frozen: the fields they are made of never change)."""
+        return path_peaks(self.parameters, self.duration_s)
+
     def angle_ranges_rad(self) -> tuple[tuple[float, float], tuple[float, float]]:
         """(min, max) over [0, T] of each joint angle [rad], in closed form."""
-        out = []
-        for i in (0, 1):
-            amplitude, w, phi, gamma = self.parameters[4 * i : 4 * i + 4]
-            s_min, s_max = _sin_extremes(*sorted((phi, w * self.duration_s + phi)))
-            values = (gamma + amplitude * s_min, gamma + amplitude * s_max)
-            out.append((min(values), max(values)))
-        return out[0], out[1]
+        return self.peaks.angle_ranges_rad
 
     def peak_velocity_rad_s(self) -> np.ndarray:
         """max over [0, T] of |dtheta_i/dt| [rad/s] per joint, in closed form."""
-        p = self.parameters
-        return np.array(
-            [
-                _peak_abs(p[4 * i] * p[4 * i + 1], p[4 * i + 1], p[4 * i + 2], self.duration_s, math.pi / 2)
-                for i in (0, 1)
-            ]
-        )
+        return np.array(self.peaks.velocity_rad_s)
 
     def peak_acceleration_rad_s2(self) -> np.ndarray:
         """max over [0, T] of |d2theta_i/dt2| [rad/s^2] per joint, in closed form."""
-        p = self.parameters
-        return np.array(
-            [_peak_abs(p[4 * i] * p[4 * i + 1] ** 2, p[4 * i + 1], p[4 * i + 2], self.duration_s, 0.0) for i in (0, 1)]
-        )
+        return np.array(self.peaks.acceleration_rad_s2)
