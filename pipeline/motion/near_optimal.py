@@ -46,6 +46,13 @@ from pipeline.motion.speed_profile import fastest_profile
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.trajectory import JointTrajectory
 
+#: Share of each jerk limit the path speed may spend on the jerk of the path's own curvature,
+#: |theta'''| sdot^3, so that the ramps keep room (module docstring, step 2).
+JERK_SPEED_SHARE = 0.5
+#: Rounds of bounding the path acceleration where it makes too much jerk at speed, and an
+#: absent bound's stand-in.
+_JERK_ROUNDS = 3
+_NO_BOUND = 1e300
 #: Rounds of sizing the ramps for the steps of one sign they overlap.
 _WINDOW_ROUNDS = 3
 
@@ -145,25 +152,26 @@ def _windows(peaks: np.ndarray, x, u, times, steps, limits: ArmLimits, jerk_shar
 
 @numba.njit(cache=True, nogil=True)
 def _clustered(times, steps, gain, rounds):
-    """Widths gain_k |du_k|, then, for a few rounds, each the larger of gain_k times the sum of the
-    steps of its sign whose ramps overlap its own and the widest of those ramps: ramps of steps of
-    one sign that overlap add their slopes, so a cluster of them gets one width sized for its sum."""
+    """Widths gain_k |du_k|, then, for a few rounds, gain_k times the sum S_k of the steps of its
+    sign whose ramps overlap its own. Ramps of one sign that overlap add their slopes; every ramp
+    covering an instant overlaps every other one covering it, so each one's S is at least the sum
+    S_t of the steps covering that instant, and the slopes there add up to at most
+    sum |du_j| / (gain S_j) <= 1 / gain: within the jerk the widths were sized for."""
     n = steps.size
     windows = gain * np.abs(steps)
     for _ in range(rounds):
         wider = windows.copy()
         reach = windows.max()  # times are increasing: no ramp farther than this overlaps
         for k in range(n):
-            total, widest = 0.0, windows[k]
+            total = 0.0
             for direction in (-1, 1):
                 j = k if direction < 0 else k + 1
                 while 0 <= j < n and 2.0 * abs(times[j] - times[k]) < reach + windows[k]:
                     same = (steps[j] > 0.0) == (steps[k] > 0.0)
                     if same and 2.0 * abs(times[j] - times[k]) < windows[j] + windows[k]:
                         total += abs(steps[j])
-                        widest = max(widest, windows[j])
                     j += direction
-            wider[k] = max(gain[k] * total, widest)
+            wider[k] = max(windows[k], gain[k] * total)
         windows = wider
     return windows
 
@@ -183,6 +191,39 @@ def _smooth_timing(trajectory, edges, peaks, x, u, limits, jerk_share, widen) ->
     windows = np.maximum(windows, spacing)
     timing, _ = smoothed(times[keep], steps[keep], windows[keep], trajectory.duration_s)
     return timing
+
+
+def _jerk_speed_cap(third: np.ndarray, limits: ArmLimits) -> np.ndarray:
+    """The largest x = sdot^2 per piece at which |theta_i'''| sdot^3, the jerk the path's own
+    curvature makes at constant path speed, stays within :data:`JERK_SPEED_SHARE` of the jerk
+    limit; (n,), from the peaks (n, 2) of |theta'''| on each piece."""
+    allowed = JERK_SPEED_SHARE * np.asarray(limits.jerk_rad_s3)
+    with np.errstate(divide="ignore"):
+        return np.min(np.where(third > 0.0, (allowed / third) ** (2.0 / 3.0), np.inf), axis=1)
+
+
+def _jerk_aware_profile(rows, cap, peaks, limits: ArmLimits, ds: float) -> tuple[np.ndarray, np.ndarray]:
+    """The fastest profile (step 2), rebuilt where the jerk 3 theta'' sdot sddot that the path
+    acceleration makes at speed leaves the ramps too little room: there |u| is bounded by
+    JERK_SPEED_SHARE J / (3 max|theta''| sdot) at the profile's own sdot, two more rows per piece
+    (rebuilt profiles are slower, so the bound stays valid; :data:`_JERK_ROUNDS` rounds)."""
+    cu, cx, rhs = rows.cu, rows.cx, rows.rhs
+    x, u = fastest_profile(cu, cx, rhs, cap, ds)
+    allowed = JERK_SPEED_SHARE * np.asarray(limits.jerk_rad_s3)
+    bound = np.full(cap.size, np.inf)
+    for _ in range(_JERK_ROUNDS):
+        root = np.sqrt(np.maximum(x[:-1], x[1:]))[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.min(np.where(peaks[1] * root > 0.0, allowed / (3.0 * peaks[1] * root), np.inf), axis=1)
+        tight = np.abs(u) > room
+        if not np.any(tight):
+            break
+        bound = np.where(tight, np.minimum(bound, room), bound)
+        finite = np.where(np.isfinite(bound), bound, _NO_BOUND)[:, None]
+        ones, zeros = np.ones_like(finite), np.zeros_like(finite)
+        extra_cu, extra_cx = np.hstack([cu, ones, -ones]), np.hstack([cx, zeros, zeros])
+        x, u = fastest_profile(extra_cu, extra_cx, np.hstack([rhs, finite, finite]), cap, ds)
+    return x, u
 
 
 def _excess(found: list[LimitViolation], quantities: tuple[str, ...]) -> float:
@@ -217,7 +258,8 @@ def near_optimal_timing(
     found: list[LimitViolation] = []
     for attempt in range(1, settings.tries + 1):
         rows, peaks = compiled_piece_constraints(trajectory.parameters, edges, dynamics, limits, share, speed_share)
-        x, u = fastest_profile(rows.cu, rows.cx, rows.rhs, rows.speed_cap, edges[1] - edges[0])
+        cap = np.minimum(rows.speed_cap, _jerk_speed_cap(peaks[2], limits))
+        x, u = _jerk_aware_profile(rows, cap, peaks, limits, edges[1] - edges[0])
         if not np.all(x[1:-1] > 0.0):
             raise TimingRefusedError(("the limits leave the path no speed: a limit binds at rest",))
         timing = _smooth_timing(trajectory, edges, peaks, x, u, limits, settings.jerk_share, widen)
