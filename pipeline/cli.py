@@ -178,34 +178,27 @@ def _finite_positive(flag: str, unit: str):
     return parse
 
 
-#: argparse type of ``--acceleration-limit``: a finite acceleration limit > 0 [rad/s^2].
-acceleration_limits = _finite_positive("--acceleration-limit", "rad/s^2")
-#: argparse type of ``--jerk-limit``: a finite jerk limit > 0 [rad/s^3].
-jerk_limits = _finite_positive("--jerk-limit", "rad/s^3")
+def _add_limit_argument(parser: argparse.ArgumentParser, flag: str, kind: str, unit: str, use: str) -> None:
+    """``flag X1 X2``: the arm's joint ``kind`` limits [``unit``], two finite values > 0 (URDF carries none)."""
+    letter = kind[0].upper()
+    parser.add_argument(
+        flag,
+        nargs=2,
+        type=_finite_positive(flag, unit),
+        default=None,
+        metavar=(f"{letter}1", f"{letter}2"),
+        help=f"the arm's joint {kind} limits [{unit}] (URDF carries none): {use}",
+    )
 
 
 def add_acceleration_limit_argument(parser: argparse.ArgumentParser, use: str) -> None:
-    """``--acceleration-limit A1 A2`` [rad/s^2] (URDF carries none); ``use`` says what the command does with it."""
-    parser.add_argument(
-        "--acceleration-limit",
-        nargs=2,
-        type=acceleration_limits,
-        default=None,
-        metavar=("A1", "A2"),
-        help=f"the arm's joint acceleration limits [rad/s^2] (URDF carries none): {use}",
-    )
+    """``--acceleration-limit A1 A2`` [rad/s^2]; ``use`` says what the command does with it."""
+    _add_limit_argument(parser, "--acceleration-limit", "acceleration", "rad/s^2", use)
 
 
 def add_jerk_limit_argument(parser: argparse.ArgumentParser, use: str) -> None:
-    """``--jerk-limit J1 J2`` [rad/s^3] (URDF carries none); ``use`` says what the command does with it."""
-    parser.add_argument(
-        "--jerk-limit",
-        nargs=2,
-        type=jerk_limits,
-        default=None,
-        metavar=("J1", "J2"),
-        help=f"the arm's joint jerk limits [rad/s^3] (URDF carries none): {use}",
-    )
+    """``--jerk-limit J1 J2`` [rad/s^3]; ``use`` says what the command does with it."""
+    _add_limit_argument(parser, "--jerk-limit", "jerk", "rad/s^3", use)
 
 
 def _worker_timeout(text: str) -> float:

@@ -20,52 +20,17 @@ import math
 import numba
 import numpy as np
 
-from pipeline.motion.interval_arithmetic import FLOAT_SLACK_ABSOLUTE, FLOAT_SLACK_RELATIVE
+from pipeline.motion.compiled_intervals import affine_trig as _affine_trig
+from pipeline.motion.compiled_intervals import mul as _mul
+from pipeline.motion.compiled_intervals import scale as _scale
+from pipeline.motion.compiled_intervals import sin_range as _sin_range
+from pipeline.motion.compiled_intervals import square as _square
+from pipeline.motion.compiled_intervals import widen as _widen
 
 __all__ = ["certify_smooth_execution"]
 
 _HALF_PI = 0.5 * math.pi
-_TWO_PI = 2.0 * math.pi
 _QUANTITIES = 12
-
-
-@numba.njit(cache=True, nogil=True)
-def _sin_range(lo, hi):
-    top = math.ceil((lo - _HALF_PI) / _TWO_PI) * _TWO_PI + _HALF_PI <= hi
-    bottom = math.ceil((lo + _HALF_PI) / _TWO_PI) * _TWO_PI - _HALF_PI <= hi
-    a, b = math.sin(lo), math.sin(hi)
-    return (-1.0 if bottom else min(a, b)), (1.0 if top else max(a, b))
-
-
-@numba.njit(cache=True, nogil=True)
-def _scale(k, lo, hi):
-    a, b = k * lo, k * hi
-    return min(a, b), max(a, b)
-
-
-@numba.njit(cache=True, nogil=True)
-def _mul(a_lo, a_hi, b_lo, b_hi):
-    p, q, r, s = a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi
-    return min(min(p, q), min(r, s)), max(max(p, q), max(r, s))
-
-
-@numba.njit(cache=True, nogil=True)
-def _square(lo, hi):
-    low = 0.0 if (lo <= 0.0 and hi >= 0.0) else min(lo * lo, hi * hi)
-    return low, max(lo * lo, hi * hi)
-
-
-@numba.njit(cache=True, nogil=True)
-def _widen(lo, hi):
-    slack = FLOAT_SLACK_RELATIVE * max(abs(lo), abs(hi)) + FLOAT_SLACK_ABSOLUTE
-    return lo - slack, hi + slack
-
-
-@numba.njit(cache=True, nogil=True)
-def _affine_trig(k0, kc, ks, c_lo, c_hi, s_lo, s_hi):
-    a_lo, a_hi = _scale(kc, c_lo, c_hi)
-    b_lo, b_hi = _scale(ks, s_lo, s_hi)
-    return k0 + a_lo + b_lo, k0 + a_hi + b_hi
 
 
 @numba.njit(cache=True, nogil=True)

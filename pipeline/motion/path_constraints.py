@@ -37,9 +37,11 @@ import numpy as np
 from pipeline.exceptions import InvalidParameterError
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
+from pipeline.motion.compiled_intervals import mul as compiled_mul
+from pipeline.motion.compiled_intervals import scale as compiled_scale
+from pipeline.motion.compiled_intervals import sin_range as compiled_sin_range
+from pipeline.motion.compiled_intervals import widen as compiled_widen
 from pipeline.motion.interval_arithmetic import (
-    FLOAT_SLACK_ABSOLUTE,
-    FLOAT_SLACK_RELATIVE,
     affine_trig,
     magnitude,
     mul,
@@ -52,7 +54,6 @@ from pipeline.motion.interval_arithmetic import (
 __all__ = ["PathEnclosures", "PieceConstraints", "compiled_piece_constraints", "enclose_path", "piece_constraints"]
 
 _HALF_PI = 0.5 * math.pi
-_TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,32 +175,6 @@ def piece_constraints(
 
 
 @numba.njit(cache=True, nogil=True)
-def _sin_range(lo, hi):
-    top = math.ceil((lo - _HALF_PI) / _TWO_PI) * _TWO_PI + _HALF_PI <= hi
-    bottom = math.ceil((lo + _HALF_PI) / _TWO_PI) * _TWO_PI - _HALF_PI <= hi
-    a, b = math.sin(lo), math.sin(hi)
-    return (-1.0 if bottom else min(a, b)), (1.0 if top else max(a, b))
-
-
-@numba.njit(cache=True, nogil=True)
-def _scaled(k, lo, hi):
-    a, b = k * lo, k * hi
-    return min(a, b), max(a, b)
-
-
-@numba.njit(cache=True, nogil=True)
-def _times(a_lo, a_hi, b_lo, b_hi):
-    p, q, r, s = a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi
-    return min(min(p, q), min(r, s)), max(max(p, q), max(r, s))
-
-
-@numba.njit(cache=True, nogil=True)
-def _widened(lo, hi):
-    slack = FLOAT_SLACK_RELATIVE * max(abs(lo), abs(hi)) + FLOAT_SLACK_ABSOLUTE
-    return lo - slack, hi + slack
-
-
-@numba.njit(cache=True, nogil=True)
 def _compiled_rows(p, edges, mass, bounds, share, speed_share, velocity):
     """The compiled twin of :func:`enclose_path` then :func:`piece_constraints` (same arithmetic)."""
     n = edges.size - 1
@@ -216,26 +191,26 @@ def _compiled_rows(p, edges, mass, bounds, share, speed_share, velocity):
             amplitude, w, phi = p[4 * i], p[4 * i + 1], p[4 * i + 2]
             ph_a, ph_b = w * edges[k] + phi, w * edges[k + 1] + phi
             ph_lo, ph_hi = min(ph_a, ph_b), max(ph_a, ph_b)
-            s_lo, s_hi = _sin_range(ph_lo, ph_hi)
-            c_lo, c_hi = _sin_range(ph_lo + _HALF_PI, ph_hi + _HALF_PI)
-            d1[i, 0], d1[i, 1] = _widened(*_scaled(amplitude * w, c_lo, c_hi))
-            d2[i, 0], d2[i, 1] = _widened(*_scaled(-amplitude * w * w, s_lo, s_hi))
-            third = _widened(*_scaled(-amplitude * w**3, c_lo, c_hi))
+            s_lo, s_hi = compiled_sin_range(ph_lo, ph_hi)
+            c_lo, c_hi = compiled_sin_range(ph_lo + _HALF_PI, ph_hi + _HALF_PI)
+            d1[i, 0], d1[i, 1] = compiled_widen(*compiled_scale(amplitude * w, c_lo, c_hi))
+            d2[i, 0], d2[i, 1] = compiled_widen(*compiled_scale(-amplitude * w * w, s_lo, s_hi))
+            third = compiled_widen(*compiled_scale(-amplitude * w**3, c_lo, c_hi))
             peaks[0, k, i] = max(abs(d1[i, 0]), abs(d1[i, 1]))
             peaks[1, k, i] = max(abs(d2[i, 0]), abs(d2[i, 1]))
             peaks[2, k, i] = max(abs(third[0]), abs(third[1]))
             if i == 1:
                 sin2_lo, sin2_hi = s_lo, s_hi
-        q_lo, q_hi = _scaled(p[4], sin2_lo, sin2_hi)
-        q_lo, q_hi = _widened(q_lo + p[7], q_hi + p[7])
-        sn = _sin_range(q_lo, q_hi)
-        cs = _sin_range(q_lo + _HALF_PI, q_hi + _HALF_PI)
+        q_lo, q_hi = compiled_scale(p[4], sin2_lo, sin2_hi)
+        q_lo, q_hi = compiled_widen(q_lo + p[7], q_hi + p[7])
+        sn = compiled_sin_range(q_lo, q_hi)
+        cs = compiled_sin_range(q_lo + _HALF_PI, q_hi + _HALF_PI)
         ratio = np.inf
         for i in range(2):
             if peaks[0, k, i] > 0.0:
                 ratio = min(ratio, speed_share * velocity[i] / peaks[0, k, i])
         cap[k] = ratio**2
-        cross = _times(d1[0, 0], d1[0, 1], d1[1, 0], d1[1, 1])
+        cross = compiled_mul(d1[0, 0], d1[0, 1], d1[1, 0], d1[1, 1])
         sq2_lo = 0.0 if (d1[1, 0] <= 0.0 and d1[1, 1] >= 0.0) else min(d1[1, 0] ** 2, d1[1, 1] ** 2)
         sq1_lo = 0.0 if (d1[0, 0] <= 0.0 and d1[0, 1] >= 0.0) else min(d1[0, 0] ** 2, d1[0, 1] ** 2)
         sq2_hi, sq1_hi = max(d1[1, 0] ** 2, d1[1, 1] ** 2), max(d1[0, 0] ** 2, d1[0, 1] ** 2)
@@ -254,16 +229,16 @@ def _compiled_rows(p, edges, mass, bounds, share, speed_share, velocity):
                 else:
                     a_lo, a_hi, b_lo, b_hi = 0.0, 0.0, 0.0, 0.0
                     for j in range(2):
-                        mj = _scaled(mass[1, i, j], cs[0], cs[1])
-                        ms = _scaled(mass[2, i, j], sn[0], sn[1])
+                        mj = compiled_scale(mass[1, i, j], cs[0], cs[1])
+                        ms = compiled_scale(mass[2, i, j], sn[0], sn[1])
                         m_lo, m_hi = mass[0, i, j] + mj[0] + ms[0], mass[0, i, j] + mj[1] + ms[1]
-                        u_part = _times(m_lo, m_hi, d1[j, 0], d1[j, 1])
-                        x_part = _times(m_lo, m_hi, d2[j, 0], d2[j, 1])
+                        u_part = compiled_mul(m_lo, m_hi, d1[j, 0], d1[j, 1])
+                        x_part = compiled_mul(m_lo, m_hi, d2[j, 0], d2[j, 1])
                         a_lo, a_hi = a_lo + u_part[0], a_hi + u_part[1]
                         b_lo, b_hi = b_lo + x_part[0], b_hi + x_part[1]
-                    c_part = _times(h_lo, h_hi, quad[i][0], quad[i][1])
-                    a_lo, a_hi = _widened(a_lo, a_hi)
-                    b_lo, b_hi = _widened(b_lo + c_part[0], b_hi + c_part[1])
+                    c_part = compiled_mul(h_lo, h_hi, quad[i][0], quad[i][1])
+                    a_lo, a_hi = compiled_widen(a_lo, a_hi)
+                    b_lo, b_hi = compiled_widen(b_lo + c_part[0], b_hi + c_part[1])
                 limit = share * bounds[2 * kind + i]
                 cu[k, column : column + 4] = (a_hi, a_lo, -a_lo, -a_hi)
                 cx[k, column : column + 4] = (b_hi, b_hi, -b_lo, -b_lo)
