@@ -60,8 +60,9 @@ def _timing_ranges(start, jerk, j, a, b):
 
 
 @numba.njit(cache=True, nogil=True)
-def _upper(p, start, jerk, knots, path_duration, mass, lo, hi, j, out):
-    """Upper bounds of the 12 quantities over [lo, hi] in segment j, into ``out``."""
+def _upper(p, start, jerk, knots, path_duration, mass, lo, hi, j, out, scratch):
+    """Upper bounds of the 12 quantities over [lo, hi] in segment j, into ``out`` (``scratch``:
+    (3, 2, 2) work space for the joints' angle, speed and acceleration intervals)."""
     s_lo, s_hi, d1_lo, d1_hi, d2_lo, d2_hi, d3_lo, d3_hi = _timing_ranges(start, jerk, j, lo - knots[j], hi - knots[j])
     if hi >= knots[-1]:  # at T' itself: exactly at rest at T (as SmoothTiming.ranges_with_jerk)
         s_lo, s_hi = min(s_lo, path_duration), max(s_hi, path_duration)
@@ -70,9 +71,7 @@ def _upper(p, start, jerk, knots, path_duration, mass, lo, hi, j, out):
     sq_lo, sq_hi = _square(d1_lo, d1_hi)
     cube_lo, cube_hi = _mul(sq_lo, sq_hi, d1_lo, d1_hi)
     dd_lo, dd_hi = _mul(d1_lo, d1_hi, d2_lo, d2_hi)
-    th = np.empty((2, 2))
-    sp = np.empty((2, 2))
-    ac = np.empty((2, 2))
+    th, sp, ac = scratch[0], scratch[1], scratch[2]
     for i in range(2):
         amplitude, w, phi, gamma = p[4 * i], p[4 * i + 1], p[4 * i + 2], p[4 * i + 3]
         ph_a, ph_b = w * s_lo + phi, w * s_hi + phi
@@ -114,8 +113,9 @@ def _upper(p, start, jerk, knots, path_duration, mass, lo, hi, j, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def _values(p, start, jerk, knots, path_duration, mass, t, out):
-    """The 12 quantities at time t (as TimedTrajectory with a SmoothTiming), maxima into ``out``."""
+def _values(p, start, jerk, knots, path_duration, mass, t, out, scratch):
+    """The 12 quantities at time t (as TimedTrajectory with a SmoothTiming), maxima into ``out``
+    (``scratch``: (3, 2) work space for q, dq, ddq)."""
     end = knots[-1]
     t = min(max(t, 0.0), end)
     if t >= end:
@@ -127,9 +127,7 @@ def _values(p, start, jerk, knots, path_duration, mass, t, out):
         s = c0 + h * (c1 + h * (c2 / 2.0 + h * k / 6.0))
         d1, d2, d3 = c1 + h * (c2 + h * k / 2.0), c2 + h * k, k
     s = min(max(s, 0.0), path_duration)
-    q = np.empty(2)
-    dq = np.empty(2)
-    ddq = np.empty(2)
+    q, dq, ddq = scratch[0], scratch[1], scratch[2]
     for i in range(2):
         amplitude, w, phi, gamma = p[4 * i], p[4 * i + 1], p[4 * i + 2], p[4 * i + 3]
         sine, cosine = math.sin(w * s + phi), math.cos(w * s + phi)
@@ -155,8 +153,9 @@ def _certify(p, start, jerk, knots, path_duration, mass, limit, decide, toleranc
     m = jerk.size
     lo, hi, seg = knots[:-1].copy(), knots[1:].copy(), np.arange(m)
     sampled = np.full(_QUANTITIES, -np.inf)
+    point, box = np.empty((3, 2)), np.empty((3, 2, 2))
     for t in knots:
-        _values(p, start, jerk, knots, path_duration, mass, t, sampled)
+        _values(p, start, jerk, knots, path_duration, mass, t, sampled, point)
     bound = np.full(_QUANTITIES, -np.inf)
     upper = np.empty(_QUANTITIES)
     total = 0
@@ -165,7 +164,7 @@ def _certify(p, start, jerk, knots, path_duration, mass, limit, decide, toleranc
         is_open = np.zeros(n, dtype=np.bool_)
         uppers = np.empty((n, _QUANTITIES))
         for k in range(n):
-            _upper(p, start, jerk, knots, path_duration, mass, lo[k], hi[k], seg[k], upper)
+            _upper(p, start, jerk, knots, path_duration, mass, lo[k], hi[k], seg[k], upper, box)
             uppers[k] = upper
             for q in range(_QUANTITIES):
                 loose = upper[q] > sampled[q] + tolerance * max(abs(sampled[q]), 1e-3)
@@ -192,7 +191,7 @@ def _certify(p, start, jerk, knots, path_duration, mass, limit, decide, toleranc
         for k in range(n):
             if is_open[k]:
                 mid = 0.5 * (lo[k] + hi[k])
-                _values(p, start, jerk, knots, path_duration, mass, mid, sampled)
+                _values(p, start, jerk, knots, path_duration, mass, mid, sampled, point)
                 new_lo[r], new_hi[r], new_seg[r] = lo[k], mid, seg[k]
                 new_lo[opened + r], new_hi[opened + r], new_seg[opened + r] = mid, hi[k], seg[k]
                 r += 1

@@ -137,17 +137,30 @@ def _check_jerk(limits: ArmLimits) -> None:
 def _windows(peaks: np.ndarray, x, u, times, steps, limits: ArmLimits, jerk_share: float) -> np.ndarray:
     """The ramps' widths delta_k [s] at the n + 1 steps (module docstring, step 3), from the peaks
     (3, n, 2) of |theta'|, |theta''|, |theta'''| on each piece."""
-    speed, second, third = peaks
-    at_knot = np.maximum(np.vstack([speed[:1], speed]), np.vstack([speed, speed[-1:]]))
-    second = np.maximum(np.vstack([second[:1], second]), np.vstack([second, second[-1:]]))
-    third = np.maximum(np.vstack([third[:1], third]), np.vstack([third, third[-1:]]))
-    padded = np.concatenate([[0.0], u, [0.0]])
-    u_near = np.maximum(np.abs(padded[:-1]), np.abs(padded[1:]))
-    root = np.sqrt(x)[:, None]
-    background = third * root**3 + 3.0 * second * root * u_near[:, None]
-    allowed = jerk_share * np.asarray(limits.jerk_rad_s3)
-    gain = np.max(at_knot / np.maximum(allowed - background, 0.25 * allowed), axis=1)  # [s] per unit of du
+    allowed = jerk_share * np.asarray(limits.jerk_rad_s3, dtype=float)
+    gain = _gains(np.ascontiguousarray(peaks), x, u, allowed)
     return _clustered(times, steps, gain, _WINDOW_ROUNDS)
+
+
+@numba.njit(cache=True, nogil=True)
+def _gains(peaks, x, u, allowed):
+    """Per step k (where pieces k - 1 and k meet), the width per unit of du [s]: the largest over
+    the joints of |theta_i'| / (allowed_i - background_i), the background being the jerk
+    |theta_i'''| sdot^3 + 3 |theta_i''| sdot |sddot| at the step (the peaks of the pieces beside
+    it), and the room at least a quarter of what is allowed."""
+    n = u.size
+    gain = np.zeros(n + 1)
+    for k in range(n + 1):
+        left, right = max(k - 1, 0), min(k, n - 1)
+        u_near = max(abs(u[k - 1]) if k > 0 else 0.0, abs(u[k]) if k < n else 0.0)
+        root = math.sqrt(x[k])
+        for i in range(2):
+            speed = max(peaks[0, left, i], peaks[0, right, i])
+            second = max(peaks[1, left, i], peaks[1, right, i])
+            third = max(peaks[2, left, i], peaks[2, right, i])
+            background = third * root**3 + 3.0 * second * root * u_near
+            gain[k] = max(gain[k], speed / max(allowed[i] - background, 0.25 * allowed[i]))
+    return gain
 
 
 @numba.njit(cache=True, nogil=True)

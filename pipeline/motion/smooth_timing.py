@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
@@ -213,23 +214,55 @@ def smoothed(
 def _superposed(step_times_s, steps, windows_s, path_duration_s) -> tuple[SmoothTiming, float] | None:
     """:func:`smoothed`'s ramps, superposed and integrated (module docstring); None where sigma
     does not end above 0 (ramps of opposite signs that reverse the motion)."""
-    half = 0.5 * np.asarray(windows_s, dtype=float)
-    times = np.asarray(step_times_s, dtype=float)
-    times = times + max(0.0, float(np.max(half - times)))  # the earliest ramp starts at 0
-    slope = np.asarray(steps, dtype=float) / np.asarray(windows_s, dtype=float)
-    events = np.concatenate([times - half, times + half])
-    change = np.concatenate([slope, -slope])
-    order = np.argsort(events, kind="stable")
-    events, change = events[order], change[order]
-    events[0] = 0.0
-    knots, first = np.unique(events, return_index=True)
-    jerk = np.add.reduceat(change, first).cumsum()[:-1]
-    h = np.diff(knots)
-    acc = np.concatenate([[0.0], np.cumsum(jerk * h)])
-    speed = np.concatenate([[0.0], np.cumsum(acc[:-1] * h + jerk * h * h / 2.0)])
-    sigma = np.concatenate([[0.0], np.cumsum(speed[:-1] * h + acc[:-1] * h * h / 2.0 + jerk * h**3 / 6.0)])
-    if not (math.isfinite(sigma[-1]) and sigma[-1] > 0.0):
+    knots, start, jerk = _integrated(
+        np.ascontiguousarray(step_times_s, dtype=float),
+        np.ascontiguousarray(steps, dtype=float),
+        np.ascontiguousarray(windows_s, dtype=float),
+    )
+    h = knots[-1] - knots[-2]
+    c0, c1, c2, k = start[-1, 0], start[-1, 1], start[-1, 2], jerk[-1]
+    end = float(c0 + h * (c1 + h * (c2 / 2.0 + h * k / 6.0)))
+    if not (math.isfinite(end) and end > 0.0):
         return None
-    factor = float(path_duration_s) / float(sigma[-1])
-    start = factor * np.column_stack([sigma[:-1], speed[:-1], acc[:-1]])
-    return SmoothTiming(float(path_duration_s), knots, start, factor * jerk), factor
+    factor = float(path_duration_s) / end
+    timing = SmoothTiming(float(path_duration_s), knots, factor * start, factor * jerk)
+    return timing, factor
+
+
+@numba.njit(cache=True, nogil=True)
+def _integrated(step_times, steps, windows):
+    """The breakpoints, the (sigma, sigma', sigma'') at each segment's start and the jerk on each,
+    before scaling: every step's ramp starts and ends an event of slope +-du/delta; events at one
+    time merge; the jerk is their running sum, integrated three times from rest at 0."""
+    m = steps.size
+    shift = 0.0
+    for k in range(m):
+        shift = max(shift, 0.5 * windows[k] - step_times[k])  # the earliest ramp starts at 0
+    events = np.empty(2 * m)
+    change = np.empty(2 * m)
+    for k in range(m):
+        centre, half, slope = step_times[k] + shift, 0.5 * windows[k], steps[k] / windows[k]
+        events[k], change[k] = centre - half, slope
+        events[m + k], change[m + k] = centre + half, -slope
+    order = np.argsort(events, kind="mergesort")
+    knots = np.empty(2 * m)
+    rates = np.empty(2 * m)
+    count, running = 0, 0.0
+    for index in order:
+        t = max(events[index], 0.0)
+        if count == 0 or t > knots[count - 1]:
+            knots[count] = t
+            count += 1
+            rates[count - 1] = running
+        running += change[index]
+        rates[count - 1] = running
+    knots = knots[:count]
+    jerk = rates[: count - 1].copy()
+    start = np.zeros((count - 1, 3))
+    for j in range(count - 2):
+        h, k = knots[j + 1] - knots[j], jerk[j]
+        s, v, a = start[j, 0], start[j, 1], start[j, 2]
+        start[j + 1, 0] = s + v * h + a * h * h / 2.0 + k * h**3 / 6.0
+        start[j + 1, 1] = v + a * h + k * h * h / 2.0
+        start[j + 1, 2] = a + k * h
+    return knots, start, jerk

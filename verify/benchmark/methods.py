@@ -391,7 +391,8 @@ def bench_sweep(source: str, coefficients: Any, arm: PlanarArm, cases: np.ndarra
     Returns:
         (rates, the certified sweep's case results).
     """
-    run_cases(source, cases[:1], MeasureSettings(certify=True), jobs=1, coefficients=coefficients, arm=arm)  # warm-up
+    for certify in (False, True):  # warm-up of both routes (the first call of each compiles and loads)
+        run_cases(source, cases[:1], MeasureSettings(certify=certify), jobs=1, coefficients=coefficients, arm=arm)
     out: dict[str, Any] = {"n_cases": len(cases), "jobs": 1}
     results = None
     for key, certify in (("without_certificate", False), ("with_certificate", True)):
