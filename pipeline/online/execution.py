@@ -31,10 +31,9 @@ keep) the per-query certificate decides. The near-optimal timing is certified pe
 
 from __future__ import annotations
 
+import math
 import weakref
 from dataclasses import dataclass, replace
-
-import numpy as np
 
 from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import ExecutionRefusedError, InvalidParameterError, TimingRefusedError
@@ -103,11 +102,19 @@ class Execution:
 def measured_endpoint_errors(
     trajectory: JointTrajectory, generated: GeneratedTrajectory, arm: PlanarArm
 ) -> tuple[float, float]:
-    """|tip(0) - P1| and |tip(T) - P5| [m] of ``trajectory`` for ``generated``'s path (Eq. 2)."""
+    """|tip(0) - P1| and |tip(T) - P5| [m] of ``trajectory`` for ``generated``'s path: the
+    sinusoids at 0 and T and the closed-form forward kinematics (Eq. 2,
+    :meth:`pipeline.model.arm.PlanarArm.end_effector_planar`), in plain floats."""
+    a1, w1, phi1, g1, a2, w2, phi2, g2 = trajectory.parameters
+    l1, l2 = arm.link_lengths_m
     points = generated.path.points_m
-    tips = arm.end_effector_planar(trajectory.q(np.array([0.0, trajectory.duration_s])))
-    errors = np.linalg.norm(tips - np.array([points[0], points[-1]]), axis=1)
-    return float(errors[0]), float(errors[1])
+    errors = []
+    for t, (px, py) in ((0.0, points[0]), (trajectory.duration_s, points[-1])):
+        q1 = a1 * math.sin(w1 * t + phi1) + g1
+        q12 = q1 + a2 * math.sin(w2 * t + phi2) + g2 + arm.elbow_offset_rad
+        x, y = l1 * math.cos(q1) + l2 * math.cos(q12), l1 * math.sin(q1) + l2 * math.sin(q12)
+        errors.append(math.hypot(x - float(px), y - float(py)))
+    return errors[0], errors[1]
 
 
 def _endpoint_check(measured, map_bound_m, tolerance_m, generated) -> tuple[float, float]:
