@@ -252,6 +252,28 @@ def certify(
     )
 
 
+def _clearance_values(link_clearance, q, points, point_link, error, observed, observed_time) -> np.ndarray:
+    """The clearances [m] at the new points (configurations ``q``, link per point), less the
+    distance routine's ``error``; the observed minima per link (lists) updated in place.
+
+    Raises:
+        InvalidParameterError: the clearance function returned a value that is not finite.
+    """
+    values = np.empty(points.size)
+    for k, mask in ((0, ~point_link), (1, point_link)):
+        if mask.any():
+            got = np.asarray(link_clearance(q[mask], k), dtype=float)
+            if not math.isfinite(float(got.sum())):
+                raise InvalidParameterError(
+                    "clearance", "non-finite values", "finite distances from the clearance function"
+                )
+            i = int(got.argmin())
+            if got[i] < observed[k]:
+                observed[k], observed_time[k] = float(got[i]), float(points[mask][i])
+            values[mask] = got - error
+    return values
+
+
 class _AdaptiveCertificate:
     """The adaptive route (module docstring, step 3): lean arithmetic on one trajectory's sinusoids."""
 
@@ -431,18 +453,8 @@ class _AdaptiveCertificate:
             j = np.arange(count) - (last + 1 - inner).repeat(inner) + 1
             points = ta[owner] + h[owner] * (j / (inner + 1)[owner])
             point_link = link[owner]
-            values = np.empty(count)
-            for k, mask in ((0, ~point_link), (1, point_link)):
-                if mask.any():
-                    got = np.asarray(link_clearance(self.q(points[mask]), k), dtype=float)
-                    if not math.isfinite(float(got.sum())):
-                        raise InvalidParameterError(
-                            "clearance", "non-finite values", "finite distances from the clearance function"
-                        )
-                    i = int(got.argmin())
-                    if got[i] < observed[k]:
-                        observed[k], observed_time[k] = float(got[i]), float(points[mask][i])
-                    values[mask] = got - error
+            q = self.q(points)
+            values = _clearance_values(link_clearance, q, points, point_link, error, observed, observed_time)
             evaluations += count
             # Sub-intervals: [previous point, point] for every new point, then [last point, tb].
             first = j == 1
@@ -504,18 +516,7 @@ class _AdaptiveCertificate:
             if not count:
                 break
             rounds += 1
-            values = np.empty(count)
-            for k, mask in ((0, ~point_link), (1, point_link)):
-                if mask.any():
-                    got = np.asarray(link_clearance(q[mask], k), dtype=float)
-                    if not math.isfinite(float(got.sum())):
-                        raise InvalidParameterError(
-                            "clearance", "non-finite values", "finite distances from the clearance function"
-                        )
-                    i = int(got.argmin())
-                    if got[i] < observed[k]:
-                        observed[k], observed_time[k] = float(got[i]), float(points[mask][i])
-                    values[mask] = got - error
+            values = _clearance_values(link_clearance, q, points, point_link, error, observed, observed_time)
             evaluations += count
             ta, tb, da, db, link, speed, own = merge_round(
                 ta, tb, da, db, link, speed, refine, points, values, point_link, owner, j, last
