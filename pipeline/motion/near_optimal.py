@@ -9,13 +9,19 @@ only the speed along it is chosen, as fast as the limits allow:
    (:class:`NearOptimalSettings`: 98 % of the acceleration and effort limits, 99 % of the speed limits).
 2. **Fastest profile.** Reachability passes give the fastest profile with constant path
    acceleration per piece that keeps those constraints over every piece and starts and ends at
-   rest (:mod:`pipeline.motion.speed_profile`).
+   rest (:mod:`pipeline.motion.speed_profile`). Two terms of the joint jerk do not depend on the
+   ramps of step 3 and are kept to :data:`JERK_SPEED_SHARE` of the jerk limit here: the path's own
+   curvature at speed, ``|theta'''| sdot^3``, by a cap on the path speed; and
+   ``3 |theta''| sdot |sddot|``, by a bound on the path acceleration of the pieces where the
+   profile exceeds it (the profile rebuilt with that bound, a few rounds).
 3. **Smooth.** Its path acceleration steps where pieces meet; each step becomes a ramp centred on
    it (:func:`pipeline.motion.smooth_timing.smoothed`), of width
    ``delta_k = max_i |theta_i'| |du_k| / (jerk_share J_i - background_i)``: the ramp's share of
    joint i's jerk, ``theta_i' sigma'''``, stays within what the jerk limit J_i leaves after the
    other terms ``theta_i''' sigma'^3 + 3 theta_i'' sigma' sigma''`` (estimated from the profile at
-   the step). The joint accelerations are then continuous, and zero at both ends with the speeds.
+   the step); ramps of one sign that overlap are sized for the sum of their steps, and an inner
+   ramp is at least as wide as the narrower piece beside it (small steps blend). The joint
+   accelerations are then continuous, and zero at both ends with the speeds.
 4. **Certified.** The execution certificate (:mod:`pipeline.motion.execution_certificate`)
    bounds the angles, speeds, accelerations, torques and jerks over all of [0, T'] in continuous
    time and decides every limit. If a bound other than the jerk exceeds its limit (the ramps
