@@ -26,6 +26,7 @@ used by RNEA either).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -82,6 +83,14 @@ class PlanarDynamics:
     def coriolis_sup(self) -> float:
         """sup over q2 of |h(q2)| [kg m^2] (exact)."""
         return 0.5 * math.hypot(self.mc[0][0], self.ms[0][0])
+
+    @functools.cached_property
+    def suprema(self) -> tuple[tuple[tuple[float, float], tuple[float, float]], float]:
+        """(:meth:`mass_matrix_sup` as rows of plain floats, :meth:`coriolis_sup`), computed once
+        per dynamics (the instance is frozen): what the closed-form bounds read per query."""
+        mass = self.mass_matrix_sup()
+        rows = ((float(mass[0, 0]), float(mass[0, 1])), (float(mass[1, 0]), float(mass[1, 1])))
+        return rows, float(self.coriolis_sup())
 
 
 def _crba(arm: PlanarArm, q2: float) -> np.ndarray:

@@ -67,6 +67,7 @@ from pipeline.motion.interval_arithmetic import (
     magnitude,
     mul,
     scale,
+    sin_extremes,
     sin_range,
     square,
     widen,
@@ -292,15 +293,6 @@ def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLi
     return _certificate(timed, np.array(bounds), None, 0, limits)
 
 
-def _scalar_sin_range(lo: float, hi: float) -> tuple[float, float]:
-    """:func:`pipeline.motion.interval_arithmetic.sin_range` for one interval, in plain floats."""
-    two_pi, half_pi = 2.0 * math.pi, 0.5 * math.pi
-    top = math.ceil((lo - half_pi) / two_pi) * two_pi + half_pi <= hi
-    bottom = math.ceil((lo + half_pi) / two_pi) * two_pi - half_pi <= hi
-    a, b = math.sin(lo), math.sin(hi)
-    return (-1.0 if bottom else min(a, b)), (1.0 if top else max(a, b))
-
-
 @functools.lru_cache(maxsize=64)
 def _inertia_sup(
     dynamics: PlanarDynamics, q2_lo: float, q2_hi: float
@@ -309,8 +301,8 @@ def _inertia_sup(
     (the path's exact range of q2): max |k0 + kc cos + ks sin| over the exact ranges of cos and sin,
     as interval arithmetic gives it; never above the suprema over all q2. Plain floats, memoised on
     (dynamics, range): both timings of one path ask for the same range."""
-    s_lo, s_hi = _scalar_sin_range(q2_lo, q2_hi)
-    c_lo, c_hi = _scalar_sin_range(q2_lo + 0.5 * math.pi, q2_hi + 0.5 * math.pi)
+    s_lo, s_hi = sin_extremes(q2_lo, q2_hi)
+    c_lo, c_hi = sin_extremes(q2_lo + 0.5 * math.pi, q2_hi + 0.5 * math.pi)
 
     def sup(k0: float, kc: float, ks: float) -> float:
         low = k0 + min(kc * c_lo, kc * c_hi) + min(ks * s_lo, ks * s_hi)
@@ -318,17 +310,10 @@ def _inertia_sup(
         return max(abs(low), abs(high))
 
     m0, mc, ms = dynamics.m0, dynamics.mc, dynamics.ms
-    everywhere, coriolis_everywhere = _inertia_sup_everywhere(dynamics)
+    everywhere, coriolis_everywhere = dynamics.suprema
     row1, row2 = (tuple(min(sup(m0[i][j], mc[i][j], ms[i][j]), everywhere[i][j]) for j in (0, 1)) for i in (0, 1))
     coriolis = min(sup(0.0, 0.5 * ms[0][0], -0.5 * mc[0][0]), coriolis_everywhere)
     return row1, row2, coriolis  # type: ignore[return-value]
-
-
-@functools.lru_cache(maxsize=8)
-def _inertia_sup_everywhere(dynamics: PlanarDynamics) -> tuple[tuple[tuple[float, float], ...], float]:
-    """The suprema over all q2 (:meth:`PlanarDynamics.mass_matrix_sup`, :meth:`PlanarDynamics.coriolis_sup`)
-    in plain floats, once per dynamics."""
-    return tuple(tuple(float(v) for v in row) for row in dynamics.mass_matrix_sup()), float(dynamics.coriolis_sup())
 
 
 def _limit_vector(limits: ArmLimits) -> np.ndarray:

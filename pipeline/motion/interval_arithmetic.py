@@ -22,6 +22,7 @@ __all__ = [
     "magnitude",
     "mul",
     "scale",
+    "sin_extremes",
     "sin_range",
     "square",
     "widen",
@@ -39,6 +40,14 @@ def sin_range(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     bottom = np.ceil((lo + math.pi / 2) / _TWO_PI) * _TWO_PI - math.pi / 2 <= hi
     s_lo, s_hi = np.sin(lo), np.sin(hi)
     return np.where(bottom, -1.0, np.minimum(s_lo, s_hi)), np.where(top, 1.0, np.maximum(s_lo, s_hi))
+
+
+def sin_extremes(lo: float, hi: float) -> tuple[float, float]:
+    """:func:`sin_range` of one interval in plain floats: (min, max) of sin over [lo, hi] (lo <= hi)."""
+    top = math.ceil((lo - math.pi / 2) / (2 * math.pi)) * 2 * math.pi + math.pi / 2 <= hi
+    bottom = math.ceil((lo + math.pi / 2) / (2 * math.pi)) * 2 * math.pi - math.pi / 2 <= hi
+    ends = (math.sin(lo), math.sin(hi))
+    return (-1.0 if bottom else min(ends), 1.0 if top else max(ends))
 
 
 def scale(k, lo, hi):

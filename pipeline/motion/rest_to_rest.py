@@ -29,7 +29,6 @@ the canonical route), its inputs from the path's peaks computed once per traject
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
@@ -220,8 +219,7 @@ def shortest_rest_to_rest(trajectory: JointTrajectory, dynamics: PlanarDynamics,
     for peak, limit in ((V1, limits.velocity_rad_s[0]), (V2, limits.velocity_rad_s[1])):
         if peak > 0.0:
             cap = min(cap, share * limit / peak)
-    (m11, m12), (m21, m22) = _mass_sup(dynamics)
-    h = dynamics.coriolis_sup()
+    ((m11, m12), (m21, m22)), h = dynamics.suprema
     quadratic1, quadratic2 = 2 * V1 * V2 + V2 * V2, V1 * V1  # as NumPy's V**2: one product
     G = np.array([acc1, acc2, acc1 * m11 + acc2 * m12 + h * quadratic1, acc1 * m21 + acc2 * m22 + h * quadratic2])
     K = np.array([V1, V2, V1 * m11 + V2 * m12, V1 * m21 + V2 * m22])
@@ -232,10 +230,3 @@ def shortest_rest_to_rest(trajectory: JointTrajectory, dynamics: PlanarDynamics,
             "limits", limits, "limits a rest-to-rest timing can keep (an acceleration or effort limit binds at rest)"
         )
     return RestToRestTiming(float(trajectory.duration_s), float(c), float(r))
-
-
-@functools.lru_cache(maxsize=8)
-def _mass_sup(dynamics: PlanarDynamics) -> tuple[tuple[float, float], tuple[float, float]]:
-    """:meth:`PlanarDynamics.mass_matrix_sup` as plain floats, once per dynamics."""
-    mass = dynamics.mass_matrix_sup()
-    return (float(mass[0, 0]), float(mass[0, 1])), (float(mass[1, 0]), float(mass[1, 1]))

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
+from pipeline.motion.interval_arithmetic import sin_extremes
 from pipeline.validation import check_finite, check_positive
 
 PARAMETER_NAMES: tuple[str, ...] = ("A1", "w1", "phi1", "gamma1", "A2", "w2", "phi2", "gamma2")
@@ -91,14 +92,6 @@ def _peak_abs(amplitude: float, w: float, phase: float, duration_s: float, offse
     return abs(amplitude) * max(abs(math.sin(lo)), abs(math.sin(hi)))
 
 
-def _sin_extremes(lo: float, hi: float) -> tuple[float, float]:
-    """(min, max) of sin(u) over u in [lo, hi] (lo <= hi), closed form."""
-    top = math.ceil((lo - math.pi / 2) / (2 * math.pi)) * 2 * math.pi + math.pi / 2 <= hi
-    bottom = math.ceil((lo + math.pi / 2) / (2 * math.pi)) * 2 * math.pi - math.pi / 2 <= hi
-    ends = (math.sin(lo), math.sin(hi))
-    return (-1.0 if bottom else min(ends), 1.0 if top else max(ends))
-
-
 @dataclass(frozen=True)
 class PathPeaks:
     """The closed-form extremes of one trajectory over [0, T] (plain floats), per joint (index 0:
@@ -126,7 +119,7 @@ def path_peaks(parameters: tuple[float, ...], duration_s: float) -> PathPeaks:
     ranges = []
     for i in (0, 1):
         amplitude, w, phi, gamma = p[4 * i : 4 * i + 4]
-        s_min, s_max = _sin_extremes(*sorted((phi, w * T + phi)))
+        s_min, s_max = sin_extremes(*sorted((phi, w * T + phi)))
         values = (gamma + amplitude * s_min, gamma + amplitude * s_max)
         ranges.append((min(values), max(values)))
     return PathPeaks(velocity, acceleration, third, (ranges[0], ranges[1]))  # type: ignore[arg-type]
