@@ -42,6 +42,7 @@ __all__ = [
     "count_argument",
     "describe_coefficients",
     "jobs_count",
+    "limits_from_options",
     "load_coefficients_for_cli",
     "run_cli",
     "usage_error",
@@ -194,6 +195,21 @@ def _add_limit_argument(parser: argparse.ArgumentParser, flag: str, kind: str, u
 def add_acceleration_limit_argument(parser: argparse.ArgumentParser, use: str) -> None:
     """``--acceleration-limit A1 A2`` [rad/s^2]; ``use`` says what the command does with it."""
     _add_limit_argument(parser, "--acceleration-limit", "acceleration", "rad/s^2", use)
+
+
+def limits_from_options(arm, coefficients, acceleration_limit, jerk_limit):
+    """The limits of ``--acceleration-limit`` and ``--jerk-limit`` (None: not given) on top of the
+    URDF's: the acceleration limits recorded with ``coefficients`` where none is given
+    (:meth:`pipeline.model.limits.ArmLimits.recorded`), no jerk limit where none is given."""
+    from dataclasses import replace
+
+    from pipeline.model.limits import ArmLimits
+
+    if acceleration_limit is None:
+        limits = ArmLimits.recorded(arm, coefficients.provenance)
+    else:
+        limits = ArmLimits.from_arm(arm, tuple(acceleration_limit))
+    return limits if jerk_limit is None else replace(limits, jerk_rad_s3=tuple(jerk_limit))
 
 
 def add_jerk_limit_argument(parser: argparse.ArgumentParser, use: str) -> None:

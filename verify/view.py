@@ -22,7 +22,6 @@ server is announced.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import signal
 import sys
@@ -41,6 +40,7 @@ from pipeline.cli import (
     add_acceleration_limit_argument,
     add_jerk_limit_argument,
     describe_coefficients,
+    limits_from_options,
     run_cli,
 )
 from pipeline.commands.generate import SCENE_VARIABLE_FLAGS, add_scene_variable_arguments, scene_variables
@@ -239,7 +239,6 @@ def _case(args: argparse.Namespace):  # -> TrajectoryCase (the viewer's, importe
 def _joint_plot(args: argparse.Namespace) -> int:
     """Certify the answer with the chosen timing and plot its joint states."""
     from pipeline.exceptions import ExecutionRefusedError, NoCertifiedTrajectoryError
-    from pipeline.model.limits import ArmLimits
     from pipeline.motion.near_optimal import NEAR_OPTIMAL
     from pipeline.motion.rest_to_rest import REST_TO_REST
     from pipeline.motion.timing import PAPER_TIMING
@@ -249,12 +248,7 @@ def _joint_plot(args: argparse.Namespace) -> int:
     coefficients = load_coefficients_for_verify(PROG, args.coefficients)
     values = scene_variables(coefficients, args)
     arm = arm_for_verify(coefficients, args.urdf)
-    if args.acceleration_limit is None:
-        limits = ArmLimits.recorded(arm, coefficients.provenance)
-    else:
-        limits = ArmLimits.from_arm(arm, tuple(args.acceleration_limit))
-    if args.jerk_limit is not None:
-        limits = dataclasses.replace(limits, jerk_rad_s3=tuple(args.jerk_limit))
+    limits = limits_from_options(arm, coefficients, args.acceleration_limit, args.jerk_limit)
     timing = {"near-optimal": NEAR_OPTIMAL, "rest-to-rest": REST_TO_REST, "paper": PAPER_TIMING}[args.timing]
     try:
         answer = generate_certified(

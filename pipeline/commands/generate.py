@@ -58,7 +58,6 @@ import sys
 import time
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -73,6 +72,7 @@ from pipeline.cli import (
     arm_for_cli,
     check_output_file,
     describe_coefficients,
+    limits_from_options,
     load_coefficients_for_cli,
     run_cli,
 )
@@ -426,17 +426,15 @@ def _limits(args: argparse.Namespace, arm: PlanarArm | None, coefficients: Coeff
     """The limits the motion is held to (None without an arm), and where each kind comes from."""
     if arm is None:
         return None, {}
-    if args.acceleration_limit is None:
-        limits = ArmLimits.recorded(arm, coefficients.provenance)
-        recorded = math.isfinite(limits.acceleration_rad_s2[0])
-        sources = {"acceleration": "recorded by the build" if recorded else "none given"}
-    else:
-        limits = ArmLimits.from_arm(arm, tuple(args.acceleration_limit))
-        sources = {"acceleration": "--acceleration-limit"}
-    sources.update(speed="URDF", effort="URDF", jerk="none given")
-    if args.jerk_limit is not None:
-        limits = replace(limits, jerk_rad_s3=tuple(args.jerk_limit))
-        sources["jerk"] = "--jerk-limit"
+    limits = limits_from_options(arm, coefficients, args.acceleration_limit, args.jerk_limit)
+    given = args.acceleration_limit is not None
+    recorded = not given and math.isfinite(limits.acceleration_rad_s2[0])
+    sources = {
+        "acceleration": "--acceleration-limit" if given else "recorded by the build" if recorded else "none given",
+        "jerk": "none given" if args.jerk_limit is None else "--jerk-limit",
+        "speed": "URDF",
+        "effort": "URDF",
+    }
     if isinstance(timing, NearOptimal):
         for kind in ("acceleration", "jerk"):
             if sources[kind] == "none given":
