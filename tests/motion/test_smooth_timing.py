@@ -80,9 +80,13 @@ def _rounding(timing: SmoothTiming) -> tuple[float, float, float]:
     h = np.diff(timing.breakpoints_s)
     end = timing.duration_s
     c1, c2, k = np.abs(timing.start[:, 1]), np.abs(timing.start[:, 2]), np.abs(timing.jerk)
-    r2 = 1e-12 * max(1.0, np.sum(k * h))
-    r1 = 1e-12 * max(1.0, np.sum(c2 * h + k * h * h / 2)) + r2 * end
-    r0 = 1e-12 * max(1.0, np.sum(c1 * h + c2 * h * h / 2 + k * h**3 / 6)) + r1 * end
+    # The jerk of each segment is a running sum of the ramps' slopes: its rounding (at most the unit
+    # roundoff times the sum of the partial sums) persists in every later segment and is integrated
+    # over the rest of the motion.
+    jerk_drift = 2.3e-16 * float(np.sum(k))
+    r2 = 1e-12 * max(1.0, np.sum(k * h)) + jerk_drift * end
+    r1 = 1e-12 * max(1.0, np.sum(c2 * h + k * h * h / 2)) + r2 * end + jerk_drift * end**2 / 2
+    r0 = 1e-12 * max(1.0, np.sum(c1 * h + c2 * h * h / 2 + k * h**3 / 6)) + r1 * end + jerk_drift * end**3 / 6
     return r0, r1, r2
 
 
