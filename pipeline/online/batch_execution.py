@@ -56,6 +56,31 @@ class ExecutionBatch:
     within_limits: np.ndarray
 
 
+def _checked_inputs(coefficients: Coefficients, batch, timing, region_map):
+    """The map's execution bounds, after every check of :func:`execution_batch`'s arguments."""
+    if region_map is ATTACHED:
+        region_map = coefficients.region_map
+    if region_map is None:
+        raise InvalidParameterError("region_map", None, "a region map (python -m pipeline.build writes one)")
+    check_region_map(region_map, coefficients)
+    if region_map.execution is None:
+        raise InvalidParameterError(
+            "region_map", "without execution bounds", "a map with them (python -m pipeline.certify_range adds them)"
+        )
+    if not isinstance(batch, GeneratedBatch) or batch.leaf is None:
+        raise InvalidParameterError("batch", type(batch).__name__, "a GeneratedBatch made with the region map")
+    if isinstance(timing, NearOptimal):
+        raise InvalidParameterError(
+            "timing",
+            timing.name,
+            "PAPER_TIMING or REST_TO_REST: the map holds no near-optimal profile; "
+            "generate_certified(..., timing=NEAR_OPTIMAL) certifies it per query",
+        )
+    if not isinstance(timing, PaperTiming | ShortestRestToRest):
+        raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
+    return region_map.execution
+
+
 def execution_batch(
     coefficients: Coefficients,
     batch: GeneratedBatch,
@@ -76,27 +101,7 @@ def execution_batch(
             the map, or an unknown timing.
         RegionMapMismatchError: the map certifies other coefficients.
     """
-    if region_map is ATTACHED:
-        region_map = coefficients.region_map
-    if region_map is None:
-        raise InvalidParameterError("region_map", None, "a region map (python -m pipeline.build writes one)")
-    check_region_map(region_map, coefficients)
-    bounds = region_map.execution
-    if bounds is None:
-        raise InvalidParameterError(
-            "region_map", "without execution bounds", "a map with them (python -m pipeline.certify_range adds them)"
-        )
-    if not isinstance(batch, GeneratedBatch) or batch.leaf is None:
-        raise InvalidParameterError("batch", type(batch).__name__, "a GeneratedBatch made with the region map")
-    if isinstance(timing, NearOptimal):
-        raise InvalidParameterError(
-            "timing",
-            timing.name,
-            "PAPER_TIMING or REST_TO_REST: the map holds no near-optimal profile; "
-            "generate_certified(..., timing=NEAR_OPTIMAL) certifies it per query",
-        )
-    if not isinstance(timing, PaperTiming | ShortestRestToRest):
-        raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING or REST_TO_REST")
+    bounds = _checked_inputs(coefficients, batch, timing, region_map)
     leaf = batch.leaf
     inside = leaf >= 0
     k = np.where(inside, leaf, 0)

@@ -325,6 +325,12 @@ def generate_certified(
     elif not isinstance(limits, ArmLimits):
         raise InvalidParameterError("limits", type(limits).__name__, "an ArmLimits or None")
     answer = _certify_clearance(generated, coefficients, arm, config)
+    return _with_execution(answer, coefficients, arm, config, timing, limits, region_map)
+
+
+def _with_execution(answer, coefficients, arm, config, timing, limits, region_map) -> CertifiedTrajectory:
+    """``answer`` (certified collision-free) with its execution certified: from the map's leaf where
+    it decides it, else per query (:mod:`pipeline.online.execution`)."""
     tolerance = (
         endpoint_tolerance_of(coefficients) if config.endpoint_tolerance_m is None else config.endpoint_tolerance_m
     )

@@ -648,13 +648,8 @@ def _rest_to_rest_checks(
         q, dq, ddq = timed_states(parameters[rows], [timings[r] for r in rows], tau)
         return np.concatenate([np.abs(dq), np.abs(ddq), np.abs(dynamics.torque(q, dq, ddq))], axis=-1)
 
-    bounds = np.array(
-        [
-            (*c.speed_bound_rad_s, *c.acceleration_bound_rad_s2, *c.torque_bound_n_m)  # evaluate's order
-            for c in certificates
-        ],
-        dtype=float,
-    )
+    # In evaluate's order: speeds, accelerations, torques.
+    bounds = np.array([(*c.speed_bound_rad_s, *c.acceleration_bound_rad_s2, *c.torque_bound_n_m) for c in certificates])
     ramp, middle, fine = grid
     grid_s = piecewise_grid(durations, ramps, ramp, middle)
     maxima, where, evaluated = refined_maxima(evaluate, grid_s, fine, bounds, REST_TO_REST_ROOM)
