@@ -309,7 +309,7 @@ def test_the_default_export_keeps_the_servo_defaults_and_records_them(tmp_path: 
     speeds differ by at most 10 rad/s^2 x 0.01 s; the limits are printed and in every format."""
     for suffix in (".csv", ".npz", ".json"):
         out = tmp_path / f"t{suffix}"
-        status, stdout, _ = run(capsys, "--L", "0.27", "--W", "0.09", "--out", str(out))
+        status, stdout, _ = run(capsys, "--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--out", str(out))
         assert status == 0
         assert "acceleration 10, 10 rad/s^2 (servo default); jerk 200, 200 rad/s^3 (servo default)" in stdout
         if suffix == ".csv":
@@ -334,7 +334,9 @@ def test_the_default_export_keeps_the_servo_defaults_and_records_them(tmp_path: 
 def test_a_fine_export_shows_no_acceleration_step(tmp_path: Path, capsys) -> None:
     out = tmp_path / "t.npz"
     status, stdout, _ = run(
-        capsys, "--L", "0.27", "--W", "0.09", "--acceleration-limit", "5", "5", "--rate", "2000", "--out", str(out)
+        capsys,
+        *("--L", "0.27", "--W", "0.09", "--coefficients", "paper"),
+        *("--acceleration-limit", "5", "5", "--rate", "2000", "--out", str(out)),
     )
     assert status == 0 and "acceleration 5, 5 rad/s^2 (--acceleration-limit); jerk 100, 100 rad/s^3" in stdout
     ddq = np.load(out)["ddq_rad_s2"]
@@ -355,13 +357,28 @@ def test_a_fine_export_shows_no_acceleration_step(tmp_path: Path, capsys) -> Non
 )
 def test_a_bad_limit_is_one_line_exit_2(tmp_path: Path, capsys, flag: str, values: tuple[str, str]) -> None:
     out = tmp_path / "t.csv"
-    status, _, err = run(capsys, "--L", "0.27", "--W", "0.09", flag, *values, "--out", str(out))
+    status, _, err = run(
+        capsys, "--L", "0.27", "--W", "0.09", "--coefficients", "paper", flag, *values, "--out", str(out)
+    )
     assert status == 2 and err.count("\n") == 1 and flag in err and not out.exists()
 
 
 def test_a_jerk_limit_far_below_what_the_path_needs_is_refused(tmp_path: Path, capsys) -> None:
     out = tmp_path / "t.csv"
-    status, _, err = run(capsys, "--L", "0.27", "--W", "0.09", "--jerk-limit", "1e-6", "1e-6", "--out", str(out))
+    status, _, err = run(
+        capsys,
+        "--L",
+        "0.27",
+        "--W",
+        "0.09",
+        "--coefficients",
+        "paper",
+        "--jerk-limit",
+        "1e-6",
+        "1e-6",
+        "--out",
+        str(out),
+    )
     assert status == 1 and err.count("\n") == 1 and "longer than 3600 s" in err and not out.exists()
 
 

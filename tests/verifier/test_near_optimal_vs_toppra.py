@@ -14,7 +14,6 @@ pytest.importorskip("toppra")
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = ROOT / "scripts" / "near_optimal_vs_toppra.py"
-DEFAULT_BUILD = ROOT / "results" / "coefficients.json"
 
 
 def _script():
@@ -24,10 +23,9 @@ def _script():
     return module
 
 
-@pytest.mark.skipif(not DEFAULT_BUILD.is_file(), reason="no default build in results/")
 def test_main_on_two_obstacles_prints_the_tables_and_writes_the_json(tmp_path: Path, capsys) -> None:
     out = tmp_path / "out.json"
-    argv = ["--coefficients", str(DEFAULT_BUILD), "--n", "2", "--gridpoints", "100", "--json", str(out)]
+    argv = ["--coefficients", "paper", "--n", "2", "--gridpoints", "100", "--json", str(out)]
     assert _script().main(argv) == 0
     printed = capsys.readouterr().out
     for text in (
