@@ -16,6 +16,7 @@ first use.
 from __future__ import annotations
 
 import importlib
+from types import MappingProxyType
 
 from pipeline.exceptions import (
     ArmMismatchError,
@@ -40,32 +41,34 @@ from pipeline.online.loading import load_coefficients
 
 #: Public names imported on first access: those whose modules need Pinocchio or Coal, and the
 #: generator's, whose compiled core (Numba) loads in about a second.
-_LAZY = {
-    "GeneratedTrajectory": "pipeline.online.generator",
-    "generate": "pipeline.online.generator",
-    "GeneratedBatch": "pipeline.online.batch",
-    "generate_batch": "pipeline.online.batch",
-    "BuildConfig": "pipeline.build",
-    "BuildResult": "pipeline.build",
-    "run_build": "pipeline.build",
-    "scene_from_options": "pipeline.build",
-    "load_planar_arm": "pipeline.model.arm",
-    "PlanarArm": "pipeline.model.arm",
-    "CertifiedBatch": "pipeline.online.batch_certify",
-    "certify_batch": "pipeline.online.batch_certify",
-    "CertifiedTrajectory": "pipeline.online.repair",
-    "RepairConfig": "pipeline.online.repair",
-    "generate_certified": "pipeline.online.repair",
-    "ArmLimits": "pipeline.model.limits",
-    "PAPER_TIMING": "pipeline.motion.timing",
-    "RestToRestTiming": "pipeline.motion.timing",
-    "REST_TO_REST": "pipeline.motion.rest_to_rest",
-    "NEAR_OPTIMAL": "pipeline.motion.near_optimal",
-    "NearOptimal": "pipeline.motion.near_optimal",
-    "NearOptimalSettings": "pipeline.motion.near_optimal",
-    "ExecutionBatch": "pipeline.online.batch_execution",
-    "execution_batch": "pipeline.online.batch_execution",
-}
+_LAZY = MappingProxyType(
+    {
+        "GeneratedTrajectory": "pipeline.online.generator",
+        "generate": "pipeline.online.generator",
+        "GeneratedBatch": "pipeline.online.batch",
+        "generate_batch": "pipeline.online.batch",
+        "BuildConfig": "pipeline.build",
+        "BuildResult": "pipeline.build",
+        "run_build": "pipeline.build",
+        "scene_from_options": "pipeline.build",
+        "load_planar_arm": "pipeline.model.arm",
+        "PlanarArm": "pipeline.model.arm",
+        "CertifiedBatch": "pipeline.online.batch_certify",
+        "certify_batch": "pipeline.online.batch_certify",
+        "CertifiedTrajectory": "pipeline.online.repair",
+        "RepairConfig": "pipeline.online.repair",
+        "generate_certified": "pipeline.online.repair",
+        "ArmLimits": "pipeline.model.limits",
+        "PAPER_TIMING": "pipeline.motion.timing",
+        "RestToRestTiming": "pipeline.motion.timing",
+        "REST_TO_REST": "pipeline.motion.rest_to_rest",
+        "NEAR_OPTIMAL": "pipeline.motion.near_optimal",
+        "NearOptimal": "pipeline.motion.near_optimal",
+        "NearOptimalSettings": "pipeline.motion.near_optimal",
+        "ExecutionBatch": "pipeline.online.batch_execution",
+        "execution_batch": "pipeline.online.batch_execution",
+    }
+)
 
 __all__ = [
     "NEAR_OPTIMAL",

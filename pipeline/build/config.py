@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 
@@ -40,59 +41,65 @@ __all__ = ["OPTIONS", "SCENE_OPTIONS", "BuildConfig", "scene_from_options"]
 _PSO, _FITNESS, _CRITERIA = PsoConfig(), FitnessConfig(), ConvergenceCriteria()
 
 #: Command-line option of each :class:`BuildConfig` field, named in error messages.
-OPTIONS: dict[str, str] = {
-    "out_folder": "--out",
-    "seed": "--seed",
-    "levels": "--levels",
-    "length_range_m": "--L-range",
-    "width_range_m": "--W-range",
-    "vary": "--vary",
-    "design_kind": "--design",
-    "family": "--family",
-    "jobs": "--jobs",
-    "scheduler": "--scheduler",
-    "worker_timeout_s": "--worker-timeout",
-    "urdf_path": "--urdf",
-    "scene": "--scene",
-    "swarm_size": "--swarm-size",
-    "iterations": "--iterations",
-    "restarts": "--restarts",
-    "polish": "--no-polish",
-    "n_points": "--n-points",
-    "endpoint_weight": "--endpoint-weight",
-    "penalty_weight": "--penalty-weight",
-    "margin_buffer_m": "--margin-buffer",
-    "endpoint_tolerance_m": "--endpoint-tolerance",
-    "doe_endpoint_error_max_m": "--max-doe-endpoint-error",
-    "allow_unconverged": "--allow-unconverged",
-    "acceleration_limits_rad_s2": "--acceleration-limit",
-    "range_map": "--no-range-map",
-    "clearance_rounds": "--clearance-rounds",
-}
+OPTIONS: Mapping[str, str] = MappingProxyType(
+    {
+        "out_folder": "--out",
+        "seed": "--seed",
+        "levels": "--levels",
+        "length_range_m": "--L-range",
+        "width_range_m": "--W-range",
+        "vary": "--vary",
+        "design_kind": "--design",
+        "family": "--family",
+        "jobs": "--jobs",
+        "scheduler": "--scheduler",
+        "worker_timeout_s": "--worker-timeout",
+        "urdf_path": "--urdf",
+        "scene": "--scene",
+        "swarm_size": "--swarm-size",
+        "iterations": "--iterations",
+        "restarts": "--restarts",
+        "polish": "--no-polish",
+        "n_points": "--n-points",
+        "endpoint_weight": "--endpoint-weight",
+        "penalty_weight": "--penalty-weight",
+        "margin_buffer_m": "--margin-buffer",
+        "endpoint_tolerance_m": "--endpoint-tolerance",
+        "doe_endpoint_error_max_m": "--max-doe-endpoint-error",
+        "allow_unconverged": "--allow-unconverged",
+        "acceleration_limits_rad_s2": "--acceleration-limit",
+        "range_map": "--no-range-map",
+        "clearance_rounds": "--clearance-rounds",
+    }
+)
 #: Command-line option of each scene field that has one; the others are set by ``--scene FILE``.
-SCENE_OPTIONS: dict[str, str] = {
-    "top_y_m": "--top-y",
-    "start_y_m": "--start-y",
-    "speed_m_s": "--speed",
-    "margin_m": "--margin",
-    "corner_radius_m": "--corner-radius",
-}
+SCENE_OPTIONS: Mapping[str, str] = MappingProxyType(
+    {
+        "top_y_m": "--top-y",
+        "start_y_m": "--start-y",
+        "speed_m_s": "--speed",
+        "margin_m": "--margin",
+        "corner_radius_m": "--corner-radius",
+    }
+)
 # Names the sub-configurations use in their own errors -> the BuildConfig field.
-_SUB_NAMES = {
-    "L range": "length_range_m",
-    "L range min": "length_range_m",
-    "L range max": "length_range_m",
-    "W range": "width_range_m",
-    "W range min": "width_range_m",
-    "W range max": "width_range_m",
-    "tolerance_m": "endpoint_tolerance_m",
-    "endpoint_error_max_m": "doe_endpoint_error_max_m",
-    "design": "design_kind",
-}
+_SUB_NAMES = MappingProxyType(
+    {
+        "L range": "length_range_m",
+        "L range min": "length_range_m",
+        "L range max": "length_range_m",
+        "W range": "width_range_m",
+        "W range min": "width_range_m",
+        "W range max": "width_range_m",
+        "tolerance_m": "endpoint_tolerance_m",
+        "endpoint_error_max_m": "doe_endpoint_error_max_m",
+        "design": "design_kind",
+    }
+)
 #: The variables ``--vary`` takes (L and W have --L-range and --W-range).
 VARY_NAMES: tuple[str, ...] = tuple(name for name in NAMES if name not in SIZE)
 # Other spellings of the variables -> the name (the scene fields they set, other cases).
-_ALIASES = {"X": "x", "D": "d", "centre_x_m": "x", "center_x_m": "x", "top_y_m": "d"}
+_ALIASES = MappingProxyType({"X": "x", "D": "d", "centre_x_m": "x", "center_x_m": "x", "top_y_m": "d"})
 
 
 def _renamed(exc: InvalidParameterError, option: str) -> InvalidParameterError:

@@ -46,6 +46,7 @@ import json
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 
 import numpy as np
 from scipy.optimize import minimize
@@ -101,7 +102,7 @@ DEFAULT_CLEARANCE_ROUNDS = 1
 #: Smallest cell of the maps of the build's refit rounds but the last (fraction of the side), per
 #: number of variables; the last round, whose map the build writes, uses the build's (finer)
 #: cells. The coarser cells keep the refit's points on the leaves that matter and the rounds fast.
-REFIT_MIN_CELLS: dict[int, float] = {2: 1.0 / 256, 3: 1.0 / 32}
+REFIT_MIN_CELLS: Mapping[int, float] = MappingProxyType({2: 1.0 / 256, 3: 1.0 / 32})
 #: The variables the certifiable regression covers: its constraint points move the obstacle by x
 #: only (:func:`_centre_x`; the far edge d stays at the scene's), so coefficients over d are
 #: certified as regressed (``pipeline.build.config.BuildConfig.certifiable_refit``).

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
+from types import MappingProxyType
 
 import numpy as np
 
@@ -53,7 +54,9 @@ COLUMNS = (
     "ramp_s",
 )
 #: What a null in a column stands for (default: +inf, an unbounded upper bound).
-_NULL_MEANS = {"angle_lo1_rad": -math.inf, "angle_lo2_rad": -math.inf, "speed_scale": math.nan, "ramp_s": math.nan}
+_NULL_MEANS = MappingProxyType(
+    {"angle_lo1_rad": -math.inf, "angle_lo2_rad": -math.inf, "speed_scale": math.nan, "ramp_s": math.nan}
+)
 
 
 def _dynamics_json(dynamics: PlanarDynamics) -> dict:

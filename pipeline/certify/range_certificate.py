@@ -32,8 +32,9 @@ import itertools
 import math
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -67,11 +68,13 @@ DEFAULT_BOUNDARY_CELL = 1.0 / 64
 #: coefficients (python -m pipeline.certify_range C --min-cell ...) the margin holds on 97.99 % of
 #: the box with cells of 1/128 (928,131 cells) and on 98.44 % with 1/256 (1,223,209 cells: the
 #: finer cells go only where the margin is lost), 99.01 % of the volume not proven infeasible.
-DEFAULT_CELLS: dict[int, tuple[float, float]] = {
-    2: (DEFAULT_MIN_CELL, DEFAULT_BOUNDARY_CELL),
-    3: (1.0 / 256, 1.0 / 16),
-    4: (1.0 / 16, 1.0 / 8),  # (L, W, x, d): 16^4 = 65,536 cells; 1/32 would give about 1 M (some 230 MB of map)
-}
+DEFAULT_CELLS: Mapping[int, tuple[float, float]] = MappingProxyType(
+    {
+        2: (DEFAULT_MIN_CELL, DEFAULT_BOUNDARY_CELL),
+        3: (1.0 / 256, 1.0 / 16),
+        4: (1.0 / 16, 1.0 / 8),  # (L, W, x, d): 16^4 = 65,536 cells; 1/32 would give about 1 M (some 230 MB of map)
+    }
+)
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
 #: within this of the margin [m].
 _INFEASIBILITY_REFINE_M = 1e-3

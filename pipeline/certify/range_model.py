@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 
@@ -341,10 +342,12 @@ def _paper_jets(model: RangeModel, free: list[Jet], L: Jet, W: Jet, T: Jet) -> l
 
 
 #: Jet version of each family's ``expand``: (model, free jets, L, W, T) -> 8 parameter jets.
-JET_EXPANSIONS = {
-    PaperFamily: _paper_jets,
-    ExactEndpointsFamily: lambda model, free, L, W, T: model._exact_endpoints_jets(free, L, W, T),
-}
+JET_EXPANSIONS = MappingProxyType(
+    {
+        PaperFamily: _paper_jets,
+        ExactEndpointsFamily: lambda model, free, L, W, T: model._exact_endpoints_jets(free, L, W, T),
+    }
+)
 
 
 def _unbounded_where(jet: Jet, mask: np.ndarray) -> Jet:

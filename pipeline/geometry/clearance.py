@@ -22,10 +22,10 @@ depth, the analytic route minus the radii), so "clearance > 0" means the same fo
 from __future__ import annotations
 
 import math
-import weakref
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import ClassVar
 
 import coal
@@ -146,16 +146,6 @@ class _ArmGeometry:
         return placements
 
 
-_ARM_GEOMETRY: weakref.WeakKeyDictionary[PlanarArm, _ArmGeometry] = weakref.WeakKeyDictionary()
-
-
-def _arm_geometry(arm: PlanarArm) -> _ArmGeometry:
-    cached = _ARM_GEOMETRY.get(arm)
-    if cached is None:
-        cached = _ARM_GEOMETRY[arm] = _ArmGeometry(arm)
-    return cached
-
-
 @dataclass(eq=False)
 class CoalClearance:
     """Distances from each link's collision geometry to one obstacle by Coal: the canonical route.
@@ -180,7 +170,7 @@ class CoalClearance:
     _calls: list = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self._geometry = geometry = _arm_geometry(self.arm)
+        self._geometry = geometry = self.arm.derived(_ArmGeometry)
         # The obstacle's Coal shape and placement, as Obstacle.coal_shape() and .center_m (the same
         # arithmetic in Python floats, without the intermediate arrays).
         obstacle = self.obstacle
@@ -507,7 +497,7 @@ class AnalyticRoute(ClearanceRoute):
 COAL = CoalRoute()
 ANALYTIC = AnalyticRoute()
 #: Every route, by name.
-ROUTES: dict[str, ClearanceRoute] = {route.name: route for route in (COAL, ANALYTIC)}
+ROUTES: Mapping[str, ClearanceRoute] = MappingProxyType({route.name: route for route in (COAL, ANALYTIC)})
 
 
 def route_from_name(name: object) -> ClearanceRoute:

@@ -60,7 +60,6 @@ well below the true minimum.
 from __future__ import annotations
 
 import math
-import weakref
 
 import numpy as np
 
@@ -525,15 +524,9 @@ class _AdaptiveCertificate:
         return evaluations, rounds, converged
 
 
-_REACH: weakref.WeakKeyDictionary[PlanarArm, LinkReach] = weakref.WeakKeyDictionary()
-
-
 def arm_reach(arm: PlanarArm) -> LinkReach:
-    """:meth:`LinkReach.from_arm`, computed once per arm object."""
-    reach = _REACH.get(arm)
-    if reach is None:
-        reach = _REACH[arm] = LinkReach.from_arm(arm)
-    return reach
+    """:meth:`LinkReach.from_arm`, computed once per arm object and kept by it (:meth:`PlanarArm.derived`)."""
+    return arm.derived(LinkReach.from_arm)
 
 
 def certify_trajectory(

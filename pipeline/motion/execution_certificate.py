@@ -52,7 +52,6 @@ within rounding of a phase interval's end changes the range by the square of tha
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 
@@ -264,8 +263,8 @@ def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLi
     paper timing (c = 1, no ramp).
 
     In plain floats: the path's exact peaks and angle ranges are computed once per trajectory
-    (:attr:`pipeline.motion.trajectory.JointTrajectory.peaks`) and the inertia suprema once per
-    range of q2 (:func:`_inertia_sup`), so both timings of one path share them; each bound is a few
+    (:attr:`pipeline.motion.trajectory.JointTrajectory.peaks`), so both timings of one path share them,
+    and the inertia suprema over that range of q2 (:func:`_inertia_sup`); each bound is a few
     products and sums, widened by the same slack as every enclosure."""
     peaks = timed.trajectory.peaks
     (V1, V2), (acc1, acc2), (third1, third2) = peaks.velocity_rad_s, peaks.acceleration_rad_s2, peaks.third_rad_s3
@@ -293,14 +292,12 @@ def _closed_form(timed: TimedTrajectory, dynamics: PlanarDynamics, limits: ArmLi
     return _certificate(timed, np.array(bounds), None, 0, limits)
 
 
-@functools.lru_cache(maxsize=64)
 def _inertia_sup(
     dynamics: PlanarDynamics, q2_lo: float, q2_hi: float
 ) -> tuple[tuple[float, float], tuple[float, float], float]:
     """sup of |M_ij(q2)| (rows (M11, M12), (M21, M22)) and of |h(q2)| over q2 in [q2_lo, q2_hi]
     (the path's exact range of q2): max |k0 + kc cos + ks sin| over the exact ranges of cos and sin,
-    as interval arithmetic gives it; never above the suprema over all q2. Plain floats, memoised on
-    (dynamics, range): both timings of one path ask for the same range."""
+    as interval arithmetic gives it; never above the suprema over all q2. Plain floats."""
     s_lo, s_hi = sin_extremes(q2_lo, q2_hi)
     c_lo, c_hi = sin_extremes(q2_lo + 0.5 * math.pi, q2_hi + 0.5 * math.pi)
 
@@ -321,9 +318,8 @@ def _limit_vector(limits: ArmLimits) -> np.ndarray:
     return np.array(_limit_tuple(limits))
 
 
-@functools.lru_cache(maxsize=16)
 def _limit_tuple(limits: ArmLimits) -> tuple[float, ...]:
-    """:func:`_limit_vector` as plain floats, once per limits."""
+    """:func:`_limit_vector` as plain floats."""
     (lo1, hi1), (lo2, hi2) = limits.position_rad
     rates = (limits.velocity_rad_s, limits.acceleration_rad_s2, limits.effort_n_m, limits.jerk_rad_s3)
     return tuple(float(v) for v in (hi1, hi2, -lo1, -lo2, *(value for pair in rates for value in pair)))

@@ -66,6 +66,7 @@ class Coefficients:
             ``source_sha256``), attached by :func:`pipeline.read_coefficients`; None without one.
             The generator's answers carry its bounds.
         variables: The scene variables the coefficients vary (default (L, W); always with L and W).
+        online_state: The state the online queries of these coefficients share, made on first use.
     """
 
     family: TrajectoryFamily
@@ -80,6 +81,13 @@ class Coefficients:
     source_sha256: str = ""
     region_map: object = field(default=None, repr=False)
     variables: Variables = DEFAULT_VARIABLES
+    #: What the online queries of this object share (a ``pipeline.online.query_state.QueryState``),
+    #: made on the first query and owned by this object: not a field of the file, not pickled.
+    online_state: object = field(default=None, init=False, repr=False, compare=False)
+
+    def __getstate__(self) -> dict:
+        """Pickled without :attr:`online_state` (a worker builds its own on its first query)."""
+        return {**self.__dict__, "online_state": None}
 
     @property
     def converged(self) -> bool:

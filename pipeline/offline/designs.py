@@ -22,8 +22,9 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import numpy as np
 
@@ -45,7 +46,7 @@ __all__ = [
 #: Default ranges of the variables beyond L and W [m]: x = +-50 mm keeps P1..P5 of every corner of
 #: the default (L, W) range inside the arm's reach (the limit is |x| < 60 mm, where P1 of L = 0.30 m
 #: reaches the outer radius 0.65 m on the right and P5 on the left).
-DEFAULT_RANGES_M: dict[str, tuple[float, float]] = {"x": (-0.05, 0.05)}
+DEFAULT_RANGES_M: Mapping[str, tuple[float, float]] = MappingProxyType({"x": (-0.05, 0.05)})
 
 TABLE1_ORDER = "Table 1: W descending by rows, L descending within a row"
 
@@ -254,7 +255,9 @@ class CentralComposite(ScaledDesign):
 
 
 #: The designs by their command-line name.
-DESIGN_KINDS: dict[str, type[ScaledDesign]] = {cls.kind: cls for cls in (FullFactorial, BoxBehnken, CentralComposite)}
+DESIGN_KINDS: Mapping[str, type[ScaledDesign]] = MappingProxyType(
+    {cls.kind: cls for cls in (FullFactorial, BoxBehnken, CentralComposite)}
+)
 
 
 def design_class(name: str) -> type[ScaledDesign]:

@@ -35,6 +35,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 
 import numpy as np
 
@@ -70,7 +71,7 @@ K_ENDPOINT_FTOL = 1e-9
 #: 2 mm on 100 % of the box (largest 2.000 mm) and the margin holds on 98.44 % of it; with 0.35
 #: (then with cells of 1/128) on 96.72 % (docs/results.md, "Over the obstacle's centre x").
 #: k = 4 (cells of 1/16, whose endpoint bound exceeds 2 mm anyway): 0.35.
-K_ENDPOINT_HEADROOM: dict[int, float] = {3: 0.1, 4: 0.35}
+K_ENDPOINT_HEADROOM: Mapping[int, float] = MappingProxyType({3: 0.1, 4: 0.35})
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ import difflib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from functools import cached_property
+from types import MappingProxyType
 
 import numpy as np
 
@@ -34,12 +35,14 @@ from pipeline.exceptions import DataFileError, InvalidParameterError, PipelineEr
 from pipeline.model.scene import Scene
 
 #: Every variable a fit may vary, in the canonical order: name -> (meaning, Scene field or None).
-VOCABULARY: dict[str, tuple[str, str | None]] = {
-    "L": ("obstacle length [m]", None),
-    "W": ("obstacle width [m]", None),
-    "x": ("obstacle centre x, Scene.centre_x_m [m]", "centre_x_m"),
-    "d": ("obstacle far edge y, Scene.top_y_m [m]", "top_y_m"),
-}
+VOCABULARY: Mapping[str, tuple[str, str | None]] = MappingProxyType(
+    {
+        "L": ("obstacle length [m]", None),
+        "W": ("obstacle width [m]", None),
+        "x": ("obstacle centre x, Scene.centre_x_m [m]", "centre_x_m"),
+        "d": ("obstacle far edge y, Scene.top_y_m [m]", "top_y_m"),
+    }
+)
 #: The names of :data:`VOCABULARY` in the canonical order.
 NAMES: tuple[str, ...] = tuple(VOCABULARY)
 #: The obstacle's size, which every coefficients file varies.

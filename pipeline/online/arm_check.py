@@ -11,7 +11,6 @@ explicitly (``--urdf``) overrides it after :func:`check_arm_matches`.
 from __future__ import annotations
 
 import math
-import weakref
 from pathlib import Path
 
 from pipeline.exceptions import ArmMismatchError, DataFileError, InvalidParameterError
@@ -21,8 +20,6 @@ from pipeline.offline.coefficients import Coefficients
 
 #: Largest difference [m] between the coefficients' and the arm's link lengths or radii.
 ARM_TOLERANCE_M = 1e-9
-
-_ARMS: weakref.WeakKeyDictionary[Coefficients, PlanarArm] = weakref.WeakKeyDictionary()
 
 
 def check_arm_matches(coefficients: Coefficients, arm: PlanarArm, tolerance_m: float = ARM_TOLERANCE_M) -> None:
@@ -83,7 +80,8 @@ def recorded_urdf(coefficients: Coefficients) -> Path:
 
 def arm_for(coefficients: Coefficients, urdf: str | Path | None = None) -> PlanarArm:
     """The arm to use with ``coefficients``: :func:`recorded_urdf`'s, or ``urdf`` if given
-    (checked with :func:`check_arm_matches`). Loaded once per coefficients object.
+    (checked with :func:`check_arm_matches`), loaded from its URDF on each call (the queries of one
+    coefficients object share one: ``pipeline.online.query_state.QueryState.arm``).
 
     Raises:
         DataFileError: no ``urdf`` given and the recorded URDF is missing or changed.
@@ -94,9 +92,6 @@ def arm_for(coefficients: Coefficients, urdf: str | Path | None = None) -> Plana
         arm = load_planar_arm(urdf)
         check_arm_matches(coefficients, arm)
         return arm
-    arm = _ARMS.get(coefficients)
-    if arm is None:
-        arm = load_planar_arm(recorded_urdf(coefficients))
-        check_arm_matches(coefficients, arm)
-        _ARMS[coefficients] = arm
+    arm = load_planar_arm(recorded_urdf(coefficients))
+    check_arm_matches(coefficients, arm)
     return arm

@@ -27,7 +27,8 @@ from pipeline.motion.path import symmetric_quartic, symmetric_quartic_lengths_m
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.variables import quadratic_design
-from pipeline.online.generator import ATTACHED, QueryPlan, _Attached, check_region_map, generate, query_plan
+from pipeline.online.generator import ATTACHED, _Attached, check_region_map, generate
+from pipeline.online.query_state import QueryPlan, state_of
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,7 +94,7 @@ def generate_batch(
             values, or values for one they do not vary.
         RegionMapMismatchError: ``region_map`` was made for other coefficients.
     """
-    plan = query_plan(coefficients)
+    plan = state_of(coefficients).plan
     if region_map is ATTACHED:
         region_map = coefficients.region_map
     elif region_map is not None:

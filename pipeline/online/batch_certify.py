@@ -14,8 +14,9 @@ from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
 from pipeline.offline.coefficients import Coefficients
-from pipeline.online.arm_check import arm_for, check_arm_matches
+from pipeline.online.arm_check import check_arm_matches
 from pipeline.online.batch import GeneratedBatch
+from pipeline.online.query_state import state_of
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,7 +72,7 @@ def certify_batch(
             "batch", type(batch).__name__, "a GeneratedBatch from pipeline.generate_batch(coefficients, L, W)"
         )
     if arm is None:
-        arm = arm_for(coefficients)
+        arm = state_of(coefficients).arm
     check_arm_matches(coefficients, arm)
     n = batch.lengths_m.size
     certified, sampled, evaluations = np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, dtype=int)

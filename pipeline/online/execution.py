@@ -32,7 +32,6 @@ keep) the per-query certificate decides. The near-optimal timing is certified pe
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass, replace
 
 from pipeline.certify.region_map import RegionMap
@@ -64,15 +63,11 @@ ENDPOINT_SLACK_M = 1e-12
 #: Retries of the rest-to-rest timing with a 10 % lower speed scale.
 RETIMING_TRIES = 5
 
-_DYNAMICS: weakref.WeakKeyDictionary[PlanarArm, PlanarDynamics] = weakref.WeakKeyDictionary()
-
 
 def dynamics_of(arm: PlanarArm) -> PlanarDynamics:
-    """The arm's closed-form dynamics (:func:`pipeline.model.dynamics.identify_dynamics`), identified once per arm."""
-    dynamics = _DYNAMICS.get(arm)
-    if dynamics is None:
-        dynamics = _DYNAMICS[arm] = identify_dynamics(arm)
-    return dynamics
+    """The arm's closed-form dynamics (:func:`pipeline.model.dynamics.identify_dynamics`), identified
+    once per arm and kept by it (:meth:`PlanarArm.derived`)."""
+    return arm.derived(identify_dynamics)
 
 
 @dataclass(frozen=True, eq=False)

@@ -41,10 +41,8 @@ from __future__ import annotations
 
 import math
 import warnings
-import weakref
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import NamedTuple
 
 import numpy as np
 
@@ -58,19 +56,17 @@ from pipeline.exceptions import (
     RegionMapMismatchError,
     UnreachableObstacleError,
 )
-from pipeline.model.kinematics import inverse_kinematics, reach_annulus_m
+from pipeline.model.kinematics import inverse_kinematics
 from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.motion.families import EndpointContext, TrajectoryFamily
-from pipeline.motion.path import LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS, QuarticPath, desired_path
+from pipeline.motion.path import QuarticPath, desired_path
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
-from pipeline.offline.variables import Variables
-from pipeline.online.kernel import NO_TABLES, VARIES_D, VARIES_X, plan_numbers, query_core
+from pipeline.online.kernel import NO_TABLES, query_core
+from pipeline.online.query_state import QueryPlan, state_of
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
-#: The scene variables :func:`generate` takes by keyword, in the order of its arguments.
-_GIVEN: tuple[str, str] = ("x", "d")
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,41 +185,6 @@ class GeneratedTrajectory:
         return self.trajectory.ddq(t_s, outside=outside)
 
 
-class QueryPlan(NamedTuple):
-    """What every query with one coefficients object shares, precomputed once: the regression
-    matrix and the scene's numbers as plain floats (:func:`generate` and
-    ``pipeline.online.batch.generate_batch`` read it through :func:`query_plan`)."""
-
-    matrix_t: np.ndarray  # (basis, k): the regression, basis (1, L, W, L^2, LW, W^2 over (L, W)) -> free parameters
-    l_range: tuple[float, float]
-    w_range: tuple[float, float]
-    reach: tuple[float, float]
-    top: float
-    y1: float
-    start_dx: float
-    approach_dx: float
-    approach_dy: float
-    apex_dy: float
-    speed: float
-    smallest: float  # smallest L and W: twice the corner radius [m]
-    corner_radius: float
-    height: float
-    variables: Variables
-    extra: tuple[str, ...]  # the variables beyond L and W, () for the (L, W) route
-    extra_ranges: tuple[tuple[float, float], ...]
-    # What the route of coefficients over more variables (_generate_moved) reads:
-    given_types: tuple[type, type]  # type(x), type(d) of a query that gives exactly the variables, as floats
-    centre_x: float  # the scene's centre x [m], for coefficients that do not vary x
-    y1_is_top: bool  # y1 = d (the scene's start_y_m is None): a value of d moves P1 and P5 too
-    core: tuple  # the compiled core's arguments after the query's five numbers, before the map's tables
-
-
-#: The plans of the coefficients queried so far, by ``id``, each removed when its coefficients die
-#: (a plain dict by ``id`` is looked up several times faster than a ``WeakKeyDictionary``, which
-#: makes a weak reference per lookup; an entry's id is always a live Coefficients').
-_PLANS: dict[int, QueryPlan] = {}
-
-
 class _Attached:
     """The type of :data:`ATTACHED`."""
 
@@ -233,14 +194,6 @@ class _Attached:
 
 #: ``region_map=ATTACHED`` (the default of :func:`generate`): the map attached to the coefficients.
 ATTACHED = _Attached()
-
-
-def _refuse_coefficients(coefficients: object) -> InvalidParameterError:
-    return InvalidParameterError(
-        "coefficients",
-        coefficients if isinstance(coefficients, str | int | float | type(None)) else type(coefficients).__name__,
-        "a Coefficients object from pipeline.load_coefficients(path)",
-    )
 
 
 def check_region_map(region_map: object, coefficients: Coefficients) -> None:
@@ -254,73 +207,6 @@ def check_region_map(region_map: object, coefficients: Coefficients) -> None:
         raise InvalidParameterError("region_map", type(region_map).__name__, "a RegionMap, ATTACHED or None")
     if not region_map.belongs_to(coefficients):
         raise RegionMapMismatchError(region_map.coefficients_sha256, coefficients.source_sha256)
-
-
-def query_plan(coefficients: Coefficients) -> QueryPlan:
-    """The :class:`QueryPlan` of ``coefficients``, built on first use and kept while they live.
-
-    Raises:
-        InvalidParameterError: ``coefficients`` is not a :class:`Coefficients` (e.g. a path).
-    """
-    if not isinstance(coefficients, Coefficients):
-        raise _refuse_coefficients(coefficients)
-    plan = _PLANS.get(id(coefficients))
-    if plan is None:
-        scene = coefficients.scene
-        names = coefficients.family.free_parameter_names
-        # The transposed view (basis x free parameters), as pipeline.offline.regression.predict uses.
-        matrix = np.array([coefficients.parameters[name] for name in names], dtype=float)
-        matrix.setflags(write=False)
-        matrix = matrix.T
-        variables = coefficients.variables
-        ranges = [tuple(coefficients.fitted_range_m[name]) for name in variables.names]
-        core = _core_arguments(matrix, variables, scene, ranges, reach_annulus_m(coefficients.link_lengths_m))
-        plan = QueryPlan(
-            matrix_t=matrix,
-            l_range=tuple(coefficients.fitted_range_m["L"]),
-            w_range=tuple(coefficients.fitted_range_m["W"]),
-            reach=reach_annulus_m(coefficients.link_lengths_m),
-            top=float(scene.top_y_m),
-            y1=float(scene.y1_m),
-            start_dx=float(scene.start_dx_m),
-            approach_dx=float(scene.approach_dx_m),
-            approach_dy=float(scene.approach_dy_m),
-            apex_dy=float(scene.apex_dy_m),
-            speed=float(scene.speed_m_s),
-            smallest=2.0 * float(scene.corner_radius_m),
-            corner_radius=float(scene.corner_radius_m),
-            height=float(scene.obstacle_height_m),
-            variables=variables,
-            extra=variables.extra,
-            extra_ranges=tuple(tuple(coefficients.fitted_range_m[name]) for name in variables.extra),
-            given_types=tuple(float if name in variables.extra else type(None) for name in _GIVEN),
-            centre_x=float(scene.centre_x_m),
-            y1_is_top=scene.start_y_m is None,
-            core=core,
-        )
-        _PLANS[id(coefficients)] = plan
-        weakref.finalize(coefficients, _PLANS.pop, id(coefficients), None)
-    return plan
-
-
-def _core_arguments(matrix_t: np.ndarray, variables: Variables, scene: Scene, ranges: list, reach: tuple) -> tuple:
-    """The arguments of :func:`pipeline.online.kernel.query_core` that every query of one
-    coefficients object shares: private arrays, writable only because Numba's dispatch of a
-    read-only array costs twice as much (one compiled core serves every plan)."""
-    terms, count = matrix_t.shape
-    if terms != variables.basis_size or not 0 < count <= 8:  # the core reads exactly these sizes
-        names = ", ".join(variables.names)
-        raise InvalidParameterError(
-            "coefficients' parameters",
-            f"{count} parameters of {terms} terms",
-            f"1 to 8 parameters of {variables.basis_size} terms each (the quadratic basis in {names})",
-        )
-    varies = sum(bit for name, bit in zip(_GIVEN, (VARIES_X, VARIES_D), strict=True) if name in variables.extra)
-    padded = np.zeros((matrix_t.shape[0], 8))
-    padded[:, : matrix_t.shape[1]] = matrix_t
-    scene_numbers = (scene.start_dx_m, scene.approach_dx_m, scene.approach_dy_m, scene.apex_dy_m, scene.speed_m_s)
-    rule = np.vstack([LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS])
-    return varies, plan_numbers((*scene_numbers, *reach), np.array(ranges, dtype=float), padded, rule)
 
 
 def _size(value: object, size: tuple[object, object], name: str) -> float:
@@ -407,9 +293,10 @@ def generate(
         OutOfFittedRangeError: outside the fitted range with ``out_of_range="error"``.
         RegionMapMismatchError: ``region_map`` was made for other coefficients.
     """
-    plan = _PLANS.get(id(coefficients))
-    if plan is None:  # a first query (or not a Coefficients: refused)
-        plan = query_plan(coefficients)
+    try:
+        plan = coefficients.online_state.plan
+    except AttributeError:  # a first query (or not a Coefficients: refused)
+        plan = state_of(coefficients).plan
     if region_map is ATTACHED or region_map is coefficients.region_map:  # checked when it was attached
         region_map = coefficients.region_map
     elif region_map is not None:

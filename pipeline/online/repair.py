@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import math
 import time
-import weakref
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -50,9 +49,10 @@ from pipeline.motion.timing import PAPER_TIMING, PaperTiming
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.fitness import FitnessConfig, FitnessProblem, fitness_problem
-from pipeline.online.arm_check import arm_for, check_arm_matches
+from pipeline.online.arm_check import check_arm_matches
 from pipeline.online.execution import Execution, certify_answer_execution, execution_from_map
 from pipeline.online.generator import ATTACHED, GeneratedTrajectory, _Attached, generate
+from pipeline.online.query_state import state_of
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
 
@@ -314,14 +314,15 @@ def generate_certified(
     if not isinstance(config, RepairConfig):
         raise InvalidParameterError("config", type(config).__name__, "a RepairConfig or None")
     generated = generate(coefficients, length_m, width_m, x=x, d=d, out_of_range=out_of_range, region_map=region_map)
+    state = state_of(coefficients)
     if arm is None:
-        arm = arm_for(coefficients)
+        arm = state.arm
     else:
         check_arm_matches(coefficients, arm)
     if not isinstance(timing, PaperTiming | ShortestRestToRest | NearOptimal):
         raise InvalidParameterError("timing", type(timing).__name__, "PAPER_TIMING, REST_TO_REST or NEAR_OPTIMAL")
     if limits is None:
-        limits = _recorded_limits(arm, coefficients)
+        limits = state.limits_of(arm)
     elif not isinstance(limits, ArmLimits):
         raise InvalidParameterError("limits", type(limits).__name__, "an ArmLimits or None")
     answer = _certify_clearance(generated, coefficients, arm, config)
@@ -357,17 +358,6 @@ def _with_execution(answer, coefficients, arm, config, timing, limits, region_ma
         map_endpoint_bound_m=from_map,
     )
     return replace(answer, execution=execution)
-
-
-_LIMITS: weakref.WeakKeyDictionary[Coefficients, tuple[PlanarArm, ArmLimits]] = weakref.WeakKeyDictionary()
-
-
-def _recorded_limits(arm: PlanarArm, coefficients: Coefficients) -> ArmLimits:
-    """:meth:`ArmLimits.recorded` of ``arm`` and ``coefficients``, read once per pair."""
-    cached = _LIMITS.get(coefficients)
-    if cached is None or cached[0] is not arm:
-        cached = _LIMITS[coefficients] = (arm, ArmLimits.recorded(arm, coefficients.provenance))
-    return cached[1]
 
 
 def _certify_clearance(

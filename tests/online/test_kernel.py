@@ -19,8 +19,9 @@ from pipeline.model.kinematics import reach_annulus_m
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import constraint_points
 from pipeline.offline.variables import Variables
-from pipeline.online.generator import generate, query_plan
+from pipeline.online.generator import generate
 from pipeline.online.kernel import NO_TABLES, query_core
+from pipeline.online.query_state import state_of
 
 X_RANGE = (-0.03, 0.03)
 D_RANGE = (0.55, 0.57)
@@ -38,7 +39,7 @@ def paper_xd(paper, over_xd):
 
 def core(coefficients, L, W, x=None, d=None, tables=NO_TABLES):
     """query_core's answer for one query, its arguments made as the generator makes them."""
-    plan = query_plan(coefficients)
+    plan = state_of(coefficients).plan
     c = plan.centre_x if x is None else x
     top = plan.top if d is None else d
     y1 = top if plan.y1_is_top else plan.y1

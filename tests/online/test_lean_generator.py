@@ -8,6 +8,7 @@ from __future__ import annotations
 import gc
 import math
 import pickle
+import weakref
 from dataclasses import replace
 
 import numpy as np
@@ -29,8 +30,8 @@ from pipeline.motion.families import EndpointContext
 from pipeline.motion.path import constraint_points, desired_path
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
-from pipeline.online import generator
 from pipeline.online.generator import generate
+from pipeline.online.query_state import state_of
 
 
 def reference_duration(points: np.ndarray, speed: float) -> float:
@@ -174,16 +175,20 @@ def test_times_outside_the_motion_are_refused_or_clamped(paper: Coefficients) ->
 
 
 def test_the_plan_of_coefficients_lives_as_long_as_they_do(paper: Coefficients) -> None:
-    """The generator keeps one precomputed plan per coefficients object (by id), and drops it
-    when they die: no plan outlives its coefficients, and a new object never finds a stale one."""
+    """Each coefficients object owns one query state (its plan), made on the first query and
+    dropped with it: no state outlives its coefficients, a copy or a pickle starts without one."""
     copy = replace(paper, source="a copy")  # another object, its own plan
+    assert copy.online_state is None
     answer = generate(copy, 0.25, 0.1)
-    key = id(copy)
-    assert generator._PLANS[key] is generator.query_plan(copy)
-    assert generator._PLANS[key] is not generator.query_plan(paper)
-    del copy
+    state = copy.online_state
+    assert state is state_of(copy) and state.coefficients is copy
+    assert state.plan is not state_of(paper).plan
+    assert pickle.loads(pickle.dumps(copy)).online_state is None
+    assert replace(copy, source="another").online_state is None
+    alive = weakref.ref(state)
+    del copy, state
     gc.collect()
-    assert key not in generator._PLANS
+    assert alive() is None
     # The answer made with the dead coefficients' plan stays whole; without a map its bounds are
     # the fields' defaults, also after a pickle.
     for kept in (answer, pickle.loads(pickle.dumps(answer))):

@@ -8,13 +8,18 @@ Files and command lines name a family; :func:`family_from_name` turns the name i
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
+
 from pipeline.exceptions import InvalidParameterError
 from pipeline.motion.families.base import CONTEXT_NAMES, EndpointContext, TrajectoryFamily, endpoint_context
 from pipeline.motion.families.exact_endpoints import EXACT_ENDPOINTS, ExactEndpointsFamily
 from pipeline.motion.families.paper import PAPER, PAPER_SOURCE, PaperFamily
 
 #: Every family, by name.
-FAMILIES: dict[str, TrajectoryFamily] = {family.name: family for family in (PAPER, EXACT_ENDPOINTS)}
+FAMILIES: Mapping[str, TrajectoryFamily] = MappingProxyType(
+    {family.name: family for family in (PAPER, EXACT_ENDPOINTS)}
+)
 FAMILY_NAMES: tuple[str, ...] = tuple(FAMILIES)
 
 

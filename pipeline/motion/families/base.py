@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import ClassVar
 
 import numpy as np
@@ -17,7 +18,9 @@ import numpy as np
 from pipeline.model.kinematics import inverse_kinematics
 
 # Search box per parameter kind: A [rad], w [rad/s], phi [rad], gamma [rad].
-_BOUNDS = {"A": (-3.0, 3.0), "w": (0.2, 2.5), "phi": (-np.pi / 2, np.pi / 2), "gamma": (-np.pi, np.pi)}
+_BOUNDS = MappingProxyType(
+    {"A": (-3.0, 3.0), "w": (0.2, 2.5), "phi": (-np.pi / 2, np.pi / 2), "gamma": (-np.pi, np.pi)}
+)
 
 #: Names of the entries of :meth:`EndpointContext.as_array`, in order.
 CONTEXT_NAMES: tuple[str, ...] = ("theta1_start", "theta2_start", "theta1_end", "theta2_end", "duration")
