@@ -413,3 +413,19 @@ class TimingRefusedError(PipelineError):
     def __init__(self, reasons: tuple[str, ...]) -> None:
         self.reasons = tuple(reasons)
         super().__init__("no certified timing: " + "; ".join(self.reasons))
+
+
+class MissingDependencyError(PipelineError):
+    """An optional package that a requested feature needs is not installed (checked before any work).
+
+    Attributes:
+        package: The missing package, as pip names it.
+        extra: The extra of this project that installs it.
+        purpose: What needed it (e.g. "writing a ROS 2 bag").
+    """
+
+    def __init__(self, package: str, extra: str, purpose: str) -> None:
+        self.package = package
+        self.extra = extra
+        self.purpose = purpose
+        super().__init__(f"{purpose} needs {package}: pip install 'twolink-obstacle[{extra}]'")

@@ -40,12 +40,18 @@ at rest. With ``--out FILE`` it writes the trajectory sampled at ``--rate`` (t =
   ``points`` with ``positions`` [rad], ``velocities`` [rad/s], ``accelerations`` [rad/s^2],
   ``effort`` [N m] and ``time_from_start`` as ``{"sec", "nanosec"}``), and beside the message's
   fields a ``metadata`` object with the timing and the limits (not a message field: a ROS
-  consumer drops it).
+  consumer drops it);
+* ``.mcap`` or ``.db3``: a ROS 2 bag (rosbag2, MCAP or SQLite 3 storage; needs ``pip install
+  'twolink-obstacle[ros]'``), a folder of that name (:mod:`pipeline.io.rosbag_export`): the same
+  ``JointTrajectory`` as one ``trajectory_msgs/msg/JointTrajectory`` message on ``--topic``, with
+  ``--joint-states`` also one ``sensor_msgs/msg/JointState`` per sample on ``/joint_states``
+  (stamped with the sample times), and the timing, the limits and the obstacle in the bag's
+  custom metadata. An existing bag is refused (exit 2, before any work), never replaced.
 
-The file is written atomically (a temporary file in the same folder, then a rename), only after
-everything else succeeded. Exit status: 0 done; 1 certification refused (the reason on stderr, no
-file written), or no timing of the chosen kind keeps the limits; 2 bad input (one line on stderr,
-no file written); 130 interrupted.
+The file is written atomically (a temporary file in the same folder, then a rename; a bag: a
+temporary folder, then a rename), only after everything else succeeded. Exit status: 0 done; 1
+certification refused (the reason on stderr, no file written), or no timing of the chosen kind
+keeps the limits; 2 bad input (one line on stderr, no file written); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -78,6 +84,17 @@ from pipeline.cli import (
 )
 from pipeline.exceptions import ExecutionRefusedError, InvalidParameterError, NoCertifiedTrajectoryError
 from pipeline.io.jsonio import dumps, write_bytes_atomic
+from pipeline.io.rosbag_export import (
+    BAG_STORAGE,
+    DEFAULT_TRAJECTORY_TOPIC,
+    JOINT_STATES_TOPIC,
+    TrajectoryBag,
+    check_topic,
+    custom_data_text,
+    duration_parts,
+    require_rosbags,
+    write_bag,
+)
 from pipeline.model.arm import PlanarArm
 from pipeline.model.dynamics import rnea_torques
 from pipeline.model.limits import DEFAULT_ACCELERATION_RAD_S2, SHORTEST_ACCELERATION_RISE_S, ArmLimits
@@ -92,8 +109,8 @@ from pipeline.online.generator import OUT_OF_RANGE_POLICIES, generate
 from pipeline.online.repair import RepairConfig, generate_certified
 
 PROG = "python -m pipeline.generate"
-#: Output formats, by file suffix.
-FORMATS = (".csv", ".npz", ".json")
+#: Output formats, by file suffix (``.mcap``, ``.db3``: ROS 2 bags, folders).
+FORMATS = (".csv", ".npz", ".json", *BAG_STORAGE)
 #: Default sampling rate of the written trajectory [Hz].
 DEFAULT_RATE_HZ = 100.0
 #: Most samples a written trajectory may hold (about 56 MB as NPZ, more as JSON).
@@ -132,8 +149,7 @@ def sample_times(duration_s: float, rate_hz: float) -> np.ndarray:
 def ros_duration(t_s: float, ros1: bool = False) -> dict[str, int]:
     """A ROS 2 ``builtin_interfaces/Duration``: {"sec", "nanosec"} with 0 <= nanosec < 1e9
     (ROS 1's ``duration``: {"secs", "nsecs"})."""
-    total = round(t_s * 1e9)
-    seconds, nanoseconds = int(total // 1_000_000_000), int(total % 1_000_000_000)
+    seconds, nanoseconds = duration_parts(t_s)
     return {"secs": seconds, "nsecs": nanoseconds} if ros1 else {"sec": seconds, "nanosec": nanoseconds}
 
 
@@ -259,12 +275,30 @@ def add_scene_variable_arguments(parser: argparse.ArgumentParser) -> None:
         )
 
 
+def add_bag_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--topic`` and ``--joint-states``: what a ROS 2 bag ``--out`` (``.mcap``, ``.db3``) holds."""
+    parser.add_argument(
+        "--topic",
+        metavar="TOPIC",
+        default=None,
+        help="with a .mcap or .db3 --out: the topic of the JointTrajectory message, fully qualified "
+        f"(default: {DEFAULT_TRAJECTORY_TOPIC})",
+    )
+    parser.add_argument(
+        "--joint-states",
+        action="store_true",
+        help=f"with a .mcap or .db3 --out: also record one sensor_msgs/msg/JointState per sample on "
+        f"{JOINT_STATES_TOPIC}, stamped with the sample times",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface of ``python -m pipeline.generate``."""
     p = Parser(
         prog=PROG,
         description="The online step: the trajectory for the obstacle L x W from the regression coefficients, "
-        "optionally certified (and repaired), printed and written sampled at a rate (CSV, NPZ or ROS JSON).",
+        "optionally certified (and repaired), printed and written sampled at a rate (CSV, NPZ, ROS JSON or a "
+        "ROS 2 bag).",
     )
     p.add_argument("--L", type=float, required=True, metavar="M", help="obstacle length L [m]")
     p.add_argument("--W", type=float, required=True, metavar="M", help="obstacle width W [m]")
@@ -315,6 +349,7 @@ def build_parser() -> argparse.ArgumentParser:
         f"{1e3 * SHORTEST_ACCELERATION_RISE_S:g} ms)",
     )
     p.add_argument("--ros1", action="store_true", help="ROS 1 field names in the .json (secs/nsecs, header seq)")
+    add_bag_arguments(p)
     p.add_argument(
         "--out-of-range",
         choices=OUT_OF_RANGE_POLICIES,
@@ -332,7 +367,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--out",
         metavar="FILE",
         default=None,
-        help="write the sampled trajectory; the suffix picks the format: .csv, .npz or .json (ROS JointTrajectory)",
+        help="write the sampled trajectory; the suffix picks the format: .csv, .npz, .json (ROS JointTrajectory), "
+        ".mcap or .db3 (a ROS 2 bag folder, MCAP or SQLite 3 storage: pip install 'twolink-obstacle[ros]'; "
+        "never replaced)",
     )
     return p
 
@@ -345,13 +382,35 @@ def _check_inputs(args: argparse.Namespace) -> Path | None:
         raise InvalidParameterError("--margin", args.margin, "a non-negative finite clearance [m]")
     if args.no_repair and not args.certify:
         raise InvalidParameterError("--no-repair", True, "used with --certify")
+    bag = args.out is not None and Path(args.out).suffix.lower() in BAG_STORAGE
+    if not bag:
+        for flag, given in (("--topic", args.topic), ("--joint-states", args.joint_states or None)):
+            if given is not None:
+                raise InvalidParameterError(flag, given, f"used with a --out ending in {' or '.join(BAG_STORAGE)}")
     if args.out is None:
         return None
     out = Path(args.out)
     if out.suffix.lower() not in FORMATS:
         raise InvalidParameterError("--out", str(out), f"a file name ending in one of {', '.join(FORMATS)}")
+    if bag:
+        _check_bag_output(args, out)
+        return out
     out = check_output_file(args.out, "--out")  # probes the folder: /proc is refused now, not after the work
     return out
+
+
+def _check_bag_output(args: argparse.Namespace, out: Path) -> None:
+    """The checks of a ROS 2 bag ``--out`` (before any work): rosbags installed, no --ros1, a valid
+    --topic, and a path that does not exist yet in a writable folder."""
+    require_rosbags()
+    if args.ros1:
+        raise InvalidParameterError("--ros1", True, "a .json --out (a ROS 2 bag holds ROS 2 messages)")
+    check_topic(DEFAULT_TRAJECTORY_TOPIC if args.topic is None else args.topic)
+    if out.exists() or out.is_symlink():
+        raise InvalidParameterError(
+            "--out", str(out), "a path that does not exist yet (a ROS 2 bag is a folder and is never replaced)"
+        )
+    check_output_file(out, "--out")  # the folder exists and is writable
 
 
 def scene_variables(coefficients: Coefficients, args: argparse.Namespace) -> dict[str, float]:
@@ -545,14 +604,62 @@ def work(args: argparse.Namespace) -> int:
                 f"a rate giving at most {MAX_SAMPLES:,} samples over T' = {executed.duration_s:.3f} s",
             )
         samples = sample(executed, arm, args.rate)
-        try:
-            variables = {"L": generated.length_m, "W": generated.width_m, **values}
-            document = encode(out, executed, samples, joint_names(arm), args.ros1, variables, limits)
-            write_bytes_atomic(out, document)
-        except OSError as exc:
-            raise InvalidParameterError("--out", str(out), f"a writable file ({exc.strerror})") from None
+        variables = {"L": generated.length_m, "W": generated.width_m, **values}
+        write_output(out, executed, samples, joint_names(arm), args, variables, limits)
         print(f"wrote {out} ({samples['t'].size} samples at {args.rate:g} Hz, the last at T')")
     return EXIT_OK
+
+
+def bag_content(
+    executed,
+    samples: dict,
+    names: Sequence[str],
+    topic: str = DEFAULT_TRAJECTORY_TOPIC,
+    joint_states: bool = False,
+    variables: Mapping[str, float] | None = None,
+    limits: ArmLimits | None = None,
+) -> TrajectoryBag:
+    """The samples as a ROS 2 bag's content: the JointTrajectory on ``topic`` (and the joint
+    states), with :func:`export_metadata` and the obstacle's ``variables`` [m] (as ``variables_m``,
+    name -> value) in the bag's custom metadata."""
+    metadata = {**export_metadata(executed, limits), "variables_m": dict(variables or {})}
+    return TrajectoryBag(
+        times_s=samples["t"],
+        positions_rad=samples["q"],
+        velocities_rad_s=samples["dq"],
+        accelerations_rad_s2=samples["ddq"],
+        efforts_n_m=samples["tau"],
+        joint_names=tuple(names),
+        topic=topic,
+        joint_states=joint_states,
+        custom_data=custom_data_text(metadata),
+    )
+
+
+def write_output(
+    out: Path,
+    executed,
+    samples: dict,
+    names: Sequence[str],
+    args: argparse.Namespace,
+    variables: Mapping[str, float],
+    limits: ArmLimits | None,
+) -> None:
+    """Write ``--out`` in the format of its suffix: a file (:func:`encode`, atomically) or a ROS 2 bag
+    folder (:func:`bag_content`, :func:`pipeline.io.rosbag_export.write_bag`).
+
+    Raises:
+        InvalidParameterError: the output cannot be written (the OS's reason in the message).
+        OutputExistsError: a bag's folder appeared after the checks.
+    """
+    try:
+        if out.suffix.lower() in BAG_STORAGE:
+            topic = DEFAULT_TRAJECTORY_TOPIC if args.topic is None else args.topic
+            write_bag(out, bag_content(executed, samples, names, topic, args.joint_states, variables, limits))
+        else:
+            write_bytes_atomic(out, encode(out, executed, samples, names, args.ros1, variables, limits))
+    except OSError as exc:
+        raise InvalidParameterError("--out", str(out), f"a writable file ({exc.strerror})") from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -30,6 +30,7 @@ EXAMPLES = [
     ex.InfeasibleSceneError(0.3, 0.12, "P5", -0.001, 4, 441),
     ex.RegionMapMismatchError("a" * 64, "b" * 64),
     ex.RegionMapLimitsError("velocity_rad_s", [3.0, 3.0], [0.3, 0.3]),
+    ex.MissingDependencyError("rosbags", "ros", "writing a ROS 2 bag"),
 ]
 
 
