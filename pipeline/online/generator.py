@@ -63,7 +63,7 @@ from pipeline.motion.families import EndpointContext, TrajectoryFamily
 from pipeline.motion.path import QuarticPath, desired_path
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
-from pipeline.online.kernel import NO_TABLES, query_core
+from pipeline.online.kernel import FINITE, NO_TABLES, PARAMETERS, query_core
 from pipeline.online.query_state import QueryPlan, state_of
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
@@ -272,23 +272,19 @@ def generate(
     Args:
         coefficients: Loaded with :func:`pipeline.load_coefficients` (with their region map attached).
         length_m, width_m: Obstacle size [m] (int or float; not strings).
-        x: The obstacle's centre x [m], for coefficients that vary it (``coefficients.variables``);
-            required for those, refused for others (module docstring).
-        d: The obstacle's far edge y [m] (``Scene.top_y_m``), likewise.
-        out_of_range: What to do outside the fitted range: "warn" (an
-            OutOfFittedRangeWarning), "error" (OutOfFittedRangeError) or "ignore".
-        region_map: The range certificate to read the bounds from: :data:`ATTACHED` (default) the
-            map attached to the coefficients (``coefficients.region_map``), None no bounds, or
-            another map of these coefficients. Inside the fitted range the answer then carries
-            its certified clearance and endpoint bounds (``certificate_source == "range"``),
-            found in microseconds.
+        x, d: The obstacle's centre x and far edge y (``Scene.top_y_m``) [m], for coefficients that
+            vary them (``coefficients.variables``): required for those, refused for others.
+        out_of_range: Outside the fitted range: "warn" (OutOfFittedRangeWarning), "error"
+            (OutOfFittedRangeError) or "ignore".
+        region_map: Where the bounds come from: :data:`ATTACHED` (default) ``coefficients.region_map``,
+            None no bounds, or another map of these coefficients. Inside its box the answer carries
+            its certified clearance and endpoint bounds (``certificate_source == "range"``).
 
     Raises:
-        InvalidParameterError: ``coefficients`` is not a :class:`Coefficients`; an unknown
-            ``out_of_range`` policy; a variable of the coefficients without a value, a value for
-            one they do not vary, or a value that is not a finite number (the message names it).
-        ObstacleSizeError (an InvalidParameterError): L or W not a number, not finite and positive,
-            smaller than twice the corner radius, or W covering the arm's base; the message names L and W.
+        InvalidParameterError: ``coefficients`` not a :class:`Coefficients`; an unknown policy; a
+            variable of theirs without a finite value, or a value for one they do not vary.
+        ObstacleSizeError (an InvalidParameterError): L or W not a finite positive number, below twice
+            the corner radius, or W covering the arm's base (the message names L and W).
         UnreachableObstacleError: the path around this obstacle leaves the arm's reach.
         OutOfFittedRangeError: outside the fitted range with ``out_of_range="error"``.
         RegionMapMismatchError: ``region_map`` was made for other coefficients.
@@ -304,43 +300,50 @@ def generate(
     if out_of_range not in OUT_OF_RANGE_POLICIES:
         raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
     if plan.extra or x is not None or d is not None:
-        return _generate_moved(coefficients, plan, length_m, width_m, x, d, out_of_range, region_map)
+        c, top, y1, values = _placed(plan, x, d)
+    else:  # coefficients over (L, W) alone: the scene's own pose
+        c, top, y1, values = plan.centre_x, plan.top, plan.y1, ()
     L, W = length_m, width_m
     if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
         L = _size(length_m, (length_m, width_m), "L")
         W = _size(width_m, (length_m, width_m), "W")
-    top = plan.top
     if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
         _checked_bottom(plan, L, W, top)
-    tables = NO_TABLES if region_map is None else region_map.lookup_tables
-    result = query_core(L, W, 0.0, top, plan.y1, *plan.core, *tables)
-    unreachable, radius, duration, inside, leaf, clearance, endpoint, status = result[:8]
+    tables = NO_TABLES if region_map is None or region_map.axes != plan.variables.names else region_map.lookup_tables
+    result = query_core(L, W, c, top, y1, *plan.core, *tables)
+    unreachable, radius, duration, inside, leaf, clearance, endpoint, status = result[: PARAMETERS.start]
     if unreachable >= 0:  # P4 and P5 mirror P2 and P1: the first of P1..P3 to fail is named
-        raise UnreachableObstacleError(f"P{unreachable + 1}", radius, plan.reach, size_m=(L, W))
+        raise _unreachable(plan, unreachable, radius, (L, W), values)
     extrapolated = not inside
     if extrapolated and out_of_range != "ignore":
-        _check_range(plan, L, W, out_of_range)
+        _check_range(plan, L, W, out_of_range, tuple(zip(plan.extra, values, plan.extra_ranges, strict=True)))
     if duration != duration:  # NaN: approach_dx > start_dx, a scene the closed form does not cover
-        duration = desired_path(Obstacle.in_scene(L, W, coefficients.scene), coefficients.scene).duration_s
+        centred = coefficients.scene.with_checked(centre_x_m=0.0, top_y_m=top)  # T does not depend on x
+        duration = desired_path(Obstacle.in_scene(L, W, centred), centred).duration_s
     family = coefficients.family
     if family.expands_to_itself:
-        parameters, finite = result[8:16], result[16]
+        parameters, finite = result[PARAMETERS], result[FINITE]
     else:
-        parameters = _expanded(coefficients, plan, result[8:16], duration, 0.0, plan.y1, (L, W), ("L", "W"))
+        parameters = _expanded(coefficients, plan, result[PARAMETERS], duration, c, y1, (L, W, *values))
         finite = all(map(math.isfinite, parameters))
     if not finite:
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
     bounds = None if leaf < 0 else (clearance, endpoint, STATUSES[status])
+    trajectory, placed = JointTrajectory.trusted(parameters, duration), (plan.reach, bounds)
+    if not values:
+        return GeneratedTrajectory.trusted(L, W, family, coefficients.scene, trajectory, extrapolated, *placed)
+    # One variable without zip: tuple(zip(..., strict=True)) costs about 1 us here, a tenth of a query.
+    variables = ((plan.extra[0], values[0]),) if len(values) == 1 else tuple(zip(plan.extra, values, strict=True))
     return GeneratedTrajectory.trusted(
-        L,
-        W,
-        family,
-        coefficients.scene,
-        JointTrajectory.trusted(parameters, duration),
-        extrapolated,
-        plan.reach,
-        bounds,
+        L, W, family, coefficients.scene, trajectory, extrapolated, *placed, variables, moved=True
     )
+
+
+def _unreachable(plan: QueryPlan, point: int, radius: float, size: tuple[float, float], values: tuple):
+    """The error for a query whose ``point`` (0-based: P1..P3) lies ``radius`` [m] from the base,
+    outside the reach annulus; the message names the extra variables' ``values`` too."""
+    variables = dict(zip(plan.extra, values, strict=True))
+    return UnreachableObstacleError(f"P{point + 1}", radius, plan.reach, size_m=size, variables=variables)
 
 
 def _expand_with_endpoints(
@@ -365,7 +368,7 @@ def _expand_with_endpoints(
             f"{where}: the {family.name} family could not pin "
             "the tip to P1 and P5 for these parameters (A1 clamped); endpoints are approximate",
             InexactEndpointsWarning,
-            stacklevel=5 if len(names) > 2 else 4,  # generate, (_generate_moved,) _expanded, this
+            stacklevel=4,  # generate, _expanded, this
         )
     return full
 
@@ -378,17 +381,16 @@ def _expanded(
     centre_x: float,
     y1: float,
     values: tuple[float, ...],
-    names: tuple[str, ...],
 ) -> tuple[float, ...]:
     """The 8 parameters of a family whose :meth:`expand` is not the identity, from the core's
     ``columns``: with the inverse kinematics of P1 and P5 (at ``centre_x`` +- x1, height ``y1``
-    [m]) and T where the family needs them (``values`` of the variables ``names``, for the warning)."""
+    [m]) and T where the family needs them (``values`` of the coefficients' variables, for the warning)."""
     family = coefficients.family
     free = np.array(columns[: plan.matrix_t.shape[1]])
     if family.uses_endpoint_context:
         x1 = values[0] / 2.0 + plan.start_dx
         start, end = (x1 + centre_x, y1), (-x1 + centre_x, y1)
-        full = _expand_with_endpoints(coefficients, free, start, end, duration, values, names)
+        full = _expand_with_endpoints(coefficients, free, start, end, duration, values, plan.variables.names)
     else:
         full = family.expand(free, None)
     return tuple(full.tolist())
@@ -412,23 +414,11 @@ def _extra_values(plan: QueryPlan, x: object, d: object) -> tuple[float | None, 
     return values.get("x"), values.get("d")
 
 
-def _generate_moved(
-    coefficients: Coefficients,
-    plan: QueryPlan,
-    length_m: float,
-    width_m: float,
-    x: object,
-    d: object,
-    out_of_range: str,
-    region_map: RegionMap | None,
-) -> GeneratedTrajectory:
-    """:func:`generate` for coefficients over more variables than (L, W) (module docstring).
-
-    The same steps as the (L, W) route, with the scene's fields replaced by the variables'
-    values (the obstacle's centre x and far edge d [m]), every constraint point shifted by the
-    centre x, and the bounds of a map over the same variables looked up at (L, W and the
-    variables' values).
-    """
+def _placed(plan: QueryPlan, x: object, d: object) -> tuple[float, float, float, tuple[float, ...]]:
+    """The obstacle's centre x, far edge d and the height y1 of P1 and P5 [m] of a query giving ``x``
+    and ``d``, and the values of the coefficients' extra variables in their canonical order
+    (``plan.extra``); values missing for a variable of the coefficients, given for one they do not
+    vary, or not finite numbers are refused (:func:`_extra_values`)."""
     if not (
         (type(x), type(d)) == plan.given_types
         and (x is None or -math.inf < x < math.inf)
@@ -436,43 +426,8 @@ def _generate_moved(
     ):  # not finite floats for exactly the coefficients' variables: converted, or refused
         x, d = _extra_values(plan, x, d)
     values = (x,) if d is None else (d,) if x is None else (x, d)  # in canonical order, as plan.extra
-    L, W = length_m, width_m
-    if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
-        L = _size(length_m, (length_m, width_m), "L")
-        W = _size(width_m, (length_m, width_m), "W")
-    c = plan.centre_x if x is None else x
     top = plan.top if d is None else d
-    y1 = top if plan.y1_is_top else plan.y1
-    if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
-        _checked_bottom(plan, L, W, top)
-    tables = NO_TABLES if region_map is None or region_map.axes != plan.variables.names else region_map.lookup_tables
-    result = query_core(L, W, c, top, y1, *plan.core, *tables)
-    unreachable, radius, duration, inside, leaf, clearance, endpoint, status = result[:8]
-    if unreachable >= 0:
-        variables = dict(zip(plan.extra, values, strict=True))
-        raise UnreachableObstacleError(f"P{unreachable + 1}", radius, plan.reach, size_m=(L, W), variables=variables)
-    extrapolated = not inside
-    if extrapolated and out_of_range != "ignore":
-        extra = tuple(zip(plan.extra, values, plan.extra_ranges, strict=True))
-        _check_range(plan, L, W, out_of_range, extra, stacklevel=4)  # one frame deeper than generate's own
-    if duration != duration:  # NaN: the closed form does not cover this scene; T of the path at x = 0
-        centred = coefficients.scene.with_checked(centre_x_m=0.0, top_y_m=d)
-        duration = desired_path(Obstacle.in_scene(L, W, centred), centred).duration_s
-    family = coefficients.family
-    if family.expands_to_itself:
-        parameters, finite = result[8:16], result[16]
-    else:
-        parameters = _expanded(coefficients, plan, result[8:16], duration, c, y1, (L, W, *values), plan.variables.names)
-        finite = all(map(math.isfinite, parameters))
-    if not finite:
-        raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
-    bounds = None if leaf < 0 else (clearance, endpoint, STATUSES[status])
-    trajectory = JointTrajectory.trusted(parameters, duration)
-    # One variable without zip: tuple(zip(..., strict=True)) costs about 1 us here, a tenth of a query.
-    variables = ((plan.extra[0], values[0]),) if len(values) == 1 else tuple(zip(plan.extra, values, strict=True))
-    return GeneratedTrajectory.trusted(
-        L, W, family, coefficients.scene, trajectory, extrapolated, plan.reach, bounds, variables, moved=True
-    )
+    return plan.centre_x if x is None else x, top, top if plan.y1_is_top else plan.y1, values
 
 
 def generate_parameters(

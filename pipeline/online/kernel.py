@@ -64,7 +64,7 @@ import numpy as np
 
 from pipeline.certify.lookup import NO_TABLES, bounds_of, leaf_of
 
-__all__ = ["NO_TABLES", "VARIES_D", "VARIES_X", "plan_numbers", "query_core"]
+__all__ = ["FINITE", "NO_TABLES", "PARAMETERS", "VARIES_D", "VARIES_X", "plan_numbers", "query_core"]
 
 #: Bits of ``varies``: the regression's variables beyond L and W (x before d, the canonical order).
 VARIES_X = 1
@@ -73,6 +73,10 @@ VARIES_D = 2
 #: Where the plan's numbers start (:func:`plan_numbers`): the scene's and the reach's seven, then
 #: the fitted range's (lo, hi) of each of the k variables, then the regression, then the rule.
 _RANGES = 7
+#: Where :func:`query_core`'s result holds the regression's eight columns, and whether all are finite
+#: (the fields before them are named in its docstring, in order).
+PARAMETERS = slice(8, 16)
+FINITE = 16
 
 
 def plan_numbers(
