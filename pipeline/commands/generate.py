@@ -65,6 +65,7 @@ import time
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 
@@ -130,12 +131,14 @@ CSV_COLUMNS = (
     "tau2_n_m",
 )
 #: The timings of ``--timing``.
-TIMINGS = {"near-optimal": NEAR_OPTIMAL, "rest-to-rest": REST_TO_REST, "paper": PAPER_TIMING}
+TIMINGS = MappingProxyType({"near-optimal": NEAR_OPTIMAL, "rest-to-rest": REST_TO_REST, "paper": PAPER_TIMING})
 #: The scene variables beyond (L, W) this command takes: name -> (flag, meaning).
-SCENE_VARIABLE_FLAGS = {
-    "x": ("--x", "the obstacle's centre x"),
-    "d": ("--d", "the obstacle's far edge y"),
-}
+SCENE_VARIABLE_FLAGS = MappingProxyType(
+    {
+        "x": ("--x", "the obstacle's centre x"),
+        "d": ("--d", "the obstacle's far edge y"),
+    }
+)
 
 
 def sample_times(duration_s: float, rate_hz: float) -> np.ndarray:
