@@ -7,7 +7,9 @@ one clear line instead of a traceback.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
+from decimal import Decimal
 
 
 class PipelineError(Exception):
@@ -70,17 +72,31 @@ class ObstacleSizeError(InvalidParameterError):
         ValueError.__init__(self, f"{shown}: invalid obstacle size: expected {expected}")
 
 
-def _variables_text(variables: Mapping[str, object] | None, spec: str) -> str:
+def _variables_text(variables: Mapping[str, object] | None, decimals: int | None) -> str:
     """The text ``, x = 0.0200 m`` for each extra scene variable (name -> value [m]), formatted
-    with ``spec`` ("r": the repr of the plain float); "" for none."""
+    by :func:`format_number` with ``decimals`` (None: the repr of the plain float); "" for none."""
     if not variables:
         return ""
     shown = []
     for name, value in variables.items():
-        plain = _plain(value)
-        text = repr(plain) if spec == "r" or not isinstance(plain, float) else format(plain, spec)
+        text = repr(_plain(value)) if decimals is None else format_number(value, decimals)
         shown.append(f", {name} = {text} m")
     return "".join(shown)
+
+
+def format_number(value: object, decimals: int = 4) -> str:
+    """A number as a message shows it: fixed-point with ``decimals`` digits (``0.0500``) from
+    10**-decimals up to 1e6 in magnitude (and for 0), general format with as many significant
+    digits (``1e+300``, ``2.5e-07``) beyond, so that no message prints a 300-digit number or
+    rounds a tiny one to 0; NaN, infinities and non-numbers as their repr."""
+    plain = _plain(value)
+    if isinstance(plain, int) and not isinstance(plain, bool):  # an integer too large for a float
+        return format(Decimal(plain), f".{decimals}e")
+    if not isinstance(plain, float) or not math.isfinite(plain):
+        return repr(plain)
+    if plain == 0.0 or 10.0**-decimals <= abs(plain) < 1e6:
+        return f"{plain:.{decimals}f}"
+    return f"{plain:.{decimals}g}"
 
 
 def _plain(value: object) -> object:
@@ -89,7 +105,7 @@ def _plain(value: object) -> object:
         return value
     try:
         return float(value) if isinstance(value, int | float) or hasattr(value, "__float__") else value
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return value
 
 
@@ -158,11 +174,11 @@ class UnreachableObstacleError(PipelineError):
         prefix = (
             ""
             if size_m is None
-            else f"L = {size_m[0]!r} m, W = {size_m[1]!r} m{_variables_text(self.variables, 'r')}: "
+            else f"L = {_plain(size_m[0])!r} m, W = {_plain(size_m[1])!r} m{_variables_text(self.variables, None)}: "
         )
         super().__init__(
-            f"{prefix}constraint point {point_name} is at {radius_m:.4f} m from the base, outside "
-            f"the arm's reach [{reach_m[0]:.4f}, {reach_m[1]:.4f}] m: the arm cannot pass "
+            f"{prefix}constraint point {point_name} is at {format_number(radius_m)} m from the base, outside "
+            f"the arm's reach [{format_number(reach_m[0])}, {format_number(reach_m[1])}] m: the arm cannot pass "
             "this obstacle"
         )
 
@@ -181,8 +197,8 @@ class OutOfFittedRangeError(PipelineError):
         self.value_m = value_m
         self.fitted_range_m = fitted_range_m
         super().__init__(
-            f"{name} = {value_m:.4f} m is outside the fitted range "
-            f"[{fitted_range_m[0]:.4f}, {fitted_range_m[1]:.4f}] m (extrapolation)"
+            f"{name} = {format_number(value_m)} m is outside the fitted range "
+            f"[{format_number(fitted_range_m[0])}, {format_number(fitted_range_m[1])}] m (extrapolation)"
         )
 
 
@@ -243,10 +259,10 @@ class NoCertifiedTrajectoryError(PipelineError):
         self.margin_m = margin_m
         self.reason = reason
         self.variables = dict(variables or {})
-        where = f"L = {length_m:.4f} m, W = {width_m:.4f} m{_variables_text(self.variables, '.4f')}"
+        where = f"L = {format_number(length_m)} m, W = {format_number(width_m)} m{_variables_text(self.variables, 4)}"
         super().__init__(
-            f"no certified trajectory for {where}: best certified "
-            f"clearance {certified_clearance_m * 1e3:.3f} mm < margin {margin_m * 1e3:.3f} mm "
+            f"no certified trajectory for {where}: best certified clearance "
+            f"{format_number(certified_clearance_m * 1e3, 3)} mm < margin {format_number(margin_m * 1e3, 3)} mm "
             f"({reason})"
         )
 
@@ -296,7 +312,8 @@ class InfeasibleSceneError(PipelineError):
         self.checked = checked
         super().__init__(
             f"the arm's pose at {point_name} collides with the obstacle at {count} of {checked} sizes of the range "
-            f"(deepest: L = {length_m:.3f} m, W = {width_m:.3f} m, clearance {clearance_m * 1e3:.2f} mm), so no "
+            f"(deepest: L = {format_number(length_m, 3)} m, W = {format_number(width_m, 3)} m, clearance "
+            f"{format_number(clearance_m * 1e3, 2)} mm), so no "
             "trajectory ending there is collision-free: narrow --L-range/--W-range or move the obstacle "
             "(--top-y, --scene)"
         )
@@ -398,7 +415,7 @@ class ExecutionRefusedError(PipelineError):
         self.reasons = tuple(reasons)
         self.variables = dict(variables or {})
         timing = "" if timing_name is None else f" with the {timing_name} timing"
-        where = f"L = {length_m:.4f} m, W = {width_m:.4f} m{_variables_text(self.variables, '.4f')}"
+        where = f"L = {format_number(length_m)} m, W = {format_number(width_m)} m{_variables_text(self.variables, 4)}"
         super().__init__(f"no executable trajectory for {where}{timing}: " + "; ".join(self.reasons))
 
 

@@ -8,6 +8,12 @@ segment with a radius: the geometry the fast clearance route reproduces exactly.
 
 from __future__ import annotations
 
+import os
+import re
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -149,6 +155,87 @@ def _capsule_substitute(
     return (radii[0], radii[1]), aligned
 
 
+@contextmanager
+def _native_stderr_captured() -> Iterator[list[str]]:
+    """Capture what native code (urdfdom, Pinocchio) writes on file descriptor 2 while the block
+    runs: the list yielded receives its lines once the block ends, also when it raises. Python's
+    ``sys.stderr`` is flushed first, and descriptor 2 is restored in every case. Output of other
+    threads in that time is captured too; without a descriptor 2 to redirect, nothing is captured."""
+    lines: list[str] = []
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        yield lines
+        return
+    try:
+        with tempfile.TemporaryFile() as sink:
+            os.dup2(sink.fileno(), 2)
+            try:
+                yield lines
+            finally:
+                os.dup2(saved, 2)
+                sink.seek(0)
+                lines.extend(sink.read().decode("utf-8", errors="replace").splitlines())
+    finally:
+        os.close(saved)
+
+
+def _first_message(printed: list[str], error: BaseException) -> str:
+    """The first meaningful line native code printed (its "Error:" prefix and the "at line ... in
+    file.cpp" lines dropped), else the exception's own text: one line for a RobotModelError."""
+    for line in printed:
+        text = " ".join(line.split())
+        for prefix in ("Error:", "Warning:"):
+            text = text.removeprefix(prefix).strip()
+        if text and not text.startswith("at line "):
+            xml = re.match(r"Error=(XML_\w+) .*Line number=(\d+)", text)  # TinyXML's report
+            return text if xml is None else f"not well-formed XML ({xml[1]} at line {xml[2]})"
+    return " ".join(str(error).split())
+
+
+def _joint_kind(joint: pin.JointModel) -> str:
+    """What a Pinocchio joint is in URDF terms: "revolute", "continuous", "prismatic", or the
+    Pinocchio joint type for anything else (a floating or planar joint)."""
+    name = joint.shortname()
+    if name.startswith(("JointModelRUB", "JointModelRevoluteUnbounded")):
+        return "continuous"
+    if name in ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned"):
+        return "revolute"
+    if name.startswith(("JointModelP", "JointModelPrismatic")) and not name.startswith("JointModelPlanar"):
+        return "prismatic"
+    return name
+
+
+def _two_joint_model(path: Path) -> pin.Model:
+    """The URDF's kinematic model, checked to have exactly two joints, both revolute (with
+    limits: urdfdom refuses a revolute joint without them). What urdfdom prints on a file it
+    cannot parse is captured and its first line put in the error.
+
+    Raises:
+        RobotModelError: the file is not a URDF, or its joints are not two revolute ones.
+    """
+    try:
+        with _native_stderr_captured() as printed:
+            model = pin.buildModelFromUrdf(str(path))
+    except (RuntimeError, ValueError) as exc:
+        raise RobotModelError(f"{path}: cannot be parsed as URDF: {_first_message(printed, exc)}") from None
+    for j in range(1, model.njoints):
+        kind = _joint_kind(model.joints[j])
+        if kind == "continuous":
+            raise RobotModelError(
+                f"{path}: joint {model.names[j]!r} is continuous (nq = 2 per joint in Pinocchio); "
+                "the arm needs 2 revolute joints with limits"
+            )
+        if kind != "revolute":
+            raise RobotModelError(f"{path}: joint {model.names[j]!r} is {kind}, expected a revolute joint")
+    if model.njoints != 3 or model.nq != 2 or model.nv != 2:
+        raise RobotModelError(
+            f"{path}: expected exactly 2 actuated joints (nq = 2), found nq = {model.nq} in {model.njoints - 1} joints"
+        )
+    return model
+
+
 def load_planar_arm(urdf_path: str | Path | None = None, ee_frame: str | None = None) -> PlanarArm:
     """Load a URDF and check that it is a planar two-revolute-joint chain.
 
@@ -164,15 +251,7 @@ def load_planar_arm(urdf_path: str | Path | None = None, ee_frame: str | None = 
     path = Path(urdf_path) if urdf_path is not None else DEFAULT_URDF
     if not path.is_file():
         raise RobotModelError(f"URDF not found: {path}")
-    try:
-        model = pin.buildModelFromUrdf(str(path))
-    except (RuntimeError, ValueError) as exc:
-        raise RobotModelError(f"{path}: cannot be parsed as URDF ({exc})") from None
-
-    if model.njoints != 3 or model.nq != 2 or model.nv != 2:
-        raise RobotModelError(
-            f"{path}: expected exactly 2 actuated joints (nq = 2), found nq = {model.nq} in {model.njoints - 1} joints"
-        )
+    model = _two_joint_model(path)
     if model.parents[2] != 1:
         raise RobotModelError(f"{path}: joint 2 must be the child of joint 1 (a serial chain)")
     data = model.createData()
@@ -186,10 +265,11 @@ def load_planar_arm(urdf_path: str | Path | None = None, ee_frame: str | None = 
         raise RobotModelError(f"{path}: joint axes point in opposite directions; expected the same sense")
 
     try:  # Geometry only once the kinematics are known to be a planar 2R chain.
-        collision_model = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.COLLISION)
-        visual_model = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.VISUAL)
+        with _native_stderr_captured() as printed:
+            collision_model = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.COLLISION)
+            visual_model = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.VISUAL)
     except (RuntimeError, ValueError) as exc:
-        raise RobotModelError(f"{path}: geometry cannot be loaded ({exc})") from None
+        raise RobotModelError(f"{path}: geometry cannot be loaded: {_first_message(printed, exc)}") from None
 
     ee_id = _end_effector_frame(model, ee_frame, path)
     pin.updateFramePlacements(model, data)

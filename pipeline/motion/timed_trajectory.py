@@ -15,6 +15,7 @@ from pipeline.motion.trajectory import (
     joint_angles,
     joint_jerks,
     joint_velocities,
+    time_array,
 )
 
 __all__ = ["TimedTrajectory"]
@@ -98,7 +99,7 @@ class TimedTrajectory:
     def states(self, t_s, *, outside: str = "error") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, dq, ddq) at m executed times, each (m, 2), with sigma and its derivatives evaluated
         once (the same values as :meth:`q`, :meth:`dq`, :meth:`ddq`)."""
-        _, flat, s = self._states(np.atleast_1d(np.asarray(t_s, dtype=float)), outside)
+        _, flat, s = self._states(np.atleast_1d(time_array(t_s)), outside)
         d1, d2 = self.timing.dsigma(flat)[:, None], self.timing.ddsigma(flat)[:, None]
         speed = joint_velocities(self.parameters, s)
         return (

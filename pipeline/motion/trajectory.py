@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import functools
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.exceptions import InvalidParameterError
+from pipeline.exceptions import InvalidParameterError, format_number
 from pipeline.motion.interval_arithmetic import sin_extremes
 from pipeline.validation import check_finite, check_positive
 
@@ -22,6 +23,8 @@ PARAMETER_NAMES: tuple[str, ...] = ("A1", "w1", "phi1", "gamma1", "A2", "w2", "p
 PARAMETER_UNITS: dict[str, str] = {name: ("rad/s" if name.startswith("w") else "rad") for name in PARAMETER_NAMES}
 #: What :meth:`JointTrajectory.q` (and dq, ddq) do with times outside [0, T]: refuse them, or clamp them.
 OUTSIDE_POLICIES: tuple[str, ...] = ("error", "clamp")
+#: What a time argument must be, as the refusal says.
+TIMES_EXPECTED = "a time [s] or an array of times"
 
 
 def _split(params: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -125,18 +128,40 @@ def path_peaks(parameters: tuple[float, ...], duration_s: float) -> PathPeaks:
     return PathPeaks(velocity, acceleration, third, (ranges[0], ranges[1]))  # type: ignore[arg-type]
 
 
+def time_array(t_s: float | np.ndarray) -> np.ndarray:
+    """Times [s] as a float array (0-d for a scalar), refusing what is not a real number or an
+    array of them: strings and bytes (which NumPy would parse), None, complex numbers, booleans,
+    object arrays. Unchecked against any duration (:func:`checked_times` does that).
+
+    Raises:
+        InvalidParameterError: naming the value (or, for an array, its dtype) and what was expected.
+    """
+    # The hot path: a Python or NumPy real scalar (an array skips the slower abstract-class check).
+    if isinstance(t_s, float) or (not isinstance(t_s, np.ndarray | bool) and isinstance(t_s, numbers.Real)):
+        try:
+            return np.asarray(t_s, dtype=float)
+        except OverflowError:  # an integer beyond the float range
+            raise InvalidParameterError("t_s", format_number(t_s), TIMES_EXPECTED + " within the float range") from None
+    try:
+        array = np.asarray(t_s)
+    except (TypeError, ValueError):  # e.g. a ragged list
+        raise InvalidParameterError("t_s", type(t_s).__name__, TIMES_EXPECTED + " of one shape") from None
+    if array.dtype.kind in "fiu":
+        return array.astype(float, copy=False)
+    if array.ndim == 0 and not isinstance(t_s, np.ndarray):
+        raise InvalidParameterError("t_s", t_s, TIMES_EXPECTED)
+    raise InvalidParameterError("t_s.dtype", str(array.dtype), TIMES_EXPECTED + " (of a real dtype)")
+
+
 def checked_times(t_s: float | np.ndarray, duration_s: float, outside: str, name: str) -> np.ndarray:
     """Times [s] as a float array, checked to lie in [0, duration] (``outside="error"``) or
     clamped into it (``outside="clamp"``); ``name`` names the duration in messages ("T", "T'").
 
     Raises:
-        InvalidParameterError: a time outside [0, duration] (with "error"), NaN or not a number
-            (with either policy), or an unknown policy.
+        InvalidParameterError: not a real number or an array of them (:func:`time_array`), a time
+            outside [0, duration] (with "error"), NaN (with either policy), or an unknown policy.
     """
-    try:
-        t = np.asarray(t_s, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidParameterError("t_s", t_s, "times [s] as numbers") from None
+    t = time_array(t_s)
     if outside == "error":
         if t.size and not (t.min() >= 0.0 and t.max() <= duration_s):  # False for NaN too
             bad = t[~((t >= 0.0) & (t <= duration_s))].ravel()

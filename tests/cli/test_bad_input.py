@@ -5,11 +5,14 @@ cases are refused before any work (the DOE is replaced by a function that fails 
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import pipeline
@@ -17,7 +20,16 @@ from pipeline.build import BuildConfig, run_build, scene_from_options
 from pipeline.build import doe_fit as build_library
 from pipeline.cli import EXIT_PIPE_CLOSED
 from pipeline.commands import build, regress
-from pipeline.exceptions import PipelineError
+from pipeline.exceptions import (
+    ExecutionRefusedError,
+    InfeasibleSceneError,
+    NoCertifiedTrajectoryError,
+    OutOfFittedRangeError,
+    PipelineError,
+    UnreachableObstacleError,
+    format_number,
+)
+from pipeline.model.arm import DEFAULT_URDF
 from pipeline.offline.doe import Design, load_doe
 
 TINY = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--quiet"]
@@ -29,11 +41,19 @@ def files_under(folder: Path) -> set[Path]:
 
 @pytest.fixture
 def place(tmp_path: Path) -> dict[str, Path]:
-    """Files the bad inputs point at: a regular file, a misspelt scene, a broken JSON, a text 'URDF'."""
+    """Files the bad inputs point at: a regular file, a misspelt scene, a broken JSON, a text 'URDF',
+    the shipped arm without its joint limits and with a continuous shoulder."""
     (tmp_path / "a_file").write_text("not a folder", encoding="utf-8")
     (tmp_path / "misspelt.toml").write_text("top_y = 0.54\n", encoding="utf-8")
     (tmp_path / "broken.json").write_text("{", encoding="utf-8")
     (tmp_path / "text.urdf").write_text("not xml", encoding="utf-8")
+    shipped = DEFAULT_URDF.read_text(encoding="utf-8")
+    limit = '<limit lower="-3.14159" upper="3.14159" effort="10" velocity="3.0"/>'
+    assert shipped.count(limit) == 2
+    (tmp_path / "no_limits.urdf").write_text(shipped.replace(limit, ""), encoding="utf-8")
+    continuous = shipped.replace('name="joint1" type="revolute"', 'name="shoulder" type="continuous"')
+    assert continuous != shipped
+    (tmp_path / "continuous.urdf").write_text(continuous, encoding="utf-8")
     (tmp_path / "folder").mkdir()
     return {"tmp": tmp_path}
 
@@ -146,6 +166,10 @@ def _api_cases(tmp: Path) -> list[tuple[str, object, str]]:
         ("generate_certified arm", lambda: pipeline.generate_certified(_paper(), 0.27, 0.09, arm="a"), "PlanarArm"),
         ("generate_certified config", lambda: pipeline.generate_certified(_paper(), 0.27, 0.09, config=1), "config"),
         ("certify_batch arrays", lambda: pipeline.certify_batch(_paper(), [0.27], [0.09]), "generate_batch"),
+        ("load_planar_arm continuous", lambda: pipeline.load_planar_arm(tmp / "continuous.urdf"), "'shoulder'"),
+        ("answer.q text", lambda: pipeline.generate(_paper(), 0.27, 0.09).q("1.2"), "t_s = '1.2'"),
+        ("answer.dq None", lambda: pipeline.generate(_paper(), 0.27, 0.09).dq(None), "expected a time [s]"),
+        ("answer.ddq complex", lambda: pipeline.generate(_paper(), 0.27, 0.09).ddq(0.5j), "t_s = 0.5j"),
     ]
 
 
@@ -189,6 +213,23 @@ def test_public_api_raises_the_projects_error(index: int, place: dict) -> None:
         ),
         ("pipeline.generate", ["--L", "0.27", "--W", "0.09", "--coefficients", "TMP/broken.json"], "broken.json"),
         ("pipeline.generate", ["--L", "0.27", "--W", "0.09", "--acceleration-limit", "0", "2"], "must be > 0"),
+        (
+            "pipeline.generate",
+            ["--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--urdf", "TMP/no_limits.urdf"],
+            "cannot be parsed as URDF: Joint [joint1] is of type REVOLUTE but it does not specify limits",
+        ),
+        (
+            "pipeline.generate",
+            ["--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--urdf", "TMP/text.urdf"],
+            "text.urdf: cannot be parsed as URDF: not well-formed XML (XML_ERROR_PARSING_TEXT at line 1)",
+        ),
+        (
+            "pipeline.generate",
+            ["--L", "0.27", "--W", "0.09", "--coefficients", "paper", "--urdf", "TMP/continuous.urdf"],
+            "continuous.urdf: joint 'shoulder' is continuous (nq = 2 per joint in Pinocchio); the arm needs 2 revolute",
+        ),
+        ("pipeline.build", ["--urdf", "TMP/no_limits.urdf"], "it does not specify limits"),
+        ("pipeline.build", ["--urdf", "TMP/text.urdf"], "not well-formed XML"),
         ("pipeline.build", ["--acceleration-limit", "nan", "1"], "--acceleration-limit"),
         ("pipeline.build", ["--seed", "-1"], "--seed"),
         ("pipeline.build", ["--out", "/proc/twolink-out"], "--out"),
@@ -243,3 +284,93 @@ def test_a_reader_that_goes_away_stops_the_output_without_a_traceback(unbuffered
     _, stderr = process.communicate(timeout=60)
     assert process.returncode == EXIT_PIPE_CLOSED == 141, stderr
     assert stderr == b"", stderr
+
+
+# --------------------------------------------------------------------------------------------
+# Huge and tiny values: every number of a message reads in general format (1e+300), never as a
+# 300-digit fixed-point number nor rounded to 0.
+
+LONG_NUMBER = re.compile(r"\d{16,}")
+
+
+def _run(module: str, arguments: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    root = str(Path(pipeline.__file__).resolve().parents[1])
+    environment = {**os.environ, "PYTHONPATH": root + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    return subprocess.run(
+        [sys.executable, "-m", module, *arguments],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        cwd=cwd,
+        env=environment,
+    )
+
+
+EXTREME_CASES = [
+    (["--L", "1e300", "--W", "0.09"], 2, "L = 1e+300 m, W = 0.09 m: constraint point P1 is at 5e+299 m from the base"),
+    (["--L", "0.27", "--W", "1e300"], 2, "W = 1e+300 m: invalid obstacle size"),
+    (["--L", "1e-300", "--W", "0.09"], 2, "L = 1e-300 m, W = 0.09 m: invalid obstacle size"),
+    (["--L", "0.27", "--W", "1e-300"], 2, "W = 1e-300 m: invalid obstacle size"),
+    (["--L", "1e300", "--W", "0.09", "--certify", "--out-of-range", "error"], 2, "P1 is at 5e+299 m"),
+    (["--L", "0.27", "--W", "0.09", "--certify", "--margin", "1e300"], 1, "< margin 1e+303 mm"),
+]
+
+
+@pytest.mark.parametrize(
+    ("arguments", "status", "needle"), EXTREME_CASES, ids=[" ".join(a) for a, _, _ in EXTREME_CASES]
+)
+def test_generate_prints_extreme_values_readably(
+    arguments: list[str], status: int, needle: str, tmp_path: Path
+) -> None:
+    done = _run("pipeline.generate", ["--coefficients", "paper", *arguments], tmp_path)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == status and len(lines) == 1, done.stderr
+    assert lines[0].startswith("python -m pipeline.generate: ") and needle in lines[0], lines[0]
+    assert LONG_NUMBER.search(lines[0]) is None and len(lines[0]) < 400, lines[0]
+
+
+@pytest.mark.parametrize("x", ["1e300", "-1e300"])
+def test_generate_prints_an_extreme_x_readably(x: str, over_x, tmp_path: Path) -> None:
+    """--x for coefficients that vary x (the paper's, lifted to (L, W, x) as the tests' conftest does)."""
+    coefficients = tmp_path / "coefficients_x.json"
+    coefficients.write_text(json.dumps(over_x(pipeline.load_coefficients("paper")).to_json()), encoding="utf-8")
+    done = _run(
+        "pipeline.generate", ["--coefficients", str(coefficients), "--L", "0.27", "--W", "0.09", f"--x={x}"], tmp_path
+    )
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1, done.stderr
+    shown = x.replace("e", "e+")
+    assert f"x = {shown} m: constraint point P1 is at 1e+300 m from the base" in lines[0], lines[0]
+    assert LONG_NUMBER.search(lines[0]) is None, lines[0]
+
+
+def _errors_at(value: float) -> list[PipelineError]:
+    """Every error whose message formats lengths, positions or clearances, built with ``value``."""
+    return [
+        UnreachableObstacleError("P1", value, (0.05, value), (value, 0.09), {"x": value}),
+        OutOfFittedRangeError("x", value, (-value, value)),
+        NoCertifiedTrajectoryError(value, value, value, value, "a reason", {"x": value}),
+        InfeasibleSceneError(value, value, "P5", -value, 4, 441),
+        ExecutionRefusedError(value, value, "paper", ("a reason",), {"x": value}),
+    ]
+
+
+@pytest.mark.parametrize(("value", "shown"), [(1e300, "e+30"), (-1e300, "e+30"), (1e-300, "e-30"), (2.5e-9, "e-0")])
+def test_error_messages_print_extreme_values_in_general_format(value: float, shown: str) -> None:
+    for error in _errors_at(value):
+        message = str(error)
+        assert LONG_NUMBER.search(message) is None and "\n" not in message, message
+        assert shown in message and " 0.0000 m" not in message, message
+
+
+def test_format_number_is_fixed_point_for_ordinary_values_and_general_beyond() -> None:
+    """Ordinary values read as before (the fixed-point messages other tests and users rely on)."""
+    assert format_number(0.05) == "0.0500" and format_number(-123.456, 2) == "-123.46" and format_number(0) == "0.0000"
+    assert format_number(1e-4) == "0.0001" and format_number(999999.0, 1) == "999999.0"
+    assert format_number(1e300) == "1e+300" and format_number(-5e299) == "-5e+299"
+    assert format_number(1e-300) == "1e-300" and format_number(2.5e-7, 3) == "2.5e-07"
+    assert format_number(1234567.0) == "1.235e+06"
+    assert format_number(10**400) == "1.0000e+400"  # an integer no float holds
+    assert format_number(float("nan")) == "nan" and format_number(float("-inf")) == "-inf"
+    assert format_number(np.float64(0.65)) == "0.6500" and format_number("abc") == "'abc'"

@@ -3,6 +3,7 @@ model, capsule substitution, the example-robot-data double pendulum, and RobotMo
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import coal
@@ -300,3 +301,64 @@ def test_a_six_joint_arm_is_refused_for_its_joints_not_its_meshes(ur5_urdf: Path
     arm' before any geometry is loaded."""
     with pytest.raises(RobotModelError, match=r"expected exactly 2 actuated joints .* nq = 6"):
         load_planar_arm(ur5_urdf)
+
+
+# --------------------------------------------------------------------------------------------
+# What urdfdom prints, and joints of the wrong kind: one RobotModelError line, nothing else.
+
+
+def test_a_continuous_joint_is_named_as_such(tmp_path: Path) -> None:
+    """Pinocchio models a continuous joint with nq = 2 (cos, sin): the refusal names the joint and
+    its kind rather than counting configuration variables."""
+    text = chain_urdf([("revolute", "0 0 1")] * 2).replace(
+        'name="joint1" type="revolute"', 'name="shoulder" type="continuous"'
+    )
+    path = write(tmp_path, "continuous.urdf", text)
+    with pytest.raises(RobotModelError) as info:
+        load_planar_arm(path)
+    assert str(info.value) == (
+        f"{path}: joint 'shoulder' is continuous (nq = 2 per joint in Pinocchio); "
+        "the arm needs 2 revolute joints with limits"
+    )
+
+
+def test_a_prismatic_joint_is_named_with_its_file(tmp_path: Path) -> None:
+    path = write(tmp_path, "arm.urdf", chain_urdf([("revolute", "0 0 1"), ("prismatic", "0 0 1")]))
+    with pytest.raises(RobotModelError) as info:
+        load_planar_arm(path)
+    assert str(info.value) == f"{path}: joint 'joint2' is prismatic, expected a revolute joint"
+
+
+def _without_limits(tmp_path: Path) -> Path:
+    text = chain_urdf([("revolute", "0 0 1")] * 2).replace('<limit lower="-3" upper="3" effort="10" velocity="3"/>', "")
+    return write(tmp_path, "no_limits.urdf", text)
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "reason"),
+    [
+        ("no_limits.urdf", None, "Joint [joint1] is of type REVOLUTE but it does not specify limits"),
+        ("text.urdf", "this is not xml at all", "not well-formed XML (XML_ERROR_PARSING_TEXT at line 1)"),
+    ],
+    ids=["no-limit", "not-xml"],
+)
+def test_urdfdom_output_is_captured_into_the_one_line_error(
+    tmp_path: Path, capfd: pytest.CaptureFixture, name: str, text: str | None, reason: str
+) -> None:
+    """urdfdom writes its own lines on file descriptor 2: the loader captures them, puts the first
+    in the error, and gives descriptor 2 back (what is written afterwards still arrives)."""
+    path = _without_limits(tmp_path) if text is None else write(tmp_path, name, text)
+    capfd.readouterr()
+    with pytest.raises(RobotModelError) as info:
+        load_planar_arm(path)
+    assert str(info.value) == f"{path}: cannot be parsed as URDF: {reason}"
+    os.write(2, b"after\n")
+    captured = capfd.readouterr()
+    assert captured.err == "after\n" and captured.out == ""
+
+
+def test_a_good_urdf_loads_with_descriptor_2_restored(capfd: pytest.CaptureFixture) -> None:
+    capfd.readouterr()
+    load_planar_arm(DEFAULT_URDF)
+    os.write(2, b"still here\n")
+    assert capfd.readouterr().err == "still here\n"
