@@ -12,11 +12,12 @@ import os
 import re
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import TypeVar
 
 import coal
 import numpy as np
@@ -31,6 +32,8 @@ DEFAULT_URDF = Path(str(resources.files("pipeline") / "data" / "planar_2link.urd
 ARM_FILE_NAME = "arm.urdf"
 
 _TOL = 1e-9
+
+_Derived = TypeVar("_Derived")
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,6 +76,21 @@ class PlanarArm:
     plane_x: np.ndarray
     plane_y: np.ndarray
     elbow_offset_rad: float
+    _derived: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def derived(self, build: Callable[[PlanarArm], _Derived]) -> _Derived:
+        """``build(self)``, computed on the first call and kept by this arm: what later layers derive
+        from an arm once (its Coal shapes, its links' reach, its dynamics), owned by the arm that
+        they describe rather than by a module-level cache. ``build`` is the key: pass the same
+        function (or class) each time. Not pickled (:meth:`__getstate__`)."""
+        value = self._derived.get(build)
+        if value is None:
+            value = self._derived[build] = build(self)
+        return value
+
+    def __getstate__(self) -> dict:
+        """Pickled without what :meth:`derived` kept (a worker derives its own)."""
+        return {**self.__dict__, "_derived": {}}
 
     @property
     def reach_m(self) -> tuple[float, float]:
