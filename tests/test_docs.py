@@ -14,8 +14,9 @@ from pathlib import Path
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.certify.map_files import save_region_map
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, save_region_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME
 from pipeline.offline.coefficients import paper_data_path
 
 ROOT = Path(__file__).resolve().parents[1]

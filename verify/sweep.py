@@ -37,7 +37,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from pipeline.certify.region_map import RegionMap, load_region_map
+from pipeline.certify.map_files import load_region_map
+from pipeline.certify.region_map import RegionMap
 from pipeline.cli import (
     DEFAULT_COEFFICIENTS,
     EXIT_FAILED,

@@ -218,7 +218,8 @@ class ExecutionBounds:
 
     @classmethod
     def from_json(cls, document: dict, source: object) -> ExecutionBounds:
-        """Read :meth:`to_json`'s document (a null stands for the column's infinite value).
+        """Read :meth:`to_json`'s document (a null stands for the column's infinite value), or a header
+        whose ``columns`` are arrays of a map's leaf table (taken as they are).
 
         Raises:
             DataFileError: malformed.
@@ -240,6 +241,8 @@ class ExecutionBounds:
                 *(tuple(tuple(float(v) for v in row) for row in dyn[k]) for k in ("m0", "mc", "ms"))
             )
             raw = document["columns"]
+            if isinstance(raw[COLUMNS[0]], np.ndarray):  # columns of a leaf table: kept as they are
+                return cls(limits, dynamics, {key: raw[key] for key in COLUMNS})
             columns = {}
             for key in COLUMNS:
                 values = np.array(raw[key], dtype=float)  # null -> NaN

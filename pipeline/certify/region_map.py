@@ -65,7 +65,7 @@ import numpy as np
 from pipeline.certify.execution_bounds import ExecutionBounds
 from pipeline.certify.interval import FLOAT_SLACK_M
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
-from pipeline.io.jsonio import json_safe, read_json, write_text_atomic
+from pipeline.io.jsonio import json_safe, write_text_atomic
 from pipeline.offline.variables import NAMES, SIZE
 from pipeline.validation import check_non_negative
 
@@ -651,20 +651,28 @@ def _dense_index(
     gap = np.iinfo(np.int32).max
     top = int(depth.max())
     index = np.full((2**top, 2**top), gap, dtype=np.int32)
-    for leaf in np.flatnonzero(split == 0):
-        scale = 2 ** (top - int(depth[leaf]))
-        i0, j0 = int(index_l[leaf]) * scale, int(index_w[leaf]) * scale
-        index[i0 : i0 + scale, j0 : j0 + scale] = leaf
+    plain = np.flatnonzero(split == 0)
+    for level in np.unique(depth[plain]).tolist():  # the leaves of one depth at once: their blocks of cells
+        leaves = plain[depth[plain] == level]
+        scale = 2 ** (top - level)
+        blocks = index.reshape(2**level, scale, 2**level, scale)  # a view: block (i, j) of the deepest cells
+        rows, columns = index_l[leaves], index_w[leaves]
+        if np.any(blocks[rows, :, columns, :] != gap):
+            raise InvalidParameterError("cells", "overlaps", "leaves tiling the range")
+        blocks[rows, :, columns, :] = leaves[:, None, None]
     cut = np.flatnonzero(split > 0)
     e_max = int(split.max())
     # The deepest cell of each split leaf, and the leaf's place among that cell's 2^E sub-cells.
     cell_w = index_w[cut] >> split[cut]
     unique, slot = np.unique(index_l[cut] * 2**top + cell_w, return_inverse=True)
     sub_index = np.full((unique.size, 2**e_max), gap, dtype=np.int32)
-    for leaf, row, w in zip(cut, slot, cell_w, strict=True):
-        scale = 2 ** (e_max - int(split[leaf]))
-        k0 = (int(index_w[leaf]) - (int(w) << int(split[leaf]))) * scale
-        sub_index[row, k0 : k0 + scale] = leaf
+    first = (index_w[cut] - (cell_w << split[cut])) << (e_max - split[cut])
+    for offset in range(2**e_max):  # sub-cell k0 + offset of every split leaf that spans it
+        spans = offset < 2 ** (e_max - split[cut])
+        rows, columns = slot[spans], first[spans] + offset
+        if np.any(sub_index[rows, columns] != gap):
+            raise InvalidParameterError("cells", "overlaps", "leaves tiling the range")
+        sub_index[rows, columns] = cut[spans]
     i_cut, j_cut = unique // 2**top, unique % 2**top
     if np.any(index[i_cut, j_cut] != gap):
         raise InvalidParameterError("cells", "overlaps", "leaves tiling the range")
@@ -841,17 +849,10 @@ def region_map_text(region_map: RegionMap) -> str:
     return json.dumps(json_safe(region_map.to_json()), separators=(",", ":"), allow_nan=False) + "\n"
 
 
-def save_region_map(region_map: RegionMap, path: str | Path, overwrite: bool = True) -> str:
-    """Write the map atomically as compact JSON; returns the sha256 of the bytes written."""
+def save_region_map_json(region_map: RegionMap, path: str | Path, overwrite: bool = True) -> str:
+    """Write the map atomically as compact JSON (formats /2, /3: the leaves as JSON columns, as
+    :func:`pipeline.certify.map_files.save_region_map`'s header and table replace); returns the
+    sha256 of the bytes written."""
     text = region_map_text(region_map)
     write_text_atomic(path, text, overwrite)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
-
-
-def load_region_map(path: str | Path) -> RegionMap:
-    """Read a map written by :func:`save_region_map`.
-
-    Raises:
-        DataFileError: missing, unreadable or malformed.
-    """
-    return RegionMap.from_json(read_json(path), path)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.certify.map_files import save_region_map
 from pipeline.certify.map_for_coefficients import default_config, summary_lines, with_execution_bounds
 from pipeline.certify.range_certificate import (
     DEFAULT_BOUNDARY_CELL,
@@ -25,7 +26,7 @@ from pipeline.certify.range_certificate import (
     certify_range,
 )
 from pipeline.certify.reachability import witness_lines, witnesses_for_map
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, save_region_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME
 from pipeline.cli import (
     EXIT_OK,
     Parser,

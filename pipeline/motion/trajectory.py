@@ -12,6 +12,7 @@ import math
 import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import numpy as np
 
@@ -20,7 +21,9 @@ from pipeline.motion.interval_arithmetic import sin_extremes
 from pipeline.validation import check_finite, check_positive
 
 PARAMETER_NAMES: tuple[str, ...] = ("A1", "w1", "phi1", "gamma1", "A2", "w2", "phi2", "gamma2")
-PARAMETER_UNITS: dict[str, str] = {name: ("rad/s" if name.startswith("w") else "rad") for name in PARAMETER_NAMES}
+PARAMETER_UNITS: Mapping[str, str] = MappingProxyType(
+    {name: ("rad/s" if name.startswith("w") else "rad") for name in PARAMETER_NAMES}
+)
 #: What :meth:`JointTrajectory.q` (and dq, ddq) do with times outside [0, T]: refuse them, or clamp them.
 OUTSIDE_POLICIES: tuple[str, ...] = ("error", "clamp")
 #: What a time argument must be, as the refusal says.

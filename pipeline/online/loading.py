@@ -14,7 +14,8 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap, load_region_map
+from pipeline.certify.map_files import load_region_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap
 from pipeline.exceptions import InvalidParameterError, RegionMapMismatchError, RegionMapMismatchWarning
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients, read_coefficients

@@ -17,19 +17,22 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pipeline.exceptions import InvalidParameterError
-from pipeline.model.arm import PlanarArm
-from pipeline.model.dynamics import PlanarDynamics
-from pipeline.model.limits import ArmLimits
 from pipeline.offline.coefficients import Coefficients
 from pipeline.online.batch import GeneratedBatch, generate_batch
-from pipeline.online.batch_certify import CertifiedBatch, certify_batch
 from pipeline.online.batch_execution import ExecutionBatch, execution_batch
 from pipeline.online.generator import GeneratedTrajectory, generate
 from pipeline.online.loading import load_coefficients
 from pipeline.online.query_state import QueryState, state_of
-from pipeline.online.repair import CertifiedTrajectory, generate_certified
+
+if TYPE_CHECKING:  # Pinocchio and Coal: loaded by the methods that certify, on first use
+    from pipeline.model.arm import PlanarArm
+    from pipeline.model.dynamics import PlanarDynamics
+    from pipeline.model.limits import ArmLimits
+    from pipeline.online.batch_certify import CertifiedBatch
+    from pipeline.online.repair import CertifiedTrajectory
 
 __all__ = ["COEFFICIENTS_FILE_NAME", "OnlineGenerator", "load"]
 
@@ -86,10 +89,14 @@ class OnlineGenerator:
     def certified(self, length_m: float, width_m: float, **options) -> CertifiedTrajectory:
         """The certified (if needed repaired) trajectory, with its execution:
         :func:`pipeline.online.repair.generate_certified`, with the recorded arm and limits unless given."""
+        from pipeline.online.repair import generate_certified
+
         return generate_certified(self.coefficients, length_m, width_m, **options)
 
     def certify_batch(self, batch: GeneratedBatch, **options) -> CertifiedBatch:
         """Per-query clearance certificates of a batch: :func:`pipeline.online.batch_certify.certify_batch`."""
+        from pipeline.online.batch_certify import certify_batch
+
         return certify_batch(self.coefficients, batch, **options)
 
     def execution_batch(self, batch: GeneratedBatch, **options) -> ExecutionBatch:

@@ -11,21 +11,22 @@ coefficients): no module-level cache holds any of it. A copy of the coefficients
 from __future__ import annotations
 
 from functools import cached_property
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
-from pipeline.model.arm import PlanarArm
-from pipeline.model.dynamics import PlanarDynamics, identify_dynamics
 from pipeline.model.kinematics import reach_annulus_m
-from pipeline.model.limits import ArmLimits
 from pipeline.model.scene import Scene
 from pipeline.motion.path import LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.variables import Variables
-from pipeline.online.arm_check import arm_for
 from pipeline.online.kernel import VARIES_D, VARIES_X, plan_numbers
+
+if TYPE_CHECKING:  # the arm, its limits and dynamics need Pinocchio and Coal: imported on first use
+    from pipeline.model.arm import PlanarArm
+    from pipeline.model.dynamics import PlanarDynamics
+    from pipeline.model.limits import ArmLimits
 
 __all__ = ["QueryPlan", "QueryState", "refuse_coefficients", "state_of"]
 
@@ -79,22 +80,30 @@ class QueryState:
     def arm(self) -> PlanarArm:
         """The arm the coefficients were fitted with (:func:`pipeline.online.arm_check.arm_for`),
         loaded on first use."""
+        from pipeline.online.arm_check import arm_for
+
         return arm_for(self.coefficients)
 
     @cached_property
     def limits(self) -> ArmLimits:
         """:meth:`ArmLimits.recorded` of :attr:`arm` and the coefficients' provenance."""
+        from pipeline.model.limits import ArmLimits
+
         return ArmLimits.recorded(self.arm, self.coefficients.provenance)
 
     @cached_property
     def dynamics(self) -> PlanarDynamics:
         """The closed-form dynamics of :attr:`arm`, identified on first use."""
+        from pipeline.model.dynamics import identify_dynamics
+
         return self.arm.derived(identify_dynamics)
 
     def limits_of(self, arm: PlanarArm) -> ArmLimits:
         """The recorded limits for ``arm``: :attr:`limits` when it is :attr:`arm`, else read anew."""
         if arm is self.__dict__.get("arm"):
             return self.limits
+        from pipeline.model.limits import ArmLimits
+
         return ArmLimits.recorded(arm, self.coefficients.provenance)
 
 

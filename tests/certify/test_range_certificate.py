@@ -24,6 +24,7 @@ from pipeline.certify.endpoints import (
     endpoint_error_bounds,
     infeasibility_upper_bounds,
 )
+from pipeline.certify.map_files import load_region_map
 from pipeline.certify.range_certificate import (
     PROGRESS_STAGES,
     RangeCertificateConfig,
@@ -33,7 +34,7 @@ from pipeline.certify.range_certificate import (
     sub_cell_bounds,
 )
 from pipeline.certify.range_model import RangeModel
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, load_region_map, region_map_text
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, region_map_text
 from pipeline.certify.search import SearchSettings, node_boxes, search
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
 from pipeline.model.arm import PlanarArm

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.certify.map_files import load_region_map
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import STATUSES, RegionMap, load_region_map, save_region_map
+from pipeline.certify.region_map import STATUSES, RegionMap, save_region_map_json
 from pipeline.commands.certify_range import main
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
 from pipeline.offline.coefficients import save_coefficients
@@ -29,7 +30,7 @@ def test_the_same_coefficients_give_the_same_map_bytes_with_any_worker_count(sma
         load_coefficients("paper"), RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8, jobs=2)
     )
     first, second = tmp_path / "one.json", tmp_path / "two.json"
-    assert save_region_map(small_map, first) == save_region_map(again, second)
+    assert save_region_map_json(small_map, first) == save_region_map_json(again, second)
     assert first.read_bytes() == second.read_bytes()
     assert small_map.seconds > 0 and np.isnan(load_region_map(first).seconds)
 
@@ -58,7 +59,7 @@ def test_cell_at_and_batch_lookup_agree(small_map: RegionMap) -> None:
 
 def test_json_round_trip_and_hash_link(small_map: RegionMap, tmp_path) -> None:
     path = tmp_path / "map.json"
-    digest = save_region_map(small_map, path)
+    digest = save_region_map_json(small_map, path)
     assert len(digest) == 64
     again = load_region_map(path)
     for name in ("depth", "index_l", "index_w", "clearance_bound_m", "endpoint_bound_m", "status"):
@@ -132,7 +133,7 @@ def test_the_map_records_the_coefficients_file_name_not_its_folder(tmp_path) -> 
         save_coefficients(paper, path)
         region_map = certify_range(load_coefficients(path), config)
         assert region_map.coefficients_source == "coefficients.json"
-        digests.append(save_region_map(region_map, tmp_path / folder / "region_map.json"))
+        digests.append(save_region_map_json(region_map, tmp_path / folder / "region_map.json"))
     assert digests[0] == digests[1]
     assert certify_range(paper, config).coefficients_source == "paper"
 
@@ -188,10 +189,12 @@ def test_strip_lookups_agree_at_strip_edges(small_map: RegionMap) -> None:
 
 def test_strips_survive_the_json_round_trip_and_a_gap_is_refused(small_map: RegionMap, tmp_path) -> None:
     path = tmp_path / "map.json"
-    save_region_map(small_map, path)
+    save_region_map_json(small_map, path)
     again = load_region_map(path)
     assert np.array_equal(again.split_w, small_map.split_w)
-    assert save_region_map(again, tmp_path / "again.json") == save_region_map(small_map, tmp_path / "first.json")
+    assert save_region_map_json(again, tmp_path / "again.json") == save_region_map_json(
+        small_map, tmp_path / "first.json"
+    )
     document = json.loads(path.read_text())
     strip = int(np.flatnonzero(small_map.split_w > 0)[0])
     for column in document["cells"].values():
@@ -249,7 +252,7 @@ def test_format_1_maps_are_read_as_unsplit(tmp_path) -> None:
         load_coefficients("paper"), RangeCertificateConfig(min_cell=1 / 8, boundary_cell=1 / 8, strip_split=0)
     )
     path = tmp_path / "old.json"
-    save_region_map(region_map, path)
+    save_region_map_json(region_map, path)
     document = json.loads(path.read_text())
     document["format"] = "twolink-region-map/1"
     del document["cells"]["split_W"]

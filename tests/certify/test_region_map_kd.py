@@ -13,15 +13,8 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.certify.region_map import (
-    FORMAT,
-    FORMAT_KD,
-    STATUSES,
-    RegionMap,
-    load_region_map,
-    region_map_text,
-    save_region_map,
-)
+from pipeline.certify.map_files import load_region_map
+from pipeline.certify.region_map import FORMAT, FORMAT_KD, STATUSES, RegionMap, region_map_text, save_region_map_json
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
 
 L_RANGE, W_RANGE, X_RANGE, D_RANGE = (0.2, 0.3), (0.08, 0.12), (-0.03, 0.03), (0.5, 0.6)
@@ -275,7 +268,7 @@ def test_belongs_to_checks_the_axes(refined) -> None:
 def test_the_json_round_trip_keeps_the_map_and_its_bytes(request, name, tmp_path) -> None:
     region_map = request.getfixturevalue(name)
     first = tmp_path / "map.json"
-    digest = save_region_map(region_map, first)
+    digest = save_region_map_json(region_map, first)
     document = json.loads(first.read_text())
     assert document["format"] == FORMAT_KD and document["axes"] == list(region_map.axes)
     assert "split_W" not in document["cells"]
@@ -286,7 +279,7 @@ def test_the_json_round_trip_keeps_the_map_and_its_bytes(request, name, tmp_path
     assert again.axes == region_map.axes and again.extra_ranges_m == region_map.extra_ranges_m
     for column in ("depth", "index_l", "index_w", "extra_index", "clearance_bound_m", "endpoint_bound_m", "status"):
         assert np.array_equal(getattr(again, column), getattr(region_map, column))
-    assert save_region_map(again, tmp_path / "again.json") == digest
+    assert save_region_map_json(again, tmp_path / "again.json") == digest
     assert (tmp_path / "again.json").read_bytes() == first.read_bytes()
     points = random_points(region_map, 500, 3)
     assert np.array_equal(again.leaf_indices(*points.T), region_map.leaf_indices(*points.T))
@@ -325,7 +318,7 @@ def test_a_map_over_l_w_writes_the_same_bytes_as_before(tmp_path) -> None:
     document = json.loads(text)
     assert document["format"] == FORMAT and "axes" not in document and "axes" not in document["summary"]
     path = tmp_path / "strips.json"
-    save_region_map(strips, path)
+    save_region_map_json(strips, path)
     again = load_region_map(path)
     assert again.axes == ("L", "W") and again.extra_index is None and again.extra_ranges_m == ()
     assert region_map_text(again) == text
@@ -341,7 +334,7 @@ def test_malformed_documents_are_refused(refined, tmp_path) -> None:
         (lambda doc: doc["fitted_range"].pop("x"), "fitted_range lacks"),
         (lambda doc: doc.update(axes=["L", "W", "y"]), "axes"),
         (lambda doc: doc["cells"]["index_x"].__setitem__(0, 4), "extra_index of x"),
-        (lambda doc: doc.update(format="twolink-region-map/4"), "format"),
+        (lambda doc: doc.update(format="twolink-region-map/9"), "format"),
     ):
         damaged = json.loads(json.dumps(document))
         damage(damaged)

@@ -245,8 +245,9 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """coefficients.json (the paper's Eq. 9 as a file) with a coarse region map of it beside."""
     import shutil
 
+    from pipeline.certify.map_files import save_region_map
     from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-    from pipeline.certify.region_map import DEFAULT_MAP_NAME, save_region_map
+    from pipeline.certify.region_map import DEFAULT_MAP_NAME
     from pipeline.offline.coefficients import paper_data_path
 
     folder = tmp_path_factory.mktemp("results")

@@ -24,8 +24,9 @@ from pipeline import (
     generate_batch,
     load_coefficients,
 )
+from pipeline.certify.map_files import save_region_map, table_name
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, save_region_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME
 from pipeline.offline.coefficients import paper_data_path
 
 COARSE = RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8, strip_split=0)
@@ -60,6 +61,7 @@ def test_region_map_none_skips_it_and_a_path_names_another(built: Path, tmp_path
     assert load_coefficients(built / "coefficients.json", region_map=None).region_map is None
     elsewhere = tmp_path / "my_map.json"
     shutil.copyfile(built / DEFAULT_MAP_NAME, elsewhere)
+    shutil.copyfile(built / table_name(DEFAULT_MAP_NAME), tmp_path / table_name(DEFAULT_MAP_NAME))
     named = load_coefficients(built / "coefficients.json", region_map=elsewhere)
     assert named.region_map is not None
     assert named.region_map.coefficients_sha256 == named.source_sha256
@@ -71,7 +73,8 @@ def test_a_map_of_other_coefficients_beside_warns_and_is_not_attached(built: Pat
     document = json.loads((built / "coefficients.json").read_text())
     document["note"] = "other bytes, other coefficients as far as the map knows"
     (tmp_path / "coefficients.json").write_text(json.dumps(document), encoding="utf-8")
-    shutil.copyfile(built / DEFAULT_MAP_NAME, tmp_path / DEFAULT_MAP_NAME)
+    for name in (DEFAULT_MAP_NAME, table_name(DEFAULT_MAP_NAME)):
+        shutil.copyfile(built / name, tmp_path / name)
     with pytest.warns(RegionMapMismatchWarning, match="not attached"):
         coefficients = load_coefficients(tmp_path / "coefficients.json")
     assert coefficients.region_map is None

@@ -6,6 +6,8 @@ are refused with the value named."""
 from __future__ import annotations
 
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,14 +15,17 @@ import pytest
 from numpy.testing import assert_array_equal
 
 import pipeline
+from pipeline.certify.map_files import save_region_map
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, save_region_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME
 from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
 from pipeline.model.dynamics import identify_dynamics
 from pipeline.offline.coefficients import paper_data_path
 from pipeline.online.online_generator import OnlineGenerator, load
 from pipeline.online.query_state import state_of
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -88,3 +93,21 @@ def test_a_folder_without_coefficients_is_refused(tmp_path: Path) -> None:
 def test_an_online_generator_needs_coefficients() -> None:
     with pytest.raises(InvalidParameterError, match="coefficients"):
         OnlineGenerator("results")
+
+
+def test_load_and_a_query_need_neither_pinocchio_nor_coal(results: Path) -> None:
+    """``pipeline.load`` and ``g(L, W)`` with ``coal`` and ``pinocchio`` unimportable (the online step
+    needs NumPy and Numba only); the certifying methods load them on first use."""
+    code = (
+        "import sys\n"
+        "sys.modules['coal'] = None\n"
+        "sys.modules['pinocchio'] = None\n"
+        "import pipeline\n"
+        f"g = pipeline.load({str(results)!r})\n"
+        "answer = g(0.25, 0.1)\n"
+        "assert answer.certified_clearance_m is not None\n"
+        "assert g.batch([0.25, 0.22], [0.1, 0.11]).parameters.shape == (2, 8)\n"
+        "assert not any(name.split('.')[0] in ('coal', 'pinocchio') and sys.modules[name] for name in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert done.returncode == 0, done.stderr

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.certify.map_files import load_region_map, save_region_map
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, default_config
 from pipeline.certify.range_certificate import RangeCertificateConfig
-from pipeline.certify.region_map import load_region_map, save_region_map
 from pipeline.cli import EXIT_OK, EXIT_USAGE, HelpFormatter
 from pipeline.exceptions import (
     DataFileError,

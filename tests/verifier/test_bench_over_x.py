@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.certify.map_files import save_region_map
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, default_config
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import save_region_map
 from pipeline.cli import EXIT_OK, EXIT_USAGE
 from pipeline.offline.coefficients import save_coefficients
 from pipeline.online.generator import RANGE_SOURCE

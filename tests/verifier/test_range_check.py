@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.certify.map_files import save_region_map
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import RegionMap, save_region_map
+from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import DataFileError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M
 from pipeline.offline.coefficients import save_coefficients

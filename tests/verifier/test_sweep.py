@@ -336,8 +336,8 @@ def test_the_coefficients_in_use_are_named_first(capsys) -> None:
 def paper_map_file(tmp_path_factory) -> Path:
     """The paper's Eq. 9 certified at a coarse setting (256 leaves, about 2 s), as a file."""
     from pipeline import load_coefficients
+    from pipeline.certify.map_files import save_region_map
     from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-    from pipeline.certify.region_map import save_region_map
 
     path = tmp_path_factory.mktemp("map") / "paper_map.json"
     save_region_map(
@@ -424,7 +424,7 @@ def test_a_map_of_other_coefficients_is_reported_not_used(capsys, tmp_path: Path
 
 def test_the_map_beside_the_coefficients_is_found_and_can_be_skipped(capsys, tmp_path: Path, paper_map_file) -> None:
     from pipeline import load_coefficients
-    from pipeline.certify.region_map import load_region_map
+    from pipeline.certify.map_files import load_region_map
     from pipeline.offline.coefficients import save_coefficients
 
     source = tmp_path / "coefficients.json"

@@ -30,8 +30,8 @@ X_RANGE = (-0.03, 0.03)
 def x_file(tmp_path_factory, over_x) -> Path:
     """The paper's Eq. 9 lifted to (L, W, x) as a file, with its coarse (L, W, x) region map
     beside it (512 leaves, a few seconds)."""
+    from pipeline.certify.map_files import save_region_map
     from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-    from pipeline.certify.region_map import save_region_map
 
     folder = tmp_path_factory.mktemp("over_x")
     path = folder / "coefficients.json"

@@ -18,9 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pipeline.certify.map_files import load_region_map
 from pipeline.certify.map_for_coefficients import default_config, with_execution_bounds
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap, load_region_map
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap
 from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.io.progress import ProgressCallback
 from pipeline.model.arm import PlanarArm
