@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.certify.map_files import save_region_map
+from pipeline.certify.map_files import load_region_map, save_region_map, table_name
 from pipeline.certify.map_for_coefficients import default_config, summary_lines, with_execution_bounds
 from pipeline.certify.range_certificate import (
     DEFAULT_BOUNDARY_CELL,
@@ -39,6 +39,7 @@ from pipeline.cli import (
     jobs_count,
     run_cli,
 )
+from pipeline.exceptions import InvalidParameterError
 from pipeline.io.executor import DaskScheduler, check_executor, check_scheduler_address
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.io.progress import ProgressBars
@@ -74,7 +75,15 @@ def parser() -> argparse.ArgumentParser:
         description="Certify a coefficients file over its whole fitted (L, W) range and all of [0, T]: "
         "clearance lower bounds, endpoint-error upper bounds and infeasibility, as a region map.",
     )
-    p.add_argument("coefficients", help=f"coefficients file, or {PAPER_SOURCE!r} for the paper's Eq. 9")
+    p.add_argument("coefficients", nargs="?", help=f"coefficients file, or {PAPER_SOURCE!r} for the paper's Eq. 9")
+    p.add_argument(
+        "--convert",
+        type=Path,
+        metavar="MAP",
+        default=None,
+        help="instead of certifying: rewrite the region map MAP of an earlier format (the leaves as JSON) as a "
+        "JSON header and a .npy leaf table, every number kept (to --output, default: in place)",
+    )
     p.add_argument(
         "-o",
         "--output",
@@ -137,8 +146,28 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def _convert(source: Path, output: Path | None) -> int:
+    """Rewrite the map ``source`` in the current format at ``output`` (default: in place)."""
+    region_map = load_region_map(source)
+    output = source if output is None else output
+    digest = save_region_map(region_map, output)
+    print(
+        f"wrote {output} and {table_name(output.name)} ({region_map.depth.size} leaves; sha256 {digest[:12]}, "
+        f"for coefficients sha256 {region_map.coefficients_sha256[:12]})"
+    )
+    return EXIT_OK
+
+
 def _work(args: argparse.Namespace) -> int:
     output = check_output_file(args.output, "--output")
+    if args.convert is None and args.coefficients is None:
+        raise InvalidParameterError("coefficients", None, "a coefficients file, or --convert MAP")
+    if args.convert is not None and args.coefficients is not None:
+        raise InvalidParameterError(
+            "--convert", str(args.convert), f"no coefficients file with it (got {args.coefficients!r})"
+        )
+    if args.convert is not None:
+        return _convert(args.convert, output)
     summary_path = check_output_file(args.json, "--json")
     # Without the map beside them: it is the one this command replaces (an older build's, or a
     # broken file, must neither warn nor stop it).
