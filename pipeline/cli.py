@@ -1,8 +1,8 @@
 """What every command line of the project shares (``pipeline.build``, ``pipeline.regress``,
 ``pipeline.generate``, ``pipeline.certify_range``, ``verify.sweep``, ``verify.online_sweep``,
 ``verify.bench``, ``verify.view``): one parser class, one-line errors naming the program, exit
-codes, Ctrl-C, ``--jobs 0`` = every CPU, output paths checked before any work, and the
-coefficients to use with the build's file as default.
+codes, Ctrl-C and termination signals (SIGTERM, SIGHUP), ``--jobs 0`` = every CPU, output paths
+checked before any work, and the coefficients to use with the build's file as default.
 
 A CLI module only declares its options and calls :func:`run_cli` with a function that does the
 work; the work lives in importable functions below.
@@ -21,6 +21,7 @@ from typing import NoReturn, TextIO
 from pipeline.exceptions import DataFileError, PipelineError
 from pipeline.io.executor import DEFAULT_WORKER_TIMEOUT_S
 from pipeline.io.output_paths import check_output_file, check_output_folder
+from pipeline.io.signals import Terminated, termination_raises
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients
 from pipeline.online.loading import load_coefficients
@@ -30,6 +31,7 @@ __all__ = [
     "EXIT_FAILED",
     "EXIT_INTERRUPTED",
     "EXIT_OK",
+    "EXIT_TERMINATED",
     "EXIT_USAGE",
     "HelpFormatter",
     "Parser",
@@ -56,6 +58,8 @@ EXIT_FAILED = 1
 EXIT_USAGE = 2
 #: Exit status: interrupted by Ctrl-C (128 + SIGINT).
 EXIT_INTERRUPTED = 130
+#: Exit status: ended by SIGTERM (128 + 15); SIGHUP gives 129.
+EXIT_TERMINATED = 143
 #: Exit status when the reader of the output went away (e.g. ``| head``): the shell's status of a
 #: command stopped by SIGPIPE (128 + 13).
 EXIT_PIPE_CLOSED = 141
@@ -108,6 +112,10 @@ def run_cli(
     * a :class:`pipeline.exceptions.PipelineError` (bad value, unreadable file, refused output
       path): ``prog: error: message`` and :data:`EXIT_USAGE`;
     * Ctrl-C: ``prog: interrupted`` and :data:`EXIT_INTERRUPTED`;
+    * SIGTERM or SIGHUP while ``work`` runs: the same unwinding as Ctrl-C (worker processes
+      terminated and joined, files being written put back, locks removed:
+      :func:`pipeline.io.signals.termination_raises`), then ``prog: terminated by SIGTERM`` and
+      128 + the signal's number (143 for SIGTERM, 129 for SIGHUP);
     * the reader of stdout went away (``| head``): no more output, no message, and
       :data:`EXIT_PIPE_CLOSED`.
     """
@@ -116,11 +124,15 @@ def run_cli(
     except SystemExit as exc:
         return int(exc.code or 0)
     try:
-        status = work(args)
-        sys.stdout.flush()  # here, so that a closed pipe is handled below and not at exit
+        with termination_raises():
+            status = work(args)
+            sys.stdout.flush()  # here, so that a closed pipe is handled below and not at exit
         return status
     except PipelineError as exc:
         return usage_error(parser.prog, str(exc))
+    except Terminated as exc:
+        print(f"{parser.prog}: terminated by {exc.signal_name}", file=sys.stderr)
+        return exc.exit_status
     except KeyboardInterrupt:
         print(f"{parser.prog}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -446,3 +446,27 @@ class MissingDependencyError(PipelineError):
         self.extra = extra
         self.purpose = purpose
         super().__init__(f"{purpose} needs {package}: pip install 'twolink-obstacle[{extra}]'")
+
+
+class OutputLockedError(PipelineError):
+    """Another build is writing the output folder: its lock file is there and its process is
+    alive, or runs on another host, or the lock cannot be read (checked before any work).
+
+    Attributes:
+        folder: The output folder.
+        lock_path: The lock file in it.
+        pid: The process holding the lock (None: the lock cannot be read).
+        host: The host that process runs on (None: the lock cannot be read).
+        elsewhere: True if that host is not this one (its process cannot be checked from here).
+    """
+
+    def __init__(self, folder: object, lock_path: object, pid: int | None, host: str | None, elsewhere: bool) -> None:
+        self.folder = folder
+        self.lock_path = lock_path
+        self.pid = pid
+        self.host = host
+        self.elsewhere = elsewhere
+        holder = "another build (its lock cannot be read)" if pid is None else f"the build of process {pid}"
+        if pid is not None and elsewhere:
+            holder += f" on {host}"
+        super().__init__(f"{folder}/ is being written by {holder} (lock {lock_path}); wait for it or remove the lock")

@@ -78,8 +78,9 @@ class DoeFit:
         paper_rows: The paper's Table 2 scored on our fitness (None unless the design and scene are the paper's).
         coefficients: The regressed coefficients (marked if the build did not converge).
         problems: What missed the convergence thresholds (empty: converged).
-        timing: The DOE's part of build_timing.json: the DOE's and the regression's wall times
-            (``doe_s``, ``regression_s`` [s]), per experiment, query counts.
+        timing: The DOE's part of build_timing.json: the wall times [s] of its stages
+            (``stages_s``: ``checks``, the checks before the work and of its results; ``doe``;
+            ``regression``), per experiment, query counts.
     """
 
     experiments: tuple[ExperimentResult, ...]
@@ -215,10 +216,9 @@ def _provenance(config: BuildConfig, arm: PlanarArm, solver: SolverConfig) -> di
 
 
 def _timing_document(results: list[ExperimentResult], jobs: int, design: ScaledDesign) -> dict:
-    """build_timing.json's DOE part (its totals are set by the build)."""
+    """build_timing.json's DOE part but its stages (the build adds the total)."""
     extra = design.variables.extra
     return {
-        "total_s": 0.0,
         "jobs": jobs,
         "experiments": [
             {
@@ -250,7 +250,9 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
         InvalidParameterError, UnreachableObstacleError, InfeasibleSceneError: a DOE obstacle
             the arm cannot pass or whose end pose collides (before any work).
     """
+    started = time.perf_counter()
     grid = _check_before_work(config, arm)
+    checks_s = time.perf_counter() - started
     solver, design = config.solver(), config.design()
     total, done = len(design.points()), []
     report = None
@@ -264,11 +266,13 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
     started = time.perf_counter()
     results = run_doe(arm, design, config.scene, solver, int(config.seed), config.executor, progress=report)
     doe_s = time.perf_counter() - started
+    started = time.perf_counter()
     problems = _experiment_problems(results, design, arm, config)
+    paper_rows = _paper_rows(arm, config)
+    checks_s += time.perf_counter() - started
 
     provenance = _provenance(config, arm, solver)
     document = doe_document(results, design, config.scene, arm, solver, provenance, solver.fitness.elbow)
-    paper_rows = _paper_rows(arm, config)
     if paper_rows is not None:
         for row, paper in zip(document["experiments"], paper_rows, strict=True):
             row["paper_table2"] = {k: paper[k] for k in ("fitness", "clearance_m")}
@@ -289,6 +293,7 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
         else:
             coefficients = fit_variables(doe, design.ranges_m, extra, _endpoint_constraint(config))
     regression_s = time.perf_counter() - started
+    started = time.perf_counter()
     problems += regression_problems(coefficients.extra["fit"])
     for values, group in grid:
         collisions = regression_collisions(lambda L, W, v=values: coefficients.predict_free(L, W, **v), group)
@@ -296,7 +301,9 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
         problems += [replace(p, missed=f"at {where}: {p.missed}") if where else p for p in collisions]
     if problems:
         coefficients = coefficients.marked_unconverged(problems)
-    timing = {"doe_s": doe_s, "regression_s": regression_s, **_timing_document(results, config.workers, design)}
+    checks_s += time.perf_counter() - started
+    stages = {"checks": checks_s, "doe": doe_s, "regression": regression_s}
+    timing = {"stages_s": stages, **_timing_document(results, config.workers, design)}
     if config.scheduler is not None:
         timing["scheduler"] = config.scheduler
     return DoeFit(tuple(results), document, doe_text, doe, paper_rows, coefficients, tuple(problems), timing)

@@ -7,8 +7,14 @@ DOE and regression (:mod:`pipeline.build.doe_fit`) -> certifiable regression and
 (:func:`pipeline.io.file_set.write_file_set`): ``doe.json``, ``coefficients.json``,
 ``region_map.json`` (linked to the coefficients by their sha256), ``build_timing.json``, and
 ``arm.urdf`` for an arm other than the shipped one. A build stopped at any point (an error,
-Ctrl-C) leaves its output folder as it found it. The first three are deterministic for a seed
-(no timestamps) whatever the number of worker processes; the timing varies run to run.
+Ctrl-C, a termination signal a command turned into an exception) leaves its output folder as it
+found it. The first three are deterministic for a seed (no timestamps) whatever the number of
+worker processes; the timing varies run to run (``build_timing.json``: the total wall time and
+each stage's, which add up to it).
+
+The output folder's parent must exist (a mistyped parent is refused, not created). While the
+build runs it holds the folder's lock (:mod:`pipeline.io.folder_lock`): a second build into the
+same folder is refused before any work.
 
 A build whose results miss the convergence thresholds writes nothing and raises
 :class:`pipeline.exceptions.BuildNotConvergedError`, unless ``allow_unconverged``: then the
@@ -31,7 +37,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
-from pathlib import Path
+from types import MappingProxyType
 
 from pipeline.build.config import OPTIONS, BuildConfig
 from pipeline.build.doe_fit import DoeFit, fit_doe
@@ -40,7 +46,8 @@ from pipeline.certify.range_model import axes_refusal
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap
 from pipeline.exceptions import BuildNotConvergedError
 from pipeline.io.executor import check_executor
-from pipeline.io.file_set import write_file_set
+from pipeline.io.file_set import Content, WrittenFile, write_file_set
+from pipeline.io.folder_lock import build_lock
 from pipeline.io.jsonio import dumps
 from pipeline.io.output_paths import check_output_folder
 from pipeline.io.progress import ProgressCallback
@@ -49,10 +56,25 @@ from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.convergence import ConvergenceProblem
 from pipeline.offline.experiment import ExperimentResult
 
-__all__ = ["COEFFICIENTS_NAME", "DOE_NAME", "TIMING_NAME", "BuildResult", "run_build"]
+__all__ = ["COEFFICIENTS_NAME", "DOE_NAME", "STAGE_NAMES", "TIMING_NAME", "BuildResult", "run_build", "stage_summary"]
 
 #: File names of the build's output set.
 DOE_NAME, COEFFICIENTS_NAME, TIMING_NAME = "doe.json", "coefficients.json", "build_timing.json"
+#: The stages of build_timing.json's ``stages_s``, in build order, with their names in words.
+STAGE_NAMES = MappingProxyType(
+    {
+        "checks": "checks",
+        "doe": "DOE",
+        "regression": "regression",
+        "clearance_refit": "certifiable regression",
+        "range_certificate": "range certificate",
+        "execution_bounds": "execution bounds",
+        "writing": "writing",
+        "other": "other",
+    }
+)
+#: The stage that holds what the others leave of the total.
+OTHER_STAGE = "other"
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,11 +89,14 @@ class BuildResult:
         coefficients: The final coefficients as written (after the certifiable regression, if it
             ran), with their region map attached (``coefficients.region_map``).
         problems: What missed the convergence thresholds (empty: converged).
-        timing: The build_timing.json document.
+        timing: The build_timing.json document: ``total_s``, the wall time [s] from the start of
+            :func:`run_build` to the files staged on disk (only their renames into place, a few
+            milliseconds, come after), and ``stages_s``, the wall time [s] of each stage
+            (:data:`STAGE_NAMES`, those that ran; ``other`` the rest), which add up to it.
         region_map: The range certificate of the coefficients (None without one: ``range_map``
             off, or the build did not converge).
         refit_report: The certifiable regression's rounds (None if they did not run).
-        written: Paths written, each with whether it replaced a file (empty if nothing was written).
+        written: The files written, each with whether it replaced a file (empty if nothing was written).
     """
 
     config: BuildConfig
@@ -83,7 +108,7 @@ class BuildResult:
     timing: dict
     region_map: RegionMap | None = None
     refit_report: dict | None = None
-    written: tuple[tuple[Path, bool], ...] = ()
+    written: tuple[WrittenFile, ...] = ()
 
     @property
     def converged(self) -> bool:
@@ -121,21 +146,29 @@ def run_build(config: BuildConfig, progress: ProgressCallback | None = None) -> 
 
     Raises:
         InvalidParameterError, DataFileError, RobotModelError, UnreachableObstacleError,
-        InfeasibleSceneError: bad configuration, output folder or URDF, an obstacle the arm
-            cannot pass or whose end pose collides (all before any work; nothing written or created).
+        InfeasibleSceneError: bad configuration, output folder (one whose parent does not exist
+            included) or URDF, an obstacle the arm cannot pass or whose end pose collides (all
+            before any work; nothing written or created).
+        OutputLockedError: another build is writing ``config.out_folder`` (before any work).
         BuildNotConvergedError: the results missed the thresholds and ``allow_unconverged``
             is False (nothing written; ``exc.result`` holds the unwritten result).
         SchedulerUnreachableError: ``scheduler`` cannot be reached (before any work; nothing written).
         WorkerPoolError: the worker processes stopped (e.g. a script without a ``__main__`` guard).
     """
     started = time.perf_counter()
-    check_output_folder(config.out_folder, OPTIONS["out_folder"])
+    check_output_folder(config.out_folder, OPTIONS["out_folder"], new_parents=False)
+    with build_lock(config.out_folder):
+        return _locked_build(config, progress, started)
+
+
+def _locked_build(config: BuildConfig, progress: ProgressCallback | None, started: float) -> BuildResult:
+    """:func:`run_build` once the output folder is locked; ``started``: its start [s, perf_counter]."""
     check_executor(config.executor)
     arm = load_planar_arm(config.urdf_path)
     fit = fit_doe(config, arm, progress)
-    timing = dict(fit.timing)
-    timing["total_s"] = time.perf_counter() - started
+    timing = {"total_s": 0.0, **fit.timing, "stages_s": dict(fit.timing["stages_s"])}
     if fit.problems and not config.allow_unconverged:
+        _close_timing(timing, started)
         raise BuildNotConvergedError(fit.problems, _unwritten(config, fit, timing))
 
     coefficients, text = as_written(fit.coefficients, str(config.out_folder / COEFFICIENTS_NAME))
@@ -143,19 +176,21 @@ def run_build(config: BuildConfig, progress: ProgressCallback | None = None) -> 
     if config.range_map and not fit.problems and config.certifiable_axes:
         certified = certify_coefficients(config, fit.doe, coefficients, text, arm, progress)
         coefficients, text = certified.coefficients, certified.text
-        timing.update(certified.timing)
-        timing["total_with_range_certificate_s"] = (
-            timing["total_s"]
-            + certified.timing["range_certificate_s"]
-            + certified.timing.get("clearance_refit_s", 0.0)
-            + certified.timing["execution_bounds_s"]
-        )
-    files: dict[str, str | bytes | None] = {
+        timing["stages_s"].update(certified.timing["stages_s"])
+        timing.update({k: v for k, v in certified.timing.items() if k != "stages_s"})
+    writing = time.perf_counter()
+
+    def timing_text() -> str:  # called once the other files are staged: the writing is timed too
+        timing["stages_s"]["writing"] = time.perf_counter() - writing
+        _close_timing(timing, started)
+        return dumps(timing)
+
+    files: dict[str, Content] = {
         DOE_NAME: fit.doe_text,
         COEFFICIENTS_NAME: text,
         # A map of earlier coefficients must not stay beside these.
         DEFAULT_MAP_NAME: None if certified is None else certified.map_text,
-        TIMING_NAME: dumps(timing),
+        TIMING_NAME: timing_text,
     }
     if coefficients.provenance.get("urdf") == ARM_FILE_NAME:
         files[ARM_FILE_NAME] = arm.urdf_path.read_bytes()
@@ -174,3 +209,20 @@ def run_build(config: BuildConfig, progress: ProgressCallback | None = None) -> 
         None if certified is None else certified.refit_report,
         written,
     )
+
+
+def _close_timing(timing: dict, started: float) -> None:
+    """Set ``timing["total_s"]``, the wall time since ``started`` [s], and the stage ``other``:
+    what the named stages leave of it, so that the stages add up to the total."""
+    timing["total_s"] = time.perf_counter() - started
+    stages = timing["stages_s"]
+    stages.pop(OTHER_STAGE, None)
+    stages[OTHER_STAGE] = max(0.0, timing["total_s"] - sum(stages.values()))
+
+
+def stage_summary(timing: dict) -> str:
+    """The stages of a build_timing.json document in words, in build order: ``DOE 22.1 s,
+    regression 0.2 s, ...`` (names as :data:`STAGE_NAMES`; any other stage under its key)."""
+    stages = timing.get("stages_s") or {}
+    order = [name for name in STAGE_NAMES if name in stages] + [name for name in stages if name not in STAGE_NAMES]
+    return ", ".join(f"{STAGE_NAMES.get(name, name)} {float(stages[name]):.1f} s" for name in order)

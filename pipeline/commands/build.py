@@ -9,8 +9,9 @@ shows its progress on stderr, and prints our Table 2 and Eq. 9 beside the paper'
 certifiable regression's rounds and the range certificate's area fractions.
 
 Exit status: 0 written; 1 the build did not converge (nothing written, the failing experiments
-named; ``--allow-unconverged`` writes anyway, marked); 2 bad input (one line, before any work);
-130 interrupted.
+named; ``--allow-unconverged`` writes anyway, marked); 2 bad input (one line, before any work; a
+folder another build is writing included); 130 interrupted (Ctrl-C); 143 (SIGTERM) or 129 (SIGHUP)
+terminated, the worker processes stopped and the folder as it was.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import TextIO
 
 from pipeline.build import BuildConfig, BuildResult, run_build
 from pipeline.build.config import OPTIONS, SCENE_OPTIONS, VARY_NAMES, scene_from_options, vary_name
+from pipeline.build.run import stage_summary
 from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS, clearance_refit_lines
 from pipeline.certify.map_for_coefficients import summary_lines
 from pipeline.certify.region_map import DEFAULT_MAP_NAME
@@ -113,7 +115,7 @@ def parser() -> Parser:
         description="Run the DOE (PSO + exact Coal clearance per obstacle), regress the coefficients and certify "
         "them over their fitted range; the files are written as one set at the end.",
         epilog=f"{OVERWRITE_RULE} Exit status: 0 written, 1 not converged (nothing written), 2 bad input, "
-        "130 interrupted.",
+        "130 interrupted, 143 terminated (SIGTERM; SIGHUP: 129).",
     )
     p.add_argument(
         "--out",
@@ -292,7 +294,8 @@ def config_from_args(args: argparse.Namespace) -> BuildConfig:
 
 
 def print_report(result: BuildResult, out: TextIO) -> None:
-    """Our Table 2 and Eq. 9 beside the paper's, the regression method and the timing."""
+    """Our Table 2 and Eq. 9 beside the paper's, the regression method and the timing (the total
+    wall time and its stages, as in build_timing.json)."""
     coefficients, timing = result.coefficients, result.timing
     print("Table 2 (ours, with the paper's row below where the design matches it):", file=out)
     extra_names = coefficients.variables.extra
@@ -304,8 +307,7 @@ def print_report(result: BuildResult, out: TextIO) -> None:
     print(report.equation9(coefficients.parameters, paper_eq9, fit, coefficients.variables.basis), file=out)
     print(report.regression_method(coefficients.extra["fit"]), file=out)
     print(
-        f"\nTiming: {timing['total_s']:.1f} s total (DOE {timing['doe_s']:.1f} s, regression "
-        f"{timing['regression_s']:.1f} s), "
+        f"\nTiming: {timing['total_s']:.1f} s wall in all ({stage_summary(timing)}); "
         + ", ".join(f"{r.seconds:.1f}" for r in result.experiments)
         + f" s per experiment; {timing['coal_queries']} Coal distance queries, "
         f"{timing['objective_evaluations']} objective evaluations (analytic route)",
@@ -351,11 +353,13 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
             + _problem_lines(result.problems),
             file=sys.stderr,
         )
-    for path, replaced in result.written:
-        print(f"{'replaced' if replaced else 'wrote'} {path}", file=out)
-    timing = result.timing
-    total = timing.get("total_with_range_certificate_s", timing["total_s"])
-    print(f"build {total:.1f} s (sha256 of coefficients.json {result.coefficients.source_sha256[:12]})", file=out)
+    for written in result.written:
+        print(written, file=out)
+    print(
+        f"build {result.timing['total_s']:.1f} s wall (build_timing.json; sha256 of coefficients.json "
+        f"{result.coefficients.source_sha256[:12]})",
+        file=out,
+    )
     return EXIT_OK
 
 

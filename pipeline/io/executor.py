@@ -15,10 +15,15 @@ tasks finish. Work that draws random numbers carries its own seed in the task
 
 Local pool. Worker processes start with ``spawn`` (no state inherited by accident), so
 ``function`` and the tasks must be picklable (a module-level function or a ``functools.partial``
-of one). Ctrl-C (or any error) cancels the chunks not yet started and shuts the pool down before
-the exception propagates. A spawned worker imports the main module of the program again: a
-script that starts a pool must do so under ``if __name__ == "__main__":``. Without it each worker
-would start the work again; multiprocessing stops it, the pool breaks and :func:`map_tasks` raises
+of one). An error in a chunk cancels the chunks not yet started and shuts the pool down before
+the exception propagates; Ctrl-C, or a termination signal turned into an exception
+(:mod:`pipeline.io.signals`), also terminates the running workers and joins them, so that no
+worker outlives the call. Each worker starts with the default action for SIGTERM and SIGHUP
+(:func:`pipeline.io.signals.default_termination`).
+
+A spawned worker imports the main module of the program again: a script that starts a pool must
+do so under ``if __name__ == "__main__":``. Without it each worker would start the work again;
+multiprocessing stops it, the pool breaks and :func:`map_tasks` raises
 :class:`pipeline.exceptions.WorkerPoolError`, which says so. In a worker that is still importing
 the main module, :func:`map_tasks` ends the worker quietly instead of starting a pool of its own,
 so the message is the parent's alone.
@@ -48,6 +53,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from pipeline.exceptions import InvalidParameterError, PipelineError, SchedulerUnreachableError, WorkerPoolError
+from pipeline.io.signals import default_termination
 from pipeline.validation import check_positive, check_positive_int
 
 __all__ = [
@@ -70,6 +76,8 @@ Result = TypeVar("Result")
 
 #: Upper bound of the default chunk size [tasks]: small enough that progress is reported often.
 MAX_DEFAULT_CHUNK = 16
+#: How long a local worker may take to end after SIGTERM before it is killed [s].
+WORKER_STOP_TIMEOUT_S = 5.0
 #: How long a Dask client waits for the scheduler before giving up [s].
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
 #: How long a Dask client waits for the scheduler's first worker before giving up [s].
@@ -219,7 +227,8 @@ def map_tasks(
             main script (a script without a ``__main__`` guard).
         SchedulerUnreachableError: the Dask scheduler cannot be reached (before any task runs).
         NoDaskWorkersError: it has no worker within ``worker_timeout_s`` (before any task runs).
-        Whatever ``function`` raises (the first failing chunk's error), or KeyboardInterrupt.
+        Whatever ``function`` raises (the first failing chunk's error), KeyboardInterrupt, or
+        :class:`pipeline.io.signals.Terminated` (the local workers then terminated and joined).
     """
     executor = as_executor(executor)
     work = list(tasks)
@@ -266,7 +275,9 @@ def _pool_map(
         # breaks and raises WorkerPoolError, which says why (one message, not one per worker).
         raise SystemExit(1)
     done: dict[int, list[Result]] = {}
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context(start_method))
+    pool = ProcessPoolExecutor(
+        max_workers=jobs, mp_context=multiprocessing.get_context(start_method), initializer=default_termination
+    )
     try:
         pending: dict[Future, int] = {
             pool.submit(_run_chunk, function, work[start : start + size]): start for start in range(0, len(work), size)
@@ -280,11 +291,34 @@ def _pool_map(
     except BrokenProcessPool:
         pool.shutdown(wait=True, cancel_futures=True)
         raise WorkerPoolError("a worker process ended abruptly") from None
-    except BaseException:
+    except Exception:
         pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    except BaseException:  # Ctrl-C, a termination signal: the workers are stopped, not waited for
+        _stop_workers(pool)
         raise
     pool.shutdown(wait=True)
     return [result for start in sorted(done) for result in done[start]]
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Terminate the pool's worker processes (SIGTERM, then SIGKILL for one that outlives
+    :data:`WORKER_STOP_TIMEOUT_S`), cancel its chunks not yet started, and join its workers and
+    its manager thread: nothing of the pool runs once this returns."""
+    terminate = getattr(pool, "terminate_workers", None)  # Python 3.14
+    processes = list((getattr(pool, "_processes", None) or {}).values())  # before 3.14: the pool's own record
+    if terminate is not None:
+        terminate()
+    for process in processes:
+        with contextlib.suppress(OSError, ValueError):  # already ended and closed
+            process.terminate()
+    for process in processes:
+        with contextlib.suppress(OSError, ValueError):
+            process.join(WORKER_STOP_TIMEOUT_S)
+            if process.exitcode is None:
+                process.kill()
+                process.join()
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _connect(scheduler: DaskScheduler) -> Any:

@@ -34,17 +34,27 @@ def _check_creatable_under(location: Path, option: str, value: str) -> None:
         ) from None
 
 
-def check_output_folder(folder: str | Path | None, option: str) -> Path | None:
+def check_output_folder(folder: str | Path | None, option: str, *, new_parents: bool = True) -> Path | None:
     """Check, before any work and creating nothing, that ``folder`` is or can become a writable folder.
 
+    Args:
+        folder: The folder (None passes).
+        option: The option's name, for the message.
+        new_parents: False: the folder's parent must exist (only the folder itself may be new),
+            so that a mistyped parent is refused rather than created.
+
     Raises:
-        InvalidParameterError: the path is a file, under a file, or not writable.
+        InvalidParameterError: the path is a file, under a file, not writable, or (``new_parents``
+            False) its parent does not exist.
     """
     if folder is None:
         return None
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise InvalidParameterError(option, str(folder), "a folder, not an existing file")
+    if not new_parents and not folder.exists() and not folder.absolute().parent.exists():
+        expected = f"a folder in an existing folder ({folder.parent} does not exist)"
+        raise InvalidParameterError(option, str(folder), expected)
     _check_creatable_under(folder, option, str(folder))
     return folder
 

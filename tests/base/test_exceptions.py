@@ -18,6 +18,7 @@ EXAMPLES = [
     ex.ArmMismatchError((0.3, 0.35), (0.01, 0.01), (0.3, 0.3), (0.01, 0.01), "arm.urdf"),
     ex.RobotModelError("arm.urdf: not planar"),
     ex.WorkerPoolError("a worker process ended abruptly"),
+    ex.OutputLockedError("results", "results/.build.lock", 1234, "other-host", True),
     ex.SchedulerUnreachableError("tcp://127.0.0.1:1", "Timed out trying to connect after 5 s"),
     ex.ExecutionRefusedError(0.27, 0.09, "paper", ("joint 2 speed bound 1.2350 rad/s > limit 0.3000 rad/s",)),
     ex.TimingRefusedError(("joint 1 jerk bound 210.0000 rad/s^3 > limit 200.0000 rad/s^3",)),

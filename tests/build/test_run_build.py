@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -13,8 +15,10 @@ import pytest
 import pipeline
 from pipeline import BuildConfig, load_coefficients, run_build
 from pipeline.build import doe_fit, range_stage
+from pipeline.build.run import STAGE_NAMES
 from pipeline.certify import certifiable_regression
 from pipeline.commands import build as build_command
+from pipeline.exceptions import InvalidParameterError
 from pipeline.io import file_set
 from pipeline.offline import coefficients as coefficients_module
 
@@ -36,9 +40,13 @@ def test_library_and_command_line_write_the_same_bytes(replayed: list, tmp_path:
     digest = hashlib.sha256((library / "coefficients.json").read_bytes()).hexdigest()
     assert result.region_map.coefficients_sha256 == digest == result.coefficients.source_sha256
     assert result.coefficients.region_map is result.region_map
-    assert [path.name for path, _ in result.written] == [*SET, "build_timing.json"]
+    assert [written.path.name for written in result.written] == [*SET, "build_timing.json"]
+    assert str(result.written[0]) == f"wrote {library / 'doe.json'}"
+    assert repr(result.written[0]) == f"WrittenFile({str(library / 'doe.json')!r}, replaced=False)"
     timing = json.loads((library / "build_timing.json").read_text())
-    assert {"total_s", "clearance_refit_s", "range_certificate_s", "total_with_range_certificate_s"} <= set(timing)
+    assert timing == result.timing
+    stages = ["checks", "doe", "regression", "clearance_refit", "range_certificate", "execution_bounds"]
+    assert list(timing["stages_s"]) == [*stages, "writing", "other"]
     # What a user then loads carries the map.
     assert load_coefficients(library / "coefficients.json").region_map is not None
 
@@ -97,8 +105,32 @@ def test_a_build_stopped_in_any_phase_leaves_its_folder_as_it_was(
 def test_a_new_folder_is_not_left_behind(replayed: list, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(range_stage, "certify_range", _interrupt)
     with pytest.raises(KeyboardInterrupt):
-        run_build(BuildConfig(out_folder=tmp_path / "new" / "results", jobs=1, clearance_rounds=0))
+        run_build(BuildConfig(out_folder=tmp_path / "results", jobs=1, clearance_rounds=0))
+    assert list(tmp_path.iterdir()) == []  # neither the folder nor its lock
+
+
+def test_a_folder_whose_parent_is_missing_is_refused_before_any_work(tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setattr(doe_fit, "run_doe", lambda *args, **kwargs: pytest.fail("the DOE ran"))
+    out = tmp_path / "a" / "missing" / "deep" / "folder"
+    with pytest.raises(InvalidParameterError) as caught:
+        run_build(BuildConfig(out_folder=out, jobs=1))
+    assert caught.value.name == "--out" and f"({out.parent} does not exist)" in str(caught.value)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_timing_file_gives_the_wall_time_and_stages_that_add_up_to_it(replayed: list, tmp_path: Path) -> None:
+    started = time.perf_counter()
+    result = run_build(BuildConfig(out_folder=tmp_path, jobs=1, clearance_rounds=1))
+    wall = time.perf_counter() - started
+    timing = json.loads((tmp_path / "build_timing.json").read_text())
+    stages = timing["stages_s"]
+    assert set(stages) == {*STAGE_NAMES} and all(seconds >= 0 for seconds in stages.values())
+    assert math.isclose(sum(stages.values()), timing["total_s"], rel_tol=0.01)
+    assert math.isclose(timing["total_s"], wall, rel_tol=0.05)
+    assert timing["total_s"] <= wall
+    assert stages["range_certificate"] > 0 and stages["clearance_refit"] > 0 and stages["writing"] > 0
+    assert stages["other"] < 0.05 * timing["total_s"]  # every stage of weight is named
+    assert result.timing == timing
 
 
 def test_interrupted_command_line_exits_130_and_writes_nothing(

@@ -10,6 +10,7 @@ import hashlib
 import io
 import json
 import os
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -22,6 +23,7 @@ from pipeline import load_coefficients
 from pipeline.build import doe_fit as build_library
 from pipeline.commands import build, regress
 from pipeline.io import file_set
+from pipeline.io.folder_lock import LOCK_NAME
 from pipeline.motion.trajectory import PARAMETER_NAMES
 from pipeline.offline.coefficients import paper_data_path
 from pipeline.offline.doe import load_doe
@@ -186,6 +188,20 @@ def test_report_goes_to_the_current_stdout(reference: dict, tmp_path: Path, monk
     assert "solver: pso" in buffer.getvalue()
 
 
+def test_the_last_line_and_the_timing_line_quote_the_timing_files_total(
+    reference: dict, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    replay(monkeypatch, reference)
+    assert build.main([*(a for a in TINY if a != "--quiet"), "--out", str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    timing = json.loads((tmp_path / "build_timing.json").read_text())
+    total = f"{timing['total_s']:.1f} s wall"
+    assert lines[-1].startswith(f"build {total} (build_timing.json; sha256 of coefficients.json ")
+    (line,) = [line for line in lines if line.startswith("Timing: ")]
+    assert line.startswith(f"Timing: {total} in all (checks ") and ", DOE " in line and ", writing " in line
+    assert f"wrote {tmp_path / 'coefficients.json'}" in lines
+
+
 # --------------------------------------------------------------------------------------------
 # Bad input: exit status 2, one line on stderr, nothing written.
 
@@ -265,6 +281,51 @@ def test_out_is_an_existing_file(
         pytest.fail(f"pipeline.build crashed with a traceback instead of exit status 2: {exc!r}")
     assert_one_line_error(capsys, status)
     assert target.read_text(encoding="utf-8") == "not a folder"
+
+
+def test_a_missing_parent_folder_is_refused_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: pytest.fail("the DOE ran"))
+    out = tmp_path / "a" / "missing" / "deep" / "folder"
+    line = assert_one_line_error(capsys, build.main([*TINY, "--out", str(out)]))
+    assert line == (
+        f"python -m pipeline.build: error: --out = {str(out)!r} is invalid: expected a folder in an existing "
+        f"folder ({out.parent} does not exist)"
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_another_build_writes_is_refused_before_any_work(
+    reference: dict, tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: pytest.fail("the DOE ran"))
+    before = seed_outputs(tmp_path, reference)
+    lock = tmp_path / LOCK_NAME
+    lock.write_text(json.dumps({"pid": os.getpid(), "host": socket.gethostname()}))  # a live process
+    line = assert_one_line_error(capsys, build.main([*TINY, "--out", str(tmp_path)]))
+    assert line == (
+        f"python -m pipeline.build: error: {tmp_path}/ is being written by the build of process {os.getpid()} "
+        f"(lock {lock}); wait for it or remove the lock"
+    )
+    lock.unlink()  # the first build's lock stays until that build ends
+    assert snapshot(tmp_path) == before
+
+
+def test_a_stale_lock_is_taken_over_with_a_note(
+    reference: dict, tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    replay(monkeypatch, reference)
+    ended = subprocess.Popen([sys.executable, "-c", "pass"])
+    ended.wait()
+    lock = tmp_path / LOCK_NAME
+    lock.write_text(json.dumps({"pid": ended.pid, "host": socket.gethostname()}))  # a build killed with SIGKILL
+    assert build.main([*TINY, "--out", str(tmp_path)]) == 0
+    notes = [line for line in capsys.readouterr().err.splitlines() if "lock" in line]
+    assert notes == [f"note: took over the lock {lock} of process {ended.pid}, which is no longer running"]
+    assert not lock.exists()
+    for name in OUTPUTS:
+        assert (tmp_path / name).read_bytes() == reference["files"][name]
 
 
 # --------------------------------------------------------------------------------------------

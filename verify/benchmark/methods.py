@@ -12,6 +12,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -405,8 +406,36 @@ def bench_sweep(source: str, coefficients: Any, arm: PlanarArm, cases: np.ndarra
     return out, results
 
 
+#: The stage times of a build_timing.json written before ``stages_s`` existed: key -> stage.
+_OLDER_STAGE_KEYS = MappingProxyType(
+    {
+        "doe_s": "doe",
+        "regression_s": "regression",
+        "clearance_refit_s": "clearance_refit",
+        "range_certificate_s": "range_certificate",
+        "execution_bounds_s": "execution_bounds",
+    }
+)
+
+
+def _total_and_stages(data: dict) -> tuple[float, dict[str, float], bool]:
+    """The build's wall time [s], its stages [s] and whether the file is of the older kind.
+
+    A file with ``stages_s`` gives both as written. An older file gave ``total_s`` for the DOE and
+    regression only and, with a range map, ``total_with_range_certificate_s`` for the whole build
+    but the writing: that is its total, and its stages are read from their separate keys."""
+    if "stages_s" in data:
+        return float(data["total_s"]), {str(k): float(v) for k, v in data["stages_s"].items()}, False
+    total = float(data.get("total_with_range_certificate_s", data["total_s"]))
+    stages = {stage: float(data[key]) for key, stage in _OLDER_STAGE_KEYS.items() if key in data}
+    if stages and total >= sum(stages.values()):
+        stages["other"] = total - sum(stages.values())
+    return total, stages, True
+
+
 def read_build_timing(path: Path) -> dict[str, Any] | None:
-    """Summary of a build_timing.json (None if the file does not exist).
+    """Summary of a build_timing.json (None if the file does not exist): the build's wall time
+    (``total_s``) and its stages (``stages_s``), also from a file of the older kind (``older_format``).
 
     Raises:
         DataFileError: the file exists but is malformed.
@@ -416,9 +445,12 @@ def read_build_timing(path: Path) -> dict[str, Any] | None:
     data = read_json(path)
     try:
         experiments = [float(e["seconds"]) for e in data.get("experiments", [])]
+        total_s, stages_s, older = _total_and_stages(data)
         return {
             "source": str(path),
-            "total_s": float(data["total_s"]),
+            "total_s": total_s,
+            "stages_s": stages_s,
+            "older_format": older,
             "jobs": data.get("jobs"),
             "experiments": len(experiments),
             "experiment_seconds": experiments,
@@ -426,7 +458,7 @@ def read_build_timing(path: Path) -> dict[str, Any] | None:
             "coal_queries": int(data["coal_queries"]),
             "objective_evaluations": data.get("objective_evaluations"),
         }
-    except (KeyError, TypeError, ValueError) as exc:
+    except (AttributeError, KeyError, TypeError, ValueError) as exc:
         raise DataFileError(path, f"not a build timing file ({type(exc).__name__}: {exc})") from None
 
 

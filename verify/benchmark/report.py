@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from pipeline.build.run import stage_summary
+
 if TYPE_CHECKING:  # pragma: no cover
     from .results import BenchReport
 
@@ -188,9 +190,13 @@ def _rate_lines(report: BenchReport) -> list[str]:
                 if seconds
                 else ""
             )
+            stages = stage_summary(info) if info.get("stages_s") else ""
+            older = ", an older file: no writing stage" if info.get("older_format") else ""
             lines.append(
-                f"Build time ({info['source']}): {info['total_s']:.1f} s total for {info['experiments']} experiments"
-                f"{spread}, jobs {info['jobs']}; {info['coal_queries']:,} Coal distance queries."
+                f"Build time ({info['source']}{older}): {info['total_s']:.1f} s wall in all"
+                + (f" ({stages})" if stages else "")
+                + f" for {info['experiments']} experiments{spread}, jobs {info['jobs']}; "
+                f"{info['coal_queries']:,} Coal distance queries."
             )
         if build.get("missing"):
             lines.append(f"Build time: {build['missing']}.")
