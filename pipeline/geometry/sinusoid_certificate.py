@@ -210,32 +210,15 @@ def certify(
     if initial == "dense":
         n = samples_for_resolution(trajectory, reach, resolution_m) if samples is None else samples
         check_positive_int("samples", n, minimum=2)
-
-        def speed_bound(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
-            return link_speed_bounds(trajectory, reach, ta, tb)
-
-        return certify_motion(
-            trajectory.q,
-            np.linspace(0.0, trajectory.duration_s, n),
-            clearance,
-            speed_bound,
-            distance_error_m=distance_error_m,
-            tolerance_m=tolerance_m,
-            decide_above_m=decide_above_m,
-            max_evaluations=max_evaluations,
+        return _certify_dense(
+            trajectory, clearance, reach, n, (distance_error_m, tolerance_m, decide_above_m), max_evaluations
         )
     check_non_negative("distance_error_m", distance_error_m)
     check_positive("tolerance_m", tolerance_m)
     check_positive_int("max_evaluations", max_evaluations, minimum=0)
     core = _AdaptiveCertificate(trajectory, reach)
     if samples is None:
-        # Per link, as samples_for_resolution, from the peak joint rates |A_i w_i| (scalar bounds).
-        rate1, rate2 = (float(v) for v in core.rate_peak)
-        speeds = (
-            rate1 * reach.link1_radius_m,
-            rate1 * (reach.elbow_distance_m + reach.link2_radius_m) + rate2 * reach.link2_radius_m,
-        )
-        n = tuple(max(MIN_INITIAL_SAMPLES, math.ceil(v * trajectory.duration_s / resolution_m) + 1) for v in speeds)
+        n = _adaptive_initial_samples(core, reach, resolution_m)
     else:
         check_positive_int("samples", samples, minimum=2)
         n = (samples, samples)
@@ -249,6 +232,49 @@ def certify(
         max_evaluations,
         compiled,
     )
+
+
+def _certify_dense(
+    trajectory: JointTrajectory,
+    clearance: ClearanceFunction,
+    reach: LinkReach,
+    samples: int,
+    settings: tuple[float, float, float | None],
+    max_evaluations: int,
+) -> Certificate:
+    """The dense route: ``samples`` uniform times over [0, T] and :func:`certify_motion` with the
+    closed-form interval speed bounds of :func:`link_speed_bounds`.
+
+    Args:
+        settings: (distance error [m], tolerance [m], decide-above value [m] or None), as in :func:`certify`.
+    """
+    distance_error_m, tolerance_m, decide_above_m = settings
+
+    def speed_bound(ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+        return link_speed_bounds(trajectory, reach, ta, tb)
+
+    return certify_motion(
+        trajectory.q,
+        np.linspace(0.0, trajectory.duration_s, samples),
+        clearance,
+        speed_bound,
+        distance_error_m=distance_error_m,
+        tolerance_m=tolerance_m,
+        decide_above_m=decide_above_m,
+        max_evaluations=max_evaluations,
+    )
+
+
+def _adaptive_initial_samples(core: _AdaptiveCertificate, reach: LinkReach, resolution_m: float) -> tuple[int, int]:
+    """Initial samples of each link's grid over [0, T]: as :func:`samples_for_resolution`, per link, from
+    the peak joint rates ``|A_i w_i|`` [rad/s] (scalar bounds), so that no point of the link moves more
+    than ``resolution_m`` [m] between samples; at least :data:`MIN_INITIAL_SAMPLES`."""
+    rate1, rate2 = (float(v) for v in core.rate_peak)
+    speeds = (
+        rate1 * reach.link1_radius_m,
+        rate1 * (reach.elbow_distance_m + reach.link2_radius_m) + rate2 * reach.link2_radius_m,
+    )
+    return tuple(max(MIN_INITIAL_SAMPLES, math.ceil(v * core.duration / resolution_m) + 1) for v in speeds)
 
 
 def _clearance_values(link_clearance, q, points, point_link, error, observed, observed_time) -> np.ndarray:
@@ -271,6 +297,75 @@ def _clearance_values(link_clearance, q, points, point_link, error, observed, ob
                 observed[k], observed_time[k] = float(got[i]), float(points[mask][i])
             values[mask] = got - error
     return values
+
+
+def _split_parts(
+    refine: np.ndarray, intervals: tuple[np.ndarray, ...], floor: float, tolerance: float, decide: float | None
+) -> tuple[np.ndarray | None, int]:
+    """New points per interval to refine (step 3): one (a bisection) in tolerance mode; in decide mode
+    as many as should settle it, ``ceil(SPLIT_SAFETY V h / (2 g)) - 1`` with the parts clipped to
+    2 .. :data:`MAX_SPLIT`.
+
+    Args:
+        refine: Which intervals to refine.
+        intervals: (da, db [m], speed [m/s], h [s]) of every interval.
+        floor: The smallest sample of both links less the distance error [m].
+        tolerance, decide: As in :meth:`_AdaptiveCertificate.run` [m].
+
+    Returns:
+        (new points per interval to refine, their total); (None, 0) if there is none to refine.
+    """
+    if not refine.any():
+        return None, 0
+    if decide is None:  # tolerance mode: bisect
+        inner = np.ones(int(np.count_nonzero(refine)), dtype=int)
+        return inner, inner.size
+    da, db, speed, h = intervals
+    gap = np.minimum(da, db)[refine] - min(floor - tolerance, decide)
+    parts = np.clip(np.ceil(SPLIT_SAFETY * speed[refine] * h[refine] / (2.0 * gap)), 2, MAX_SPLIT)
+    inner = parts.astype(int) - 1
+    return inner, int(inner.sum())
+
+
+def _keep_lowest_settled(
+    best: list[tuple[float, float]],
+    settled: np.ndarray,
+    link: np.ndarray,
+    lower: np.ndarray,
+    intervals: tuple[np.ndarray, ...],
+) -> None:
+    """Lower ``best[k]``, link k's (lowest settled bound [m], where [s]), to the lowest bound ``lower``
+    of its settled intervals, if lower, with the time where that interval's bound is attained.
+
+    Args:
+        intervals: (ta [s], da, db [m], speed [m/s], h [s]) of every interval.
+    """
+    ta, da, db, speed, h = intervals
+    for k, mask in ((0, settled & ~link), (1, settled & link)):
+        if mask.any():
+            candidates = np.where(mask, lower, np.inf)
+            i = int(candidates.argmin())
+            if candidates[i] < best[k][0]:
+                offset = interval_argmin_offset(float(da[i]), float(db[i]), float(speed[i]), float(h[i]))
+                best[k] = (float(candidates[i]), float(ta[i] + offset))
+
+
+def _grid_minima(grids: list[tuple[np.ndarray, np.ndarray]]) -> tuple[list[float], list[float]]:
+    """Each link's smallest clearance [m] over its grid of (times [s], clearances [m]) and its time [s].
+
+    Raises:
+        InvalidParameterError: a clearance is not finite.
+    """
+    observed, observed_time = [], []
+    for times, values in grids:
+        if not math.isfinite(float(values.sum())):  # NaN and +-inf propagate into the sum
+            raise InvalidParameterError(
+                "clearance", "non-finite values", "finite distances from the clearance function"
+            )
+        i = int(values.argmin())
+        observed.append(float(values[i]))
+        observed_time.append(float(times[i]))
+    return observed, observed_time
 
 
 class _AdaptiveCertificate:
@@ -358,113 +453,31 @@ class _AdaptiveCertificate:
         max_evaluations: int,
         compiled: bool = False,
     ) -> Certificate:
-        # The initial grid of each link (one grid, both links at once, when they are the same).
-        if n[0] == n[1]:
-            times = np.linspace(0.0, self.duration, n[0])
-            both = np.asarray(clearance(self.q(times)), dtype=float).reshape(n[0], 2)
-            grids = [(times, both[:, 0]), (times, both[:, 1])]
-            initial = n[0]
-        else:
-            grids = []
-            for k in (0, 1):
-                times = np.arange(n[k], dtype=float)
-                times *= self.duration / (n[k] - 1)  # as np.linspace, the last exactly T
-                times[-1] = self.duration
-                grids.append((times, np.asarray(link_clearance(self.q(times), k), dtype=float).reshape(n[k])))
-            # Distinct times of the two grids: both ends, and gcd(n1 - 1, n2 - 1) - 1 common inner points.
-            initial = n[0] + n[1] - math.gcd(n[0] - 1, n[1] - 1) - 1
-        observed, observed_time, sampled_time = [], [], []  # per link, over every sample [m, s]
-        for times, values in grids:
-            if not math.isfinite(float(values.sum())):  # NaN and +-inf propagate into the sum
-                raise InvalidParameterError(
-                    "clearance", "non-finite values", "finite distances from the clearance function"
-                )
-            i = int(values.argmin())
-            observed.append(float(values[i]))
-            observed_time.append(float(times[i]))
-        sampled_link = tuple(observed)
-        sampled_time = tuple(observed_time)
-        # Open intervals of both links: ends, clearance minus the error at the ends, link (False: 1, True: 2).
-        ta = np.concatenate([grids[0][0][:-1], grids[1][0][:-1]])
-        tb = np.concatenate([grids[0][0][1:], grids[1][0][1:]])
-        da = np.concatenate([grids[0][1][:-1], grids[1][1][:-1]]) - error
-        db = np.concatenate([grids[0][1][1:], grids[1][1][1:]]) - error
-        link = np.repeat(np.array([False, True]), [n[0] - 1, n[1] - 1])
+        """The adaptive certificate (module docstring, step 3) from ``n`` initial samples per link.
+
+        Args:
+            n: Initial uniform samples over [0, T] of link 1 and of link 2 (>= 2 each).
+            clearance: Both links' clearance, (m, 2) [rad] -> (m, 2) [m] (the initial grid when shared).
+            link_clearance: One link's clearance, (m, 2) [rad] and link 0 / 1 -> (m,) [m].
+            error: The clearance function's distance error [m].
+            tolerance: Target gap between the bound and the smallest sample [m].
+            decide: Decide mode's value [m], or None for tolerance mode.
+            max_evaluations: Budget of refinement evaluations (configurations, one link each).
+            compiled: Run the rounds' bookkeeping compiled (:meth:`_compiled_rounds`), else in NumPy.
+        """
+        grids, initial = self._initial_grids(n, clearance, link_clearance)
+        observed, observed_time = _grid_minima(grids)  # per link, over every sample [m, s]
+        sampled_link, sampled_time = tuple(observed), tuple(observed_time)
         best = [(math.inf, 0.0), (math.inf, 0.0)]  # per link: (lowest settled bound, where) [m, s]
-        evaluations, rounds, converged = initial, 0, True
-        # Speed bounds: first the global ones (peak joint rates), then, where an interval is refined,
-        # its own (step 2); a sub-interval inherits its parent's, valid on it, until it is refined.
-        rate1, rate2 = (float(v) for v in self.rate_peak)
-        global_speed = (rate1 * self.link1_factor, rate1 * self.link2_factors[0] + rate2 * self.link2_factors[1])
-        speed = np.where(link, global_speed[1], global_speed[0])
-        own = np.zeros(ta.size, dtype=bool)  # True where ``speed`` is the interval's own bound
-        if compiled:
-            evaluations, rounds, converged = self._compiled_rounds(
-                (ta, tb, da, db, link, speed, own),
-                link_clearance,
-                (error, tolerance, decide),
-                max_evaluations - (evaluations - initial),
-                best,
-                (observed, observed_time),
-            )
-            evaluations += initial
-            ta = ta[:0]  # done
-        while ta.size:
-            h = tb - ta
-            lower = interval_lower_bound(da, db, speed, h)
-            floor = min(observed) - error
-            refine = self._refine(lower, floor, tolerance, decide)
-            stale = refine & ~own
-            if stale.any():
-                v1, v2 = self.speeds(ta[stale], tb[stale])
-                speed[stale] = np.where(link[stale], v2, v1)
-                own[stale] = True
-                lower = interval_lower_bound(da, db, speed, h)
-                refine = self._refine(lower, floor, tolerance, decide)
-            if not refine.any():
-                count = 0
-            elif decide is None:  # tolerance mode: bisect
-                inner = np.ones(int(np.count_nonzero(refine)), dtype=int)
-                count = inner.size
-            else:  # decide mode: split each interval in as many parts as should settle it (step 3)
-                gap = np.minimum(da, db)[refine] - min(floor - tolerance, decide)
-                parts = np.clip(np.ceil(SPLIT_SAFETY * speed[refine] * h[refine] / (2.0 * gap)), 2, MAX_SPLIT)
-                inner = parts.astype(int) - 1
-                count = int(inner.sum())
-            if count > max_evaluations - (evaluations - initial):
-                converged, refine[:], count = False, False, 0
-            settled = ~refine
-            for k, mask in ((0, settled & ~link), (1, settled & link)):
-                if mask.any():
-                    candidates = np.where(mask, lower, np.inf)
-                    i = int(candidates.argmin())
-                    if candidates[i] < best[k][0]:
-                        offset = interval_argmin_offset(float(da[i]), float(db[i]), float(speed[i]), float(h[i]))
-                        best[k] = (float(candidates[i]), float(ta[i] + offset))
-            if not count:
-                break
-            rounds += 1
-            ta, tb, da, db, link, h = ta[refine], tb[refine], da[refine], db[refine], link[refine], h[refine]
-            speed = speed[refine]
-            # New points: j / parts of the way through each interval, j = 1 .. parts - 1.
-            owner = np.arange(ta.size).repeat(inner)
-            last = np.cumsum(inner) - 1
-            j = np.arange(count) - (last + 1 - inner).repeat(inner) + 1
-            points = ta[owner] + h[owner] * (j / (inner + 1)[owner])
-            point_link = link[owner]
-            q = self.q(points)
-            values = _clearance_values(link_clearance, q, points, point_link, error, observed, observed_time)
-            evaluations += count
-            # Sub-intervals: [previous point, point] for every new point, then [last point, tb].
-            first = j == 1
-            previous_t, previous_d = np.empty(count), np.empty(count)
-            previous_t[1:], previous_d[1:] = points[:-1], values[:-1]
-            previous_t[first], previous_d[first] = ta[owner[first]], da[owner[first]]
-            ta, tb = np.concatenate([previous_t, points[last]]), np.concatenate([points, tb])
-            da, db = np.concatenate([previous_d, values[last]]), np.concatenate([values, db])
-            link = np.concatenate([point_link, link])
-            speed = np.concatenate([speed[owner], speed])
-            own = np.zeros(ta.size, dtype=bool)
+        rounds_of = self._compiled_rounds if compiled else self._numpy_rounds
+        evaluations, rounds, converged = rounds_of(
+            self._initial_intervals(grids, error),
+            link_clearance,
+            (error, tolerance, decide),
+            max_evaluations,
+            best,
+            (observed, observed_time),
+        )
         return conclude(
             interval_bound_m=(best[0][0], best[1][0]),
             interval_time_s=(best[0][1], best[1][1]),
@@ -475,10 +488,148 @@ class _AdaptiveCertificate:
             distance_error_m=error,
             tolerance_m=tolerance,
             initial_samples=initial,
-            evaluations=evaluations,
+            evaluations=initial + evaluations,
             refinement_rounds=rounds,
             converged=converged,
         )
+
+    def _initial_grids(
+        self, n: tuple[int, int], clearance: ClearanceFunction, link_clearance: LinkClearanceFunction
+    ) -> tuple[list[tuple[np.ndarray, np.ndarray]], int]:
+        """Each link's initial grid: (times [s], clearances [m]) of ``n[k]`` uniform samples over [0, T],
+        one grid for both links at once when they are the same size.
+
+        Returns:
+            The two grids and the number of their distinct times.
+        """
+        if n[0] == n[1]:
+            times = np.linspace(0.0, self.duration, n[0])
+            both = np.asarray(clearance(self.q(times)), dtype=float).reshape(n[0], 2)
+            return [(times, both[:, 0]), (times, both[:, 1])], n[0]
+        grids = []
+        for k in (0, 1):
+            times = np.arange(n[k], dtype=float)
+            times *= self.duration / (n[k] - 1)  # as np.linspace, the last exactly T
+            times[-1] = self.duration
+            grids.append((times, np.asarray(link_clearance(self.q(times), k), dtype=float).reshape(n[k])))
+        # Distinct times of the two grids: both ends, and gcd(n1 - 1, n2 - 1) - 1 common inner points.
+        return grids, n[0] + n[1] - math.gcd(n[0] - 1, n[1] - 1) - 1
+
+    def _initial_intervals(self, grids: list[tuple[np.ndarray, np.ndarray]], error: float) -> tuple[np.ndarray, ...]:
+        """The open intervals of both links' grids, as the rounds take them: (ta, tb [s], da, db [m]: the
+        clearance minus ``error`` at the ends, link: False for link 1, True for link 2, speed [m/s], own).
+
+        Speed bounds are first the global ones (peak joint rates); where an interval is refined, its own
+        (step 2) replaces it and ``own`` is set; a sub-interval inherits its parent's, valid on it, until
+        it is refined.
+        """
+        ta = np.concatenate([grids[0][0][:-1], grids[1][0][:-1]])
+        tb = np.concatenate([grids[0][0][1:], grids[1][0][1:]])
+        da = np.concatenate([grids[0][1][:-1], grids[1][1][:-1]]) - error
+        db = np.concatenate([grids[0][1][1:], grids[1][1][1:]]) - error
+        link = np.repeat(np.array([False, True]), [grids[0][0].size - 1, grids[1][0].size - 1])
+        rate1, rate2 = (float(v) for v in self.rate_peak)
+        global_speed = (rate1 * self.link1_factor, rate1 * self.link2_factors[0] + rate2 * self.link2_factors[1])
+        speed = np.where(link, global_speed[1], global_speed[0])
+        own = np.zeros(ta.size, dtype=bool)  # True where ``speed`` is the interval's own bound
+        return ta, tb, da, db, link, speed, own
+
+    def _numpy_rounds(
+        self,
+        state: tuple[np.ndarray, ...],
+        link_clearance: LinkClearanceFunction,
+        settings: tuple[float, float, float | None],
+        budget: int,
+        best: list[tuple[float, float]],
+        seen: tuple[list[float], list[float]],
+    ) -> tuple[int, int, bool]:
+        """The refinement rounds of :meth:`run` in NumPy, arguments and result as :meth:`_compiled_rounds`:
+        each round bounds the intervals, keeps the settled ones' lowest bound in ``best`` and splits the
+        others at new points, evaluated with ``link_clearance``.
+
+        Returns:
+            (refinement evaluations, rounds, converged).
+        """
+        ta, tb, da, db, link, speed, own = state
+        error, tolerance, decide = settings
+        evaluations, rounds, converged = 0, 0, True
+        while ta.size:
+            h = tb - ta
+            floor = min(seen[0]) - error
+            lower, refine = self._bound_intervals((ta, tb, da, db, link, speed, own), h, floor, tolerance, decide)
+            inner, count = _split_parts(refine, (da, db, speed, h), floor, tolerance, decide)
+            if count > budget - evaluations:
+                converged, refine[:], count = False, False, 0
+            _keep_lowest_settled(best, ~refine, link, lower, (ta, da, db, speed, h))
+            if not count:
+                break
+            rounds += 1
+            kept = tuple(a[refine] for a in (ta, tb, da, db, link, speed, h))
+            ta, tb, da, db, link, speed, own = self._split(kept, inner, count, link_clearance, error, seen)
+            evaluations += count
+        return evaluations, rounds, converged
+
+    def _bound_intervals(
+        self, state: tuple[np.ndarray, ...], h: np.ndarray, floor: float, tolerance: float, decide: float | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Each interval's lower bound [m] and which to refine (:meth:`_refine`); where an interval to refine
+        has only an inherited speed bound, its own (step 2) is computed first and written into the
+        state's ``speed`` and ``own`` in place.
+
+        Args:
+            state: (ta, tb, da, db, link, speed, own) as in :meth:`_initial_intervals`.
+            h: Interval lengths [s].
+            floor: The smallest sample of both links less the distance error [m].
+        """
+        ta, tb, da, db, link, speed, own = state
+        lower = interval_lower_bound(da, db, speed, h)
+        refine = self._refine(lower, floor, tolerance, decide)
+        stale = refine & ~own
+        if stale.any():
+            v1, v2 = self.speeds(ta[stale], tb[stale])
+            speed[stale] = np.where(link[stale], v2, v1)
+            own[stale] = True
+            lower = interval_lower_bound(da, db, speed, h)
+            refine = self._refine(lower, floor, tolerance, decide)
+        return lower, refine
+
+    def _split(
+        self,
+        intervals: tuple[np.ndarray, ...],
+        inner: np.ndarray,
+        count: int,
+        link_clearance: LinkClearanceFunction,
+        error: float,
+        seen: tuple[list[float], list[float]],
+    ) -> tuple[np.ndarray, ...]:
+        """Split the intervals to refine at ``inner`` new points each, ``j / (inner + 1)`` of the way
+        through, j = 1 .. inner, evaluated with ``link_clearance`` (the observed minima ``seen`` updated).
+
+        Args:
+            intervals: (ta, tb [s], da, db [m], link, speed [m/s], h [s]) of the intervals to refine.
+            inner: New points per interval; ``count`` their sum.
+
+        Returns:
+            The sub-intervals as (ta, tb, da, db, link, speed, own): [previous point, point] for every new
+            point, then [last point, tb]; speeds inherited, none their own.
+        """
+        ta, tb, da, db, link, speed, h = intervals
+        owner = np.arange(ta.size).repeat(inner)
+        last = np.cumsum(inner) - 1
+        j = np.arange(count) - (last + 1 - inner).repeat(inner) + 1
+        points = ta[owner] + h[owner] * (j / (inner + 1)[owner])
+        point_link = link[owner]
+        q = self.q(points)
+        values = _clearance_values(link_clearance, q, points, point_link, error, seen[0], seen[1])
+        first = j == 1
+        previous_t, previous_d = np.empty(count), np.empty(count)
+        previous_t[1:], previous_d[1:] = points[:-1], values[:-1]
+        previous_t[first], previous_d[first] = ta[owner[first]], da[owner[first]]
+        ta, tb = np.concatenate([previous_t, points[last]]), np.concatenate([points, tb])
+        da, db = np.concatenate([previous_d, values[last]]), np.concatenate([values, db])
+        link = np.concatenate([point_link, link])
+        speed = np.concatenate([speed[owner], speed])
+        return ta, tb, da, db, link, speed, np.zeros(ta.size, dtype=bool)
 
     def _compiled_rounds(
         self,
