@@ -144,37 +144,98 @@ def certify_motion(
     check_non_negative("distance_error_m", distance_error_m)
     check_positive("tolerance_m", tolerance_m)
     check_positive_int("max_evaluations", max_evaluations, minimum=0)
-
-    def evaluate(t: np.ndarray) -> np.ndarray:
-        values = np.asarray(clearance(q(t)), dtype=float).reshape(len(t), 2)
-        if not np.all(np.isfinite(values)):
-            raise InvalidParameterError(
-                "clearance", "non-finite values", "finite distances from the clearance function"
-            )
-        return values
-
-    values = evaluate(times)
+    values = _evaluated(clearance, q, times)
     sampled_link = np.min(values, axis=0)
-    evaluations = n
-    observed = sampled_link.copy()  # per-link minimum over every evaluated time [m]
-    observed_time = times[np.argmin(values, axis=0)]
+    # Open intervals (ends, and clearance minus the distance error at the ends).
+    intervals = (times[:-1], times[1:], values[:-1] - distance_error_m, values[1:] - distance_error_m)
+    refinement = _bisection_rounds(
+        q,
+        clearance,
+        speed_bound,
+        intervals,
+        (sampled_link.copy(), times[np.argmin(values, axis=0)]),
+        (distance_error_m, tolerance_m, decide_above_m),
+        max_evaluations,
+    )
+    sampled_rows = np.argmin(values, axis=0)
+    return conclude(
+        interval_bound_m=refinement.interval_bound_m,
+        interval_time_s=refinement.interval_time_s,
+        observed_m=refinement.observed_m,
+        observed_time_s=refinement.observed_time_s,
+        sampled_m=sampled_link,
+        sampled_time_s=times[sampled_rows],
+        distance_error_m=distance_error_m,
+        tolerance_m=tolerance_m,
+        initial_samples=n,
+        evaluations=n + refinement.evaluations,
+        refinement_rounds=refinement.rounds,
+        converged=refinement.converged,
+    )
 
-    # Open intervals (ends, and clearance minus the distance error at the ends), and final bounds.
-    ta, tb, da, db = times[:-1], times[1:], values[:-1] - distance_error_m, values[1:] - distance_error_m
+
+def _evaluated(clearance: ClearanceFunction, q: Callable[[np.ndarray], np.ndarray], t: np.ndarray) -> np.ndarray:
+    """The clearances (m, 2) [m] of both links at times ``t`` (m,) [s] of the motion ``q``.
+
+    Raises:
+        InvalidParameterError: the clearance function returned a value that is not finite.
+    """
+    values = np.asarray(clearance(q(t)), dtype=float).reshape(len(t), 2)
+    if not np.all(np.isfinite(values)):
+        raise InvalidParameterError("clearance", "non-finite values", "finite distances from the clearance function")
+    return values
+
+
+@dataclass(frozen=True)
+class _Refinement:
+    """What the bisection rounds of :func:`certify_motion` found, per link (link 1, link 2).
+
+    Attributes:
+        interval_bound_m, interval_time_s: Lowest settled interval bound [m] and where [s].
+        observed_m, observed_time_s: Lowest evaluated clearance [m] and when [s], initial samples included.
+        evaluations: Refinement evaluations (configurations) beyond the initial samples.
+        rounds: Bisection rounds.
+        converged: False if the evaluation budget ran out first.
+    """
+
+    interval_bound_m: np.ndarray
+    interval_time_s: np.ndarray
+    observed_m: np.ndarray
+    observed_time_s: np.ndarray
+    evaluations: int
+    rounds: int
+    converged: bool
+
+
+def _bisection_rounds(
+    q: Callable[[np.ndarray], np.ndarray],
+    clearance: ClearanceFunction,
+    speed_bound: SpeedBound,
+    intervals: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    seen: tuple[np.ndarray, np.ndarray],
+    settings: tuple[float, float, float | None],
+    budget: int,
+) -> _Refinement:
+    """Bisect the intervals whose bound is loose (or, deciding, undecided) until none is or ``budget``
+    would be exceeded; every other interval's bound is settled.
+
+    Args:
+        q, clearance, speed_bound: As in :func:`certify_motion`.
+        intervals: (ta, tb [s], da, db (m, 2) [m]: the clearance less the distance error at the ends).
+        seen: Lowest sampled clearance per link [m] and when [s].
+        settings: (distance error, tolerance, decide-above value or None) [m], as in :func:`certify_motion`.
+        budget: Most refinement evaluations (configurations).
+    """
+    ta, tb, da, db = intervals
+    observed, observed_time = seen
+    error, tolerance, decide = settings
     done_lb: list[np.ndarray] = []
     done_t: list[np.ndarray] = []
-    rounds = 0
-    converged = True
+    evaluations, rounds, converged = 0, 0, True
     while ta.size:
         lower, where = _interval_bounds(speed_bound(ta, tb), ta, tb, da, db)
-        floor = float(np.min(observed)) - distance_error_m
-        worst = np.min(lower, axis=1)
-        refine = worst < floor - tolerance_m
-        if decide_above_m is not None:
-            refine &= worst <= decide_above_m
-            if floor <= decide_above_m:
-                refine[:] = False
-        if np.count_nonzero(refine) > max_evaluations - (evaluations - n):
+        refine = _to_refine(np.min(lower, axis=1), float(np.min(observed)) - error, tolerance, decide)
+        if np.count_nonzero(refine) > budget - evaluations:
             converged = False
             refine[:] = False
         done_lb.append(lower[~refine])
@@ -183,34 +244,33 @@ def certify_motion(
             break
         rounds += 1
         mid = (ta[refine] + tb[refine]) / 2.0
-        mid_values = evaluate(mid)
+        mid_values = _evaluated(clearance, q, mid)
         evaluations += mid.size
         rows = np.argmin(mid_values, axis=0)
         better = mid_values[rows, [0, 1]] < observed
         observed = np.where(better, mid_values[rows, [0, 1]], observed)
         observed_time = np.where(better, mid[rows], observed_time)
-        dm = mid_values - distance_error_m
+        dm = mid_values - error
         ta, tb = np.concatenate([ta[refine], mid]), np.concatenate([mid, tb[refine]])
         da, db = np.concatenate([da[refine], dm]), np.concatenate([dm, db[refine]])
-
     all_lb = np.concatenate(done_lb)
     all_t = np.concatenate(done_t)
     rows = np.argmin(all_lb, axis=0)
-    sampled_rows = np.argmin(values, axis=0)
-    return conclude(
-        interval_bound_m=all_lb[rows, [0, 1]],
-        interval_time_s=all_t[rows, [0, 1]],
-        observed_m=observed,
-        observed_time_s=observed_time,
-        sampled_m=sampled_link,
-        sampled_time_s=times[sampled_rows],
-        distance_error_m=distance_error_m,
-        tolerance_m=tolerance_m,
-        initial_samples=n,
-        evaluations=evaluations,
-        refinement_rounds=rounds,
-        converged=converged,
+    return _Refinement(
+        all_lb[rows, [0, 1]], all_t[rows, [0, 1]], observed, observed_time, evaluations, rounds, converged
     )
+
+
+def _to_refine(worst: np.ndarray, floor: float, tolerance: float, decide: float | None) -> np.ndarray:
+    """Which intervals to bisect, from their lower bound ``worst`` over both links [m]: those more than
+    ``tolerance`` below ``floor`` (the smallest sample less the distance error) [m]; deciding, only those
+    at or below ``decide`` [m], and none once ``floor`` is."""
+    refine = worst < floor - tolerance
+    if decide is not None:
+        refine &= worst <= decide
+        if floor <= decide:
+            refine[:] = False
+    return refine
 
 
 def conclude(
