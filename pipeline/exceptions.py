@@ -470,3 +470,38 @@ class OutputLockedError(PipelineError):
         if pid is not None and elsewhere:
             holder += f" on {host}"
         super().__init__(f"{folder}/ is being written by {holder} (lock {lock_path}); wait for it or remove the lock")
+
+
+class NoSceneWindowError(PipelineError):
+    """No far edge d of the obstacle lets an arm pass a range of obstacles: for every d some
+    constraint point leaves the arm's reach, or an end pose keeps less than the required clearance.
+
+    Attributes:
+        length_range_m, width_range_m: The (L, W) range asked for [m].
+        reasons: The constraints that close the window, one phrase each.
+        lowest_m: The least d the constraints below ask for [m] (None: not known).
+        highest_m: The most d the constraints above allow [m] (None: not known).
+        shrink_tried: True if shrunk L and W ranges were tried too.
+    """
+
+    def __init__(
+        self,
+        length_range_m: tuple[float, float],
+        width_range_m: tuple[float, float],
+        reasons: tuple[str, ...],
+        lowest_m: float | None,
+        highest_m: float | None,
+        shrink_tried: bool,
+    ) -> None:
+        self.length_range_m = length_range_m
+        self.width_range_m = width_range_m
+        self.reasons = tuple(reasons)
+        self.lowest_m = lowest_m
+        self.highest_m = highest_m
+        self.shrink_tried = shrink_tried
+        (l0, l1), (w0, w1) = length_range_m, width_range_m
+        nor = ", nor a shrunk L or W range" if shrink_tried else ""
+        super().__init__(
+            f"no d (the obstacle's far edge y, --top-y) fits L in [{l0:.3f}, {l1:.3f}] m, W in [{w0:.3f}, {w1:.3f}] m"
+            f"{nor}: " + "; ".join(self.reasons)
+        )

@@ -29,6 +29,7 @@ EXAMPLES = [
     ex.NoCertifiedTrajectoryError(0.25, 0.12, 0.0087, 0.01, "the end pose is within the margin"),
     ex.BuildNotConvergedError(["test 3: endpoint error 6.1 mm > 5 mm"]),
     ex.InfeasibleSceneError(0.3, 0.12, "P5", -0.001, 4, 441),
+    ex.NoSceneWindowError((0.2, 0.3), (0.08, 0.12), ("P3 needs d >= 0.5700 m for the reach",), 0.57, None, True),
     ex.RegionMapMismatchError("a" * 64, "b" * 64),
     ex.RegionMapLimitsError("velocity_rad_s", [3.0, 3.0], [0.3, 0.3]),
     ex.MissingDependencyError("rosbags", "ros", "writing a ROS 2 bag"),

@@ -1,0 +1,65 @@
+"""d chosen for a build's own arm (pipeline.build.arm_scene): the configuration returned passes
+the build's pre-check at the recommended d, and says so in one line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from pipeline.build.arm_scene import scene_for_arm, window_for_build
+from pipeline.build.config import BuildConfig
+from pipeline.build.doe_fit import _check_before_work as check_before_work
+from pipeline.exceptions import InfeasibleSceneError, InvalidParameterError, NoSceneWindowError
+from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
+from pipeline.model.scene import Scene
+
+
+def urdf_with_links(folder: Path, l1: float, l2: float) -> Path:
+    """The shipped URDF with link lengths l1, l2 [m] (joint origins and link geometry)."""
+    text = DEFAULT_URDF.read_text(encoding="utf-8")
+    for old, new in (
+        ('<origin xyz="0.15 0 0"', f'<origin xyz="{l1 / 2:g} 0 0"'),  # link 1 first: 0.15 is l2 / 2 after
+        ('<origin xyz="0.175 0 0"', f'<origin xyz="{l2 / 2:g} 0 0"'),
+        ('length="0.30"', f'length="{l1:g}"'),
+        ('length="0.35"', f'length="{l2:g}"'),
+        ('<origin xyz="0.30 0 0"', f'<origin xyz="{l1:g} 0 0"'),
+        ('<origin xyz="0.35 0 0"', f'<origin xyz="{l2:g} 0 0"'),
+    ):
+        assert old in text, old
+        text = text.replace(old, new)
+    path = folder / "arm.urdf"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_the_chosen_config_passes_the_pre_check_the_given_one_fails(tmp_path: Path) -> None:
+    urdf = urdf_with_links(tmp_path, 0.40, 0.30)
+    arm = load_planar_arm(urdf)
+    given = BuildConfig(urdf_path=urdf, jobs=1)
+    with pytest.raises(InfeasibleSceneError):  # the paper's d = 0.56 m: the pose at P5 collides
+        check_before_work(given, arm)
+    chosen, note = scene_for_arm(arm, given)
+    assert chosen.scene.top_y_m == pytest.approx(0.635, abs=1e-12)
+    assert chosen.scene == Scene(top_y_m=chosen.scene.top_y_m)  # nothing else changed
+    assert (chosen.length_range_m, chosen.width_range_m) == (given.length_range_m, given.width_range_m)
+    assert chosen.urdf_path == given.urdf_path and chosen.seed == given.seed
+    check_before_work(chosen, arm)
+    assert note.startswith("--top-y 0.635 chosen for this arm") and "\n" not in note and "shrunk" not in note
+
+
+def test_a_shrunk_range_is_put_into_the_config_and_said(tmp_path: Path) -> None:
+    urdf = urdf_with_links(tmp_path, 0.35, 0.25)
+    arm = load_planar_arm(urdf)
+    chosen, note = scene_for_arm(arm, BuildConfig(urdf_path=urdf, jobs=1))
+    assert chosen.length_range_m != BuildConfig().length_range_m
+    low, high = chosen.length_range_m
+    assert f"shrunk to L {low:.3f} {high:.3f}" in note
+    check_before_work(chosen, arm)
+    with pytest.raises(NoSceneWindowError):
+        scene_for_arm(arm, BuildConfig(urdf_path=urdf, jobs=1), shrink=False)
+
+
+def test_a_build_that_varies_d_has_no_single_d_to_choose(arm) -> None:
+    with pytest.raises(InvalidParameterError, match="--vary"):
+        window_for_build(arm, BuildConfig(vary=(("d", 0.55, 0.57),), jobs=1))

@@ -1,0 +1,127 @@
+"""``python -m pipeline.scene``: the window of d for an arm, the recommended value and the build
+command; one line and exit 2 on bad input or when no d fits."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from pipeline.commands import scene
+from pipeline.model.arm import DEFAULT_URDF
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def urdf_with_links(folder: Path, l1: float, l2: float) -> Path:
+    """The shipped URDF with link lengths l1, l2 [m] (joint origins and link geometry)."""
+    text = DEFAULT_URDF.read_text(encoding="utf-8")
+    for old, new in (
+        ('<origin xyz="0.15 0 0"', f'<origin xyz="{l1 / 2:g} 0 0"'),  # link 1 first: 0.15 is l2 / 2 after
+        ('<origin xyz="0.175 0 0"', f'<origin xyz="{l2 / 2:g} 0 0"'),
+        ('length="0.30"', f'length="{l1:g}"'),
+        ('length="0.35"', f'length="{l2:g}"'),
+        ('<origin xyz="0.30 0 0"', f'<origin xyz="{l1:g} 0 0"'),
+        ('<origin xyz="0.35 0 0"', f'<origin xyz="{l2:g} 0 0"'),
+    ):
+        assert old in text, old
+        text = text.replace(old, new)
+    path = folder / f"arm_{round(l1 * 100):03d}_{round(l2 * 100):03d}.urdf"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def run(capsys: pytest.CaptureFixture, *argv: str) -> tuple[int, str, str]:
+    status = scene.main(list(argv))
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def one_line_error(status: int, err: str) -> str:
+    assert status == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("python -m pipeline.scene: error: "), err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def test_a_040_030_arm_gets_a_window_and_the_build_command(tmp_path: Path, capsys) -> None:
+    urdf = urdf_with_links(tmp_path, 0.40, 0.30)
+    status, out, _ = run(capsys, "--urdf", str(urdf))
+    assert status == 0
+    assert "window of d (the obstacle's far edge y) over L in [0.200, 0.300] m, W in [0.080, 0.120] m" in out
+    assert "above 0.6458 m: P1 at 0.7000 m from the base is outside the arm's reach" in out
+    assert "the arm's pose at P5" in out and "recommended d = 0.635 m" in out
+    assert "the build's pre-checks pass at d = 0.635 m" in out
+    assert f"build: python -m pipeline.build --urdf {urdf} --top-y 0.635\n" in out
+
+
+def test_a_035_025_arm_shrinks_the_length_range_and_says_so(tmp_path: Path, capsys) -> None:
+    urdf = urdf_with_links(tmp_path, 0.35, 0.25)
+    status, out, _ = run(capsys, "--urdf", str(urdf))
+    assert status == 0
+    assert "no d fits L in [0.200, 0.300] m, W in [0.080, 0.120] m: the range is shrunk" in out
+    assert "--L-range 0.2 0.26" in out.splitlines()[-1]
+    status, _, err = run(capsys, "--urdf", str(urdf), "--no-shrink")
+    assert "the reach allows d in" in one_line_error(status, err)
+
+
+def test_a_025_020_arm_is_refused_in_one_line_naming_the_end_pose(tmp_path: Path, capsys) -> None:
+    urdf = urdf_with_links(tmp_path, 0.25, 0.20)
+    status, out, err = run(capsys, "--urdf", str(urdf))
+    line = one_line_error(status, err)
+    assert out == "" and "nor a shrunk L or W range" in line and "the arm's pose at P5 collides" in line
+
+
+def test_a_010_010_arm_is_refused_in_one_line_naming_p1(tmp_path: Path, capsys) -> None:
+    urdf = urdf_with_links(tmp_path, 0.10, 0.10)
+    started = time.perf_counter()
+    status, out, err = run(capsys, "--urdf", str(urdf))
+    assert time.perf_counter() - started < 5.0
+    assert out == ""
+    assert "no d brings P1 of every obstacle into the arm's reach" in one_line_error(status, err)
+
+
+def test_the_build_command_carries_the_ranges_and_scene_options_given(tmp_path: Path, capsys) -> None:
+    urdf = urdf_with_links(tmp_path, 0.40, 0.30)
+    status, out, _ = run(capsys, "--urdf", str(urdf), "--W-range", "0.08", "0.10", "--margin", "0.008")
+    assert status == 0
+    build = out.splitlines()[-1]
+    assert "--W-range 0.08 0.1" in build and "--margin 0.008" in build and "--L-range" not in build
+    assert "(required 8.00 mm)" in out
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--urdf", "no_such_arm.urdf"],
+        ["--L-range", "0.30", "0.20"],
+        ["--W-range", "-0.1", "0.1"],
+        ["--L-range", "abc", "0.3"],
+        ["--vary", "d", "0.5", "0.6"],
+        ["--vary", "x", "0.03"],
+        ["--end-pose-clearance", "-0.01"],
+        ["--margin", "-1"],
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(capsys, argv: list[str]) -> None:
+    status, out, err = run(capsys, *argv)
+    one_line_error(status, err)
+    assert out == ""
+
+
+def test_help_names_units_and_defaults(capsys) -> None:
+    status, out, _ = run(capsys, "--help")
+    assert status == 0
+    for text in ("--urdf", "L range [m] (default: [0.2, 0.3])", "--end-pose-clearance", "[m]", "--no-shrink"):
+        assert text in " ".join(out.split()), text
+
+
+def test_the_module_runs_as_a_command() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "pipeline.scene", "--help"], capture_output=True, text=True, cwd=ROOT, timeout=120
+    )
+    assert done.returncode == 0 and "usage: python -m pipeline.scene" in done.stdout
