@@ -419,69 +419,112 @@ def fit_certifiable(
     final = config.final_certificate or config.certificate
     for round_index in range(config.max_rounds + 1):
         start = time.perf_counter()
-        settings = final if round_index == config.max_rounds else config.certificate
-        region_map = certify_range(current, settings, progress=_prefixed(progress, f"round {round_index}: "))
-        summary = region_map.summary()
         last = round_index == config.max_rounds
-        new_points, loose = (  # the last round's map is the answer: no points to collect from it
-            (np.empty((0, collected.shape[1])), np.empty((0, collected.shape[1] - 1)))
-            if last
-            else worst_points(
-                current, region_map, config.points_per_round, config.feasible_slack_m, config.endpoint.fit_tolerance_m
-            )
-        )
-        rounds.append(
-            {
-                "round": round_index,
-                "area_fraction": summary["area_fraction"],
-                "endpoint_within_tolerance_fraction": summary["endpoint_within_tolerance_fraction"],
-                "clearance_points": int(collected.shape[0]),
-                "endpoint_targets": 0 if extra_targets is None else int(extra_targets.lengths_m.size),
-                "certify_seconds": region_map.seconds,
-                **_cells(settings),
-            }
-        )
+        settings = final if last else config.certificate
+        round_progress = _prefixed(progress, f"round {round_index}: ")
+        region_map = certify_range(current, settings, progress=round_progress)
+        record = _round_record(round_index, region_map, settings, collected, extra_targets)
+        new_points, loose = _round_points(current, region_map, config, collected.shape[1], last)
+        rounds.append(record)
         if last or (new_points.shape[0] == 0 and loose.shape[0] == 0):
             if not last and final != config.certificate:  # clean early: final cells
-                region_map = certify_range(current, final, progress=_prefixed(progress, f"round {round_index}: "))
-                rounds[-1]["final_area_fraction"] = region_map.summary()["area_fraction"]
-                rounds[-1]["final_cells"] = _cells(final)
+                region_map = certify_range(current, final, progress=round_progress)
+                record["final_area_fraction"] = region_map.summary()["area_fraction"]
+                record["final_cells"] = _cells(final)
             break
         collected = np.vstack([collected, new_points])
         if loose.shape[0]:
             more = _targets_at(current, loose)
             extra_targets = more if extra_targets is None else _merge_targets(extra_targets, more)
         targets = _merge_targets(grid, extra_targets)
-        candidate, converged = refit(
-            current, points, values, targets, clearance_points(current, collected), margin, config
+        candidate, converged, collected = _refit_holding(
+            current, (points, values, targets), collected, margin, config, record
         )
-        room = None
-        if not converged:
-            held = collected[:, :-1]
-            room = end_pose_room_m(
-                current, held[:, 0], held[:, 1], config.endpoint.fit_tolerance_m, _centre_x(current, held)
-            )
-        for slack in RETRY_SLACKS_M:  # the points with least room are the hardest to hold: retry without them
-            if converged:
-                break
-            roomy = room >= margin + slack
-            if not 0 < np.count_nonzero(roomy) < roomy.size:
-                continue
-            collected, room = collected[roomy], room[roomy]
-            candidate, converged = refit(
-                current, points, values, targets, clearance_points(current, collected), margin, config
-            )
-            rounds[-1]["retried_without_points_below_m"] = slack
-        rounds[-1]["refit_converged"] = converged
+        record["refit_converged"] = converged
         if not converged:  # SLSQP's last iterate need not satisfy anything: keep the certified fit
-            rounds[-1]["stopped"] = "refit did not converge; the previous coefficients are returned"
+            record["stopped"] = "refit did not converge; the previous coefficients are returned"
             break
         current = candidate
-        rounds[-1]["refit_seconds"] = time.perf_counter() - start - region_map.seconds
-        rounds[-1]["grid_endpoint_error_max_m"] = float(
+        record["refit_seconds"] = time.perf_counter() - start - region_map.seconds
+        record["grid_endpoint_error_max_m"] = float(
             endpoint_errors_m(targets.design() @ _matrix(current), targets).max()
         )
     return current, region_map, {"rounds": rounds}
+
+
+def _round_record(
+    round_index: int,
+    region_map: RegionMap,
+    settings: RangeCertificateConfig,
+    collected: np.ndarray,
+    extra_targets: EndpointTargets | None,
+) -> dict:
+    """The report of one round of :func:`fit_certifiable` as its certificate leaves it: the certified
+    area fractions, the clearance points and endpoint targets held so far, the certificate's time [s]
+    and its cells."""
+    summary = region_map.summary()
+    return {
+        "round": round_index,
+        "area_fraction": summary["area_fraction"],
+        "endpoint_within_tolerance_fraction": summary["endpoint_within_tolerance_fraction"],
+        "clearance_points": int(collected.shape[0]),
+        "endpoint_targets": 0 if extra_targets is None else int(extra_targets.lengths_m.size),
+        "certify_seconds": region_map.seconds,
+        **_cells(settings),
+    }
+
+
+def _round_points(
+    current: Coefficients, region_map: RegionMap, config: CertifiableFitConfig, columns: int, last: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """The round's new clearance points (rows of ``columns`` values: the variables [m], then s) and the
+    variables [m] of its loose endpoints (:func:`worst_points`); none in the last round, whose map is
+    the answer."""
+    if last:
+        return np.empty((0, columns)), np.empty((0, columns - 1))
+    return worst_points(
+        current, region_map, config.points_per_round, config.feasible_slack_m, config.endpoint.fit_tolerance_m
+    )
+
+
+def _refit_holding(
+    current: Coefficients,
+    data: tuple[np.ndarray, Mapping[str, np.ndarray], EndpointTargets],
+    collected: np.ndarray,
+    margin: float,
+    config: CertifiableFitConfig,
+    record: dict,
+) -> tuple[Coefficients, bool, np.ndarray]:
+    """:func:`refit` holding the clearance at the ``collected`` points above ``margin`` [m]; if it does
+    not converge, retried without the points with least room (:data:`RETRY_SLACKS_M`), the slack
+    used noted in the round's ``record``.
+
+    Args:
+        data: The DOE's runs, their optima per parameter and the endpoint targets, as :func:`refit` takes them.
+
+    Returns:
+        (the refit coefficients, whether the refit converged, the clearance points it held).
+    """
+    points, values, targets = data
+    candidate, converged = refit(current, points, values, targets, clearance_points(current, collected), margin, config)
+    room = None
+    if not converged:
+        held = collected[:, :-1]
+        room = end_pose_room_m(
+            current, held[:, 0], held[:, 1], config.endpoint.fit_tolerance_m, _centre_x(current, held)
+        )
+    for slack in RETRY_SLACKS_M:  # the points with least room are the hardest to hold: retry without them
+        if converged:
+            break
+        roomy = room >= margin + slack
+        if not 0 < np.count_nonzero(roomy) < roomy.size:
+            continue
+        collected, room = collected[roomy], room[roomy]
+        candidate, converged = refit(
+            current, points, values, targets, clearance_points(current, collected), margin, config
+        )
+        record["retried_without_points_below_m"] = slack
+    return candidate, converged, collected
 
 
 def _cells(settings: RangeCertificateConfig) -> dict[str, float]:
