@@ -43,6 +43,7 @@ __all__ = [
     "LEAVES_SUFFIX",
     "load_region_map",
     "region_map_files",
+    "region_map_of",
     "save_region_map",
     "table_name",
 ]
@@ -135,7 +136,18 @@ def load_region_map(path: str | Path) -> RegionMap:
             rows differ from its header's; a format this version does not read.
     """
     path = Path(path)
-    document = read_json(path)
+    return region_map_of(read_json(path), path)
+
+
+def region_map_of(document: dict, path: Path) -> RegionMap:
+    """The map of a header (or an earlier format's whole document) read from ``path``, with its
+    table beside it: :func:`load_region_map` after the JSON is parsed.
+
+    Raises:
+        DataFileError: as :func:`load_region_map`.
+    """
+    if not isinstance(document, dict):
+        raise DataFileError(path, f"holds a {type(document).__name__}, expected a region map object")
     if document.get("format") in READABLE_FORMATS:
         return RegionMap.from_json(document, path)
     if document.get("format") != FORMAT_ARRAYS:

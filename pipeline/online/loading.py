@@ -14,9 +14,10 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
-from pipeline.certify.map_files import load_region_map
+from pipeline.certify.map_files import load_region_map, region_map_of
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap
 from pipeline.exceptions import InvalidParameterError, RegionMapMismatchError, RegionMapMismatchWarning
+from pipeline.io.jsonio import read_json
 from pipeline.motion.families import PAPER_SOURCE
 from pipeline.offline.coefficients import Coefficients, read_coefficients
 
@@ -54,10 +55,16 @@ def region_map_beside(coefficients: Coefficients) -> RegionMap | None:
     path = map_path_beside(coefficients)
     if path is None or not path.is_file():
         return None
-    region_map = load_region_map(path)
-    if not region_map.belongs_to(coefficients):
+    document = read_json(path)
+    link = document.get("coefficients") if isinstance(document, dict) else None
+    if isinstance(link, dict) and link.get("sha256") != coefficients.source_sha256:
+        region_map = None  # another build's: its leaves are not read
+    else:
+        region_map = region_map_of(document, path)
+    if region_map is None or not region_map.belongs_to(coefficients):
+        digest = link.get("sha256", "") if isinstance(link, dict) else ""
         warnings.warn(
-            f"{path} certifies coefficients sha256 {region_map.coefficients_sha256[:12]}, not "
+            f"{path} certifies coefficients sha256 {str(digest)[:12]}, not "
             f"{coefficients.source} (sha256 {coefficients.source_sha256[:12]}): not attached; "
             "python -m pipeline.certify_range makes the map of these",
             RegionMapMismatchWarning,
