@@ -86,7 +86,10 @@ def window_note(window: SceneWindow) -> str:
     )
     if window.shrunk:
         (l0, l1), (w0, w1) = window.length_range_m, window.width_range_m
-        note += f"; no d fits the range asked for, so it is shrunk to L {l0:.3f} {l1:.3f}, W {w0:.3f} {w1:.3f} [m]"
+        why = "no d fits the range asked for" if window.requested_window_m is None else "its window is narrower"
+        note += f"; {why}, so the range is shrunk to L {l0:.3f} {l1:.3f}, W {w0:.3f} {w1:.3f} [m]"
+    if window.narrow:
+        note += f"; caution: the window is only {window.width_m * 1e3:.1f} mm wide, the build may not converge"
     return note
 
 

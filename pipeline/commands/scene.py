@@ -3,8 +3,10 @@ can be built for, the reason at each edge, the value to use and the build comman
 
 The command loads the arm, asks :func:`pipeline.build.arm_scene.window_for_build` for the window
 over the build's (L, W) range (and x's, with ``--vary x``), checks the recommended value with the
-build's own pre-check, and prints the lot. Exit status: 0 a window was found; 2 bad input, or no
-d fits (one line naming the constraints that close the window); 130 interrupted.
+build's own pre-check, and prints the lot. A window narrower than 1 cm is valid but a poor build
+(:mod:`pipeline.offline.scene_window`): the range is shrunk for a wider one where one exists.
+Exit status: 0 a window was found; 2 bad input, or no d fits (one line naming the constraints
+that close the window); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -80,7 +82,10 @@ def parser() -> Parser:
         "build's own pre-check)",
     )
     p.add_argument(
-        "--no-shrink", action="store_true", help="when no d fits the range, refuse rather than shrink the L or W range"
+        "--no-shrink",
+        action="store_true",
+        help="when no d fits the range, refuse, and when only a window narrower than 1 cm does, print it with a "
+        "caution, rather than shrink the L, then the W range (to at least half) for a window at least 1 cm wide",
     )
     return p
 

@@ -32,31 +32,39 @@ proven; the inside edges and the recommended value are checked on the whole grid
 scan's samples the window is checked on the active set only (the constraints are monotone or
 piecewise monotone in d, and a run narrower than one scan step is not found).
 
-**The recommended value** is the middle of the window, rounded to the first of
-``rounding_m`` (5 mm, then 1 mm, then 0.1 mm) that keeps it inside. The two edges are different failures:
+**The recommended value** is the middle of the window, rounded to the first of ``rounding_m``
+(5 mm, then 1 mm, then 0.1 mm) that keeps it inside. The two edges are different failures:
 below, the end poses come too near the obstacle (or P3 too near the base); above, the arm
 stretches to reach P1 and P5, where the family's elbow keeps away from the straight arm
 (``FitnessConfig.min_elbow_angle_rad``) and the optima would miss the endpoints. The middle
 leaves the most room against both, and room in d against the end poses' clearance is what the
 DOE optima need, which miss P1 and P5 by a few millimetres to keep the margin.
 
-**When no d fits** over the range asked for and ``shrink`` is on, the L range is shrunk
-(sub-ranges on a lattice of a tenth of its width, widest first), then the W range; each
-candidate is screened on obstacles of its grid before its grid is searched. A shrunk range keeps
-at least half of the range asked for (``shrink_min_steps``): an arm that fits only a sliver of
-it is too small for the scene's offsets of P1..P5, and the build there fails for want of more
-than d (an arm of 0.25 and 0.20 m fits L in [0.20, 0.22] m with d in a window 2.5 mm wide, but
-its DOE optima reach the family's bound |A2| = 3 rad and the regression does not converge), so
-the reason is worth more than a range. When none fits either, :class:`pipeline.exceptions.NoSceneWindowError` names the
-constraints that close the window over the range asked for: two reach constraints that
-contradict each other ("P3 needs d >= 0.52 m for the reach, P1 needs d <= 0.31 m"), a point no
-d brings into reach, or the end pose that keeps less than the margin wherever the reach allows.
+**When no d fits** over the range asked for, or only a window narrower than ``min_width_m``
+(1 cm), and ``shrink`` is on, the L range is shrunk (sub-ranges on a lattice of a tenth of its
+width, widest first), then the W range, until a window at least that wide is found; each
+candidate is screened on obstacles of its grid before its grid is searched. Narrow windows are
+valid but poor builds: the DOE optima then have little room between the margin at the end
+poses and the stretched arm at P1 (an arm of 0.30 and 0.28 m has a 5.1 mm window over the
+default range, and its build at d = 0.510 m does not converge; over L in [0.20, 0.25] m the
+window is 17 mm wide and the build at d = 0.515 m keeps the margin on all of the range).
+Without a wider shrunk window the narrow one is returned, marked (:attr:`SceneWindow.narrow`).
+
+A shrunk range keeps at least half of the range asked for (``shrink_min_steps``): an arm that
+fits only a sliver of it is too small for the scene's offsets of P1..P5, and the build there
+fails for want of more than d (an arm of 0.25 and 0.20 m fits L in [0.20, 0.22] m with d in a
+window 2.5 mm wide, but its DOE optima reach the family's bound |A2| = 3 rad and the regression
+does not converge), so the reason is worth more than a range. When none fits either,
+:class:`pipeline.exceptions.NoSceneWindowError` names the constraints that close the window
+over the range asked for: two reach constraints that contradict each other ("P3 needs
+d >= 0.52 m for the reach, P1 needs d <= 0.31 m"), a point no d brings into reach, or the end
+pose that keeps less than the margin wherever the reach allows.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -94,7 +102,10 @@ class WindowSettings:
         scan_step_m: Step of the scan over d [m]; a window narrower than this may be missed.
         tolerance_m: Width of the bracket of each edge after bisection [m].
         rounding_m: Steps the recommended value is rounded to, the first that stays inside [m].
-        shrink: Try shrunk L, then W ranges when no d fits the range asked for.
+        min_width_m: The narrowest window worth a build [m]: a narrower one over the range asked
+            for makes the search try shrunk ranges too (module docstring).
+        shrink: Try shrunk L, then W ranges when no d fits the range asked for, or only a window
+            narrower than ``min_width_m``.
         shrink_lattice: The shrunk ranges' ends lie on this many equal steps of the range [count].
         shrink_min_steps: Fewest steps of that lattice a shrunk range keeps [count] (half of it).
     """
@@ -105,6 +116,7 @@ class WindowSettings:
     scan_step_m: float = 0.002
     tolerance_m: float = 1e-4
     rounding_m: tuple[float, ...] = (0.005, 0.001, 0.0001)
+    min_width_m: float = 0.01
     shrink: bool = True
     shrink_lattice: int = 10
     shrink_min_steps: int = 5
@@ -120,6 +132,7 @@ class WindowSettings:
             raise InvalidParameterError("tolerance_m", self.tolerance_m, f"less than scan_step_m = {self.scan_step_m}")
         for step in self.rounding_m:
             check_positive("rounding_m", step)
+        check_non_negative("min_width_m", self.min_width_m)
         if not isinstance(self.shrink, bool):
             raise InvalidParameterError("shrink", self.shrink, "True or False")
         check_positive_int("shrink_lattice", self.shrink_lattice, minimum=2)
@@ -205,7 +218,10 @@ class SceneWindow:
         centre_x_range_m: The range of x it holds over too [m], or None (x fixed).
         shrunk: True if that range is narrower than the one asked for.
         requested_length_range_m, requested_width_range_m: The range asked for [m].
+        requested_window_m: The window over the range asked for when the range is shrunk (it
+            was narrower than ``min_width_m``) [m], or None (none, or not shrunk).
         end_pose_clearance_m: The clearance the end poses keep inside the window [m].
+        min_width_m: The narrowest window worth a build [m] (:attr:`narrow` below it).
         tolerance_m: Bracket of each edge: the failing value of its reason lies within it [m].
     """
 
@@ -221,8 +237,20 @@ class SceneWindow:
     shrunk: bool
     requested_length_range_m: tuple[float, float]
     requested_width_range_m: tuple[float, float]
+    requested_window_m: tuple[float, float] | None
     end_pose_clearance_m: float
-    tolerance_m: float = field(default=1e-4)
+    min_width_m: float = 0.01
+    tolerance_m: float = 1e-4
+
+    @property
+    def width_m(self) -> float:
+        """high_m - low_m [m]."""
+        return self.high_m - self.low_m
+
+    @property
+    def narrow(self) -> bool:
+        """True if the window is narrower than ``min_width_m`` (no shrunk range gave a wider one)."""
+        return self.width_m < self.min_width_m
 
     def __post_init__(self) -> None:
         for name in ("low_m", "high_m", "recommended_m", "end_pose_clearance_m", "tolerance_m"):
@@ -242,7 +270,17 @@ class SceneWindow:
         lines = []
         if self.shrunk:
             (r0, r1), (s0, s1) = self.requested_length_range_m, self.requested_width_range_m
-            lines.append(f"no d fits L in [{r0:.3f}, {r1:.3f}] m, W in [{s0:.3f}, {s1:.3f}] m: the range is shrunk")
+            asked = f"L in [{r0:.3f}, {r1:.3f}] m, W in [{s0:.3f}, {s1:.3f}] m"
+            if self.centre_x_range_m is not None:
+                asked += f", x in [{self.centre_x_range_m[0]:.3f}, {self.centre_x_range_m[1]:.3f}] m"
+            if self.requested_window_m is None:
+                lines.append(f"no d fits {asked}: the range is shrunk")
+            else:
+                low, high = self.requested_window_m
+                lines.append(
+                    f"the window of d over {asked}, [{low:.4f}, {high:.4f}] m, is only {(high - low) * 1e3:.1f} mm "
+                    f"wide (< {self.min_width_m * 1e3:g} mm): the range is shrunk"
+                )
         lines += [
             f"window of d (the obstacle's far edge y) over {over}: [{self.low_m:.4f}, {self.high_m:.4f}] m",
             f"  below {self.low_m:.4f} m: {self.low_reason}",
@@ -250,6 +288,12 @@ class SceneWindow:
             f"recommended d = {self.recommended_m:.3f} m (the middle, rounded); the end poses keep at least "
             f"{self.recommended_clearance_m * 1e3:.2f} mm there (required {self.end_pose_clearance_m * 1e3:.2f} mm)",
         ]
+        if self.narrow:
+            lines.append(
+                f"caution: the window is only {self.width_m * 1e3:.1f} mm wide (< {self.min_width_m * 1e3:g} mm): the "
+                "DOE optima then have little room between the margin at the end poses and the stretched arm at P1, "
+                "and the build may not converge; a narrower L or W range (--L-range, --W-range) widens the window"
+            )
         return lines
 
 
@@ -490,14 +534,16 @@ def _passing(search: _Search, sizes: list[Size], values: list[float]) -> dict[Si
 
 
 def _shrunk(search: _Search, lengths: tuple, widths: tuple, xs: tuple | None) -> tuple[_Found, tuple, tuple] | None:
-    """The window over the widest shrunk L range (the W range as asked), else the widest shrunk W
-    range (the L range as asked): the window and the (L, W) range, or None.
+    """The window at least ``min_width_m`` wide over the widest shrunk L range (the W range as
+    asked), else over the widest shrunk W range (the L range as asked): the window and the
+    (L, W) range, or None.
 
     Each candidate range is screened first on obstacles of its grid: its two shrunk ends, each
     with the least, middle and greatest value of the other range (and of x), judged once per
-    lattice level at the scan's values; only a candidate whose obstacles share a passing value
-    is searched, those sharing the most first within a width."""
+    lattice level at the scan's values; only a candidate whose obstacles share enough passing
+    values for that width is searched, those sharing the most first within a width."""
     settings, step = search.settings, search.settings.scan_step_m
+    needed = max(1, math.floor(settings.min_width_m / step) - 1)  # shared samples of such a window
     high = search.arm.reach_m[1] + widths[1] + search.scene.apex_dy_m + step
     values = [float(v) for v in np.arange(widths[0] + step, high, step)]
     axes = _axes(search, lengths, widths, xs)
@@ -517,13 +563,13 @@ def _shrunk(search: _Search, lengths: tuple, widths: tuple, xs: tuple | None) ->
             for sub in group:
                 members = [passes[size(v, o, x)] for v in sub for o in others for x in x_levels]
                 shared = int(np.logical_and.reduce(members).sum())
-                if shared:
+                if shared >= needed:
                     screened.append((shared, sub))
             for _, sub in sorted(screened, key=lambda item: -item[0]):
                 ranges = (sub, widths) if shrink_length else (lengths, sub)
                 candidate = _axes(search, *ranges, xs)
                 found = _window_over(search, candidate, _seed(candidate))
-                if found is not None:
+                if found is not None and found.high_m - found.low_m >= settings.min_width_m:
                     return found, *ranges
     return None
 
@@ -724,10 +770,11 @@ def scene_window(
     search = _Search(arm, scene, FitnessConfig() if fitness is None else fitness, family, required, settings)
     search.fitness.clearance_route.check_arm(arm)  # as fitness_problem does
     axes = _axes(search, lengths, widths, xs)
-    found, used = _window_over(search, axes, _seed(axes)), (lengths, widths)
-    if found is None and settings.shrink:
+    found, used, asked = _window_over(search, axes, _seed(axes)), (lengths, widths), None
+    if settings.shrink and (found is None or found.high_m - found.low_m < settings.min_width_m):
         shrunk = _shrunk(search, lengths, widths, xs)
         if shrunk is not None:
+            asked = None if found is None else (found.low_m, found.high_m)
             found, used = shrunk[0], shrunk[1:]
     if found is None:
         raise _refusal(search, axes, settings.shrink)
@@ -744,6 +791,8 @@ def scene_window(
         used != (lengths, widths),
         lengths,
         widths,
+        asked,
         required,
+        settings.min_width_m,
         settings.tolerance_m,
     )

@@ -18,16 +18,20 @@ from pipeline.model.scene import Scene
 def urdf_with_links(folder: Path, l1: float, l2: float) -> Path:
     """The shipped URDF with link lengths l1, l2 [m] (joint origins and link geometry)."""
     text = DEFAULT_URDF.read_text(encoding="utf-8")
-    for old, new in (
-        ('<origin xyz="0.15 0 0"', f'<origin xyz="{l1 / 2:g} 0 0"'),  # link 1 first: 0.15 is l2 / 2 after
-        ('<origin xyz="0.175 0 0"', f'<origin xyz="{l2 / 2:g} 0 0"'),
-        ('length="0.30"', f'length="{l1:g}"'),
-        ('length="0.35"', f'length="{l2:g}"'),
-        ('<origin xyz="0.30 0 0"', f'<origin xyz="{l1:g} 0 0"'),
-        ('<origin xyz="0.35 0 0"', f'<origin xyz="{l2:g} 0 0"'),
-    ):
-        assert old in text, old
-        text = text.replace(old, new)
+    # Through placeholders, so that a new length equal to an old one is not replaced twice.
+    fields = {
+        '<origin xyz="0.15 0 0"': f'<origin xyz="{l1 / 2:g} 0 0"',
+        '<origin xyz="0.175 0 0"': f'<origin xyz="{l2 / 2:g} 0 0"',
+        'length="0.30"': f'length="{l1:g}"',
+        'length="0.35"': f'length="{l2:g}"',
+        '<origin xyz="0.30 0 0"': f'<origin xyz="{l1:g} 0 0"',
+        '<origin xyz="0.35 0 0"': f'<origin xyz="{l2:g} 0 0"',
+    }
+    for index, old in enumerate(fields):
+        assert text.count(old) >= 1, old
+        text = text.replace(old, f"@{index}@")
+    for index, new in enumerate(fields.values()):
+        text = text.replace(f"@{index}@", new)
     path = folder / "arm.urdf"
     path.write_text(text, encoding="utf-8")
     return path
@@ -49,15 +53,23 @@ def test_the_chosen_config_passes_the_pre_check_the_given_one_fails(tmp_path: Pa
 
 
 def test_a_shrunk_range_is_put_into_the_config_and_said(tmp_path: Path) -> None:
-    urdf = urdf_with_links(tmp_path, 0.35, 0.25)
+    urdf = urdf_with_links(tmp_path, 0.30, 0.28)
     arm = load_planar_arm(urdf)
     chosen, note = scene_for_arm(arm, BuildConfig(urdf_path=urdf, jobs=1))
     assert chosen.length_range_m != BuildConfig().length_range_m
     low, high = chosen.length_range_m
-    assert f"shrunk to L {low:.3f} {high:.3f}" in note
+    assert f"its window is narrower, so the range is shrunk to L {low:.3f} {high:.3f}" in note
     check_before_work(chosen, arm)
-    with pytest.raises(NoSceneWindowError):
-        scene_for_arm(arm, BuildConfig(urdf_path=urdf, jobs=1), shrink=False)
+    narrow, note = scene_for_arm(arm, BuildConfig(urdf_path=urdf, jobs=1), shrink=False)
+    assert narrow.length_range_m == BuildConfig().length_range_m
+    assert "caution: the window is only 5.1 mm wide" in note
+    check_before_work(narrow, arm)
+
+
+def test_an_arm_too_short_is_refused(tmp_path: Path) -> None:
+    urdf = urdf_with_links(tmp_path, 0.10, 0.10)
+    with pytest.raises(NoSceneWindowError, match="P1"):
+        scene_for_arm(load_planar_arm(urdf), BuildConfig(urdf_path=urdf, jobs=1))
 
 
 def test_a_build_that_varies_d_has_no_single_d_to_choose(arm) -> None:
