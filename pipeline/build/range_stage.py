@@ -19,9 +19,10 @@ from pipeline.certify.certifiable_regression import (
     CertifiableFitConfig,
     refit_for_clearance,
 )
+from pipeline.certify.map_files import region_map_files
 from pipeline.certify.map_for_coefficients import default_config, with_execution_bounds
 from pipeline.certify.range_certificate import certify_range
-from pipeline.certify.region_map import RegionMap, region_map_text
+from pipeline.certify.region_map import RegionMap
 from pipeline.io.jsonio import dumps
 from pipeline.io.progress import ProgressCallback
 from pipeline.model.arm import PlanarArm
@@ -44,7 +45,8 @@ class CertifiedCoefficients:
     Attributes:
         coefficients: As they read back from ``text`` (source: their file's path; sha256: of ``text``).
         text: The content of coefficients.json.
-        region_map: Their range certificate; ``map_text`` the content of region_map.json.
+        region_map: Their range certificate; ``map_files`` its files by name (the header
+            region_map.json and the leaf table region_map.npy: :mod:`pipeline.certify.map_files`).
         refit_report: The certifiable regression's rounds (None if it did not run).
         timing: The wall times [s] of its stages (``stages_s``: ``clearance_refit``, the refit's
             rounds but their last map, if they ran; ``range_certificate``, the final map;
@@ -55,7 +57,7 @@ class CertifiedCoefficients:
     coefficients: Coefficients
     text: str
     region_map: RegionMap
-    map_text: str
+    map_files: dict[str, bytes]
     refit_report: dict | None
     timing: dict
 
@@ -131,4 +133,4 @@ def certify_coefficients(
     limits = ArmLimits.from_arm(arm, config.acceleration_limits_rad_s2)
     region_map = with_execution_bounds(region_map, coefficients, identify_dynamics(arm), limits, map_config.run_on)
     seconds["execution_bounds"] = time.perf_counter() - started
-    return CertifiedCoefficients(coefficients, text, region_map, region_map_text(region_map), report, timing)
+    return CertifiedCoefficients(coefficients, text, region_map, region_map_files(region_map), report, timing)

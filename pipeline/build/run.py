@@ -42,6 +42,7 @@ from types import MappingProxyType
 from pipeline.build.config import OPTIONS, BuildConfig
 from pipeline.build.doe_fit import DoeFit, fit_doe
 from pipeline.build.range_stage import as_written, certify_coefficients
+from pipeline.certify.map_files import table_name
 from pipeline.certify.range_model import axes_refusal
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap
 from pipeline.exceptions import BuildNotConvergedError
@@ -189,7 +190,8 @@ def _locked_build(config: BuildConfig, progress: ProgressCallback | None, starte
         DOE_NAME: fit.doe_text,
         COEFFICIENTS_NAME: text,
         # A map of earlier coefficients must not stay beside these.
-        DEFAULT_MAP_NAME: None if certified is None else certified.map_text,
+        **dict.fromkeys((table_name(DEFAULT_MAP_NAME), DEFAULT_MAP_NAME)),
+        **({} if certified is None else certified.map_files),
         TIMING_NAME: timing_text,
     }
     if coefficients.provenance.get("urdf") == ARM_FILE_NAME:

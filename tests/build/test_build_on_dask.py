@@ -57,7 +57,13 @@ def test_the_range_stage_on_a_cluster_writes_the_local_pools_bytes(replayed: lis
     run_build(BuildConfig(out_folder=local, jobs=2, clearance_rounds=0))
     result = run_build(BuildConfig(out_folder=dask, scheduler=cluster.scheduler_address, clearance_rounds=0))
     assert result.region_map is not None
-    assert sorted(files(dask)) == ["build_timing.json", "coefficients.json", "doe.json", "region_map.json"]
+    assert sorted(files(dask)) == [
+        "build_timing.json",
+        "coefficients.json",
+        "doe.json",
+        "region_map.json",
+        "region_map.npy",
+    ]
     assert_same_files(local, dask)
     assert json.loads((dask / TIMING).read_text())["scheduler"] == cluster.scheduler_address
 

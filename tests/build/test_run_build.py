@@ -22,7 +22,7 @@ from pipeline.exceptions import InvalidParameterError
 from pipeline.io import file_set
 from pipeline.offline import coefficients as coefficients_module
 
-SET = ("doe.json", "coefficients.json", "region_map.json")
+SET = ("doe.json", "coefficients.json", "region_map.npy", "region_map.json")
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
@@ -56,6 +56,7 @@ def test_without_a_range_map_no_stale_map_stays(replayed: list, tmp_path: Path) 
     assert (tmp_path / "region_map.json").is_file()
     result = run_build(BuildConfig(out_folder=tmp_path, jobs=1, range_map=False, seed=1))
     assert result.region_map is None and not (tmp_path / "region_map.json").exists()
+    assert not (tmp_path / "region_map.npy").exists()
     assert load_coefficients(tmp_path / "coefficients.json").region_map is None
 
 

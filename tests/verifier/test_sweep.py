@@ -334,13 +334,14 @@ def test_the_coefficients_in_use_are_named_first(capsys) -> None:
 
 @pytest.fixture(scope="module")
 def paper_map_file(tmp_path_factory) -> Path:
-    """The paper's Eq. 9 certified at a coarse setting (256 leaves, about 2 s), as a file."""
+    """The paper's Eq. 9 certified at a coarse setting (256 leaves, about 2 s), as one file of the JSON
+    format (its leaves in the document, so that a test can edit them)."""
     from pipeline import load_coefficients
-    from pipeline.certify.map_files import save_region_map
     from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+    from pipeline.certify.region_map import save_region_map_json
 
     path = tmp_path_factory.mktemp("map") / "paper_map.json"
-    save_region_map(
+    save_region_map_json(
         certify_range(load_coefficients("paper"), RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8)), path
     )
     return path
