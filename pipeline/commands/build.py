@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TextIO
 
 from pipeline.build import BuildConfig, BuildResult, run_build
+from pipeline.build.arm_scene import scene_for_arm
 from pipeline.build.config import OPTIONS, SCENE_OPTIONS, VARY_NAMES, scene_from_options, vary_name
 from pipeline.build.run import stage_summary
 from pipeline.certify.certifiable_regression import DEFAULT_CLEARANCE_ROUNDS, clearance_refit_lines
@@ -40,8 +41,9 @@ from pipeline.cli import (
 )
 from pipeline.commands.regress import OVERWRITE_RULE, add_regression_arguments
 from pipeline.exceptions import BuildNotConvergedError, InvalidParameterError
+from pipeline.io.output_paths import check_output_folder
 from pipeline.io.progress import ProgressBars
-from pipeline.model.arm import DEFAULT_URDF
+from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
 from pipeline.model.scene import SCENE_FIELDS, Scene
 from pipeline.motion.families import FAMILY_NAMES, PAPER, PAPER_SOURCE
 from pipeline.offline import report
@@ -293,6 +295,26 @@ def config_from_args(args: argparse.Namespace) -> BuildConfig:
     )
 
 
+def _with_scene_for_arm(config: BuildConfig, args: argparse.Namespace) -> BuildConfig:
+    """``config`` with the obstacle's far edge d chosen for the arm (:func:`scene_for_arm`) when a
+    URDF other than the shipped one is given without --top-y, --scene or a varying d: the build
+    says which d it chose and why (on stderr). The L and W ranges are shrunk only when they are
+    the defaults. The output folder is checked first, so that a bad --out is refused before the search."""
+    if (
+        args.top_y_m is not None
+        or args.scene is not None
+        or Path(args.urdf).resolve() == DEFAULT_URDF.resolve()
+        or "d" in config.variables.names
+    ):
+        return config
+    check_output_folder(config.out_folder, OPTIONS["out_folder"], new_parents=False)
+    default = BuildConfig()
+    shrink = (config.length_range_m, config.width_range_m) == (default.length_range_m, default.width_range_m)
+    config, note = scene_for_arm(load_planar_arm(config.urdf_path), config, shrink=shrink)
+    print(f"{PROG}: {note}", file=sys.stderr)
+    return config
+
+
 def print_report(result: BuildResult, out: TextIO) -> None:
     """Our Table 2 and Eq. 9 beside the paper's, the regression method and the timing (the total
     wall time and its stages, as in build_timing.json)."""
@@ -327,7 +349,7 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
         PipelineError: bad input (``main`` prints it as one line).
     """
     out = sys.stdout if out is None else out
-    config = config_from_args(args)
+    config = _with_scene_for_arm(config_from_args(args), args)
     try:
         with ProgressBars(enabled=not (args.quiet or args.no_progress)) as bars:
             result = run_build(config, progress=bars)

@@ -75,3 +75,23 @@ def test_an_arm_too_short_is_refused(tmp_path: Path) -> None:
 def test_a_build_that_varies_d_has_no_single_d_to_choose(arm) -> None:
     with pytest.raises(InvalidParameterError, match="--vary"):
         window_for_build(arm, BuildConfig(vary=(("d", 0.55, 0.57),), jobs=1))
+
+
+def test_the_build_command_chooses_d_for_its_own_arm_and_keeps_a_given_one(tmp_path: Path, capsys) -> None:
+    """``python -m pipeline.build --urdf`` without --top-y or --scene: d chosen and said on stderr;
+    with --top-y, or the shipped arm, the scene is the user's; a missing parent is refused first."""
+    from pipeline.commands import build as build_command
+
+    urdf = urdf_with_links(tmp_path, 0.40, 0.30)
+
+    def config(*argv: str) -> BuildConfig:
+        args = build_command.parser().parse_args(["--out", str(tmp_path / "out"), *argv])
+        return build_command._with_scene_for_arm(build_command.config_from_args(args), args)
+
+    assert config("--urdf", str(urdf)).scene.top_y_m == pytest.approx(0.635, abs=1e-12)
+    assert "--top-y 0.635 chosen for this arm" in capsys.readouterr().err
+    assert config("--urdf", str(urdf), "--top-y", "0.62").scene.top_y_m == 0.62
+    assert config().scene.top_y_m == Scene().top_y_m and capsys.readouterr().err == ""
+    status = build_command.main(["--urdf", str(urdf), "--out", str(tmp_path / "missing" / "deep" / "r")])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and "missing" in err and "chosen" not in err
