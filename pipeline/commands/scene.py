@@ -15,6 +15,7 @@ import argparse
 import shlex
 import sys
 from pathlib import Path
+from types import MappingProxyType
 from typing import TextIO
 
 from pipeline.build.arm_scene import check_before_work, config_at, window_for_build
@@ -27,9 +28,9 @@ from pipeline.offline.designs import DEFAULT_RANGES_M
 
 PROG = "python -m pipeline.scene"
 #: Scene options besides --top-y (the value this command finds) that change the window.
-_SCENE_FLAGS = {
-    name: flag for name, flag in SCENE_OPTIONS.items() if name in ("start_y_m", "margin_m", "corner_radius_m")
-}
+_SCENE_FLAGS = MappingProxyType(
+    {name: flag for name, flag in SCENE_OPTIONS.items() if name in ("start_y_m", "margin_m", "corner_radius_m")}
+)
 
 
 def parser() -> Parser:
