@@ -109,21 +109,13 @@ def _convergence_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def parser() -> Parser:
-    """The command line's options (every default is :class:`pipeline.build.BuildConfig`'s)."""
-    d = BuildConfig()
-    p = Parser(
-        prog=PROG,
-        description="Run the DOE (PSO + exact Coal clearance per obstacle), regress the coefficients and certify "
-        "them over their fitted range; the files are written as one set at the end.",
-        epilog=f"{OVERWRITE_RULE} Exit status: 0 written, 1 not converged (nothing written), 2 bad input, "
-        "130 interrupted, 143 terminated (SIGTERM; SIGHUP: 129).",
-    )
+def _design_arguments(p: argparse.ArgumentParser, d: BuildConfig) -> None:
+    """--out, --seed and the design of experiments: levels, ranges, varied variables, design kind."""
     p.add_argument(
         "--out",
         type=Path,
         default=d.out_folder,
-        help="output folder (doe.json, coefficients.json, region_map.json, build_timing.json; arm.urdf for a "
+        help="output folder (doe.json, coefficients.json, region_map.json and .npy, build_timing.json; arm.urdf for a "
         "--urdf other than the shipped arm)",
     )
     p.add_argument(
@@ -165,22 +157,10 @@ def parser() -> Parser:
         "(3 or more factors: 2k(k-1)+1 runs) or central-composite (face-centred, 2^k+2k+1 runs); the last two "
         "from pyDOE, with one centre run (default: full-factorial)",
     )
-    p.add_argument("--family", choices=FAMILY_NAMES, default=PAPER.name, help="trajectory family")
-    p.add_argument(
-        "--jobs",
-        type=jobs_count,
-        default="0",
-        help="worker processes [count], 0 = every CPU; the files do not depend on it (default: 0)",
-    )
-    add_scheduler_arguments(p)
-    p.add_argument(
-        "--urdf",
-        type=Path,
-        default=DEFAULT_URDF,
-        help="URDF of the arm (default: the paper's arm, shipped with the package); another URDF is copied beside "
-        "the coefficients as arm.urdf, and later commands use it from there",
-    )
-    _scene_arguments(p)
+
+
+def _optimiser_arguments(p: argparse.ArgumentParser, d: BuildConfig) -> None:
+    """The PSO and its objective (Eq. 5 with the clearance penalty)."""
     pso = p.add_argument_group("optimiser")
     pso.add_argument("--swarm-size", type=int, default=d.swarm_size, help="PSO particles per swarm [count]")
     pso.add_argument("--iterations", type=int, default=d.iterations, help="PSO iterations per restart [count]")
@@ -206,8 +186,10 @@ def parser() -> Parser:
         metavar="M",
         help="extra clearance the optimiser aims for beyond the margin [m]",
     )
-    add_regression_arguments(p, default_tolerance_m=EndpointConstraint.tolerance_m)
-    _convergence_arguments(p)
+
+
+def _map_arguments(p: argparse.ArgumentParser) -> None:
+    """The range certificate and the certifiable regression's rounds before it."""
     p.add_argument(
         "--no-range-map",
         action="store_true",
@@ -223,6 +205,39 @@ def parser() -> Parser:
         "(certify, constrain the worst point of every cell below the margin that is not proven infeasible, "
         f"refit); 0: none [count] (default: {DEFAULT_CLEARANCE_ROUNDS})",
     )
+
+
+def parser() -> Parser:
+    """The command line's options (every default is :class:`pipeline.build.BuildConfig`'s)."""
+    d = BuildConfig()
+    p = Parser(
+        prog=PROG,
+        description="Run the DOE (PSO + exact Coal clearance per obstacle), regress the coefficients and certify "
+        "them over their fitted range; the files are written as one set at the end.",
+        epilog=f"{OVERWRITE_RULE} Exit status: 0 written, 1 not converged (nothing written), 2 bad input, "
+        "130 interrupted, 143 terminated (SIGTERM; SIGHUP: 129).",
+    )
+    _design_arguments(p, d)
+    p.add_argument("--family", choices=FAMILY_NAMES, default=PAPER.name, help="trajectory family")
+    p.add_argument(
+        "--jobs",
+        type=jobs_count,
+        default="0",
+        help="worker processes [count], 0 = every CPU; the files do not depend on it (default: 0)",
+    )
+    add_scheduler_arguments(p)
+    p.add_argument(
+        "--urdf",
+        type=Path,
+        default=DEFAULT_URDF,
+        help="URDF of the arm (default: the paper's arm, shipped with the package); another URDF is copied beside "
+        "the coefficients as arm.urdf, and later commands use it from there",
+    )
+    _scene_arguments(p)
+    _optimiser_arguments(p, d)
+    add_regression_arguments(p, default_tolerance_m=EndpointConstraint.tolerance_m)
+    _convergence_arguments(p)
+    _map_arguments(p)
     add_acceleration_limit_argument(
         p,
         "recorded in the coefficients; python -m pipeline.generate and generate_certified hold answers to them "
