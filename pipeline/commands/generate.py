@@ -519,6 +519,29 @@ def _limits_line(limits: ArmLimits, sources: dict[str, str]) -> str:
     return "limits: " + "; ".join(parts)
 
 
+def _certificate_line(certified) -> str:
+    """Where the answer's clearance certificate comes from: the map's cell, or the per-query
+    certificate of the regression's answer or of its repair."""
+    if certified.certificate is None:
+        return (
+            f"certificate: the region map's cell keeps the margin {certified.margin_m * 1e3:.3f} mm "
+            f"(clearance >= {certified.certified_clearance_m * 1e3:.3f} mm over all of [0, T]): the regression's "
+            "answer, unchanged"
+        )
+    certificate = certified.certificate
+    source = (
+        f"repaired in {certified.repair_seconds * 1e3:.1f} ms (the regression's answer: "
+        f"{certified.regression_certificate.certified_clearance_m * 1e3:.3f} mm)"
+        if certified.repaired
+        else "the regression's answer, unchanged"
+    )
+    return (
+        f"certificate: clearance >= {certificate.certified_clearance_m * 1e3:.3f} mm over all of [0, T] "
+        f"(rigorous lower bound, link {certificate.bound_link} at t = {certificate.bound_time_s:.4f} s; "
+        f"margin {certified.margin_m * 1e3:.3f} mm; {certificate.evaluations} Coal configurations): {source}"
+    )
+
+
 def work(args: argparse.Namespace) -> int:
     """Generate (and certify), print, write; see the module docstring for the exit status."""
     out = _check_inputs(args)
@@ -576,27 +599,8 @@ def work(args: argparse.Namespace) -> int:
     print(f"T = {trajectory.duration_s:.9f} s (the path at the paper's speed)")
     print(f"timing: {executed.timing.name}, T' = {executed.duration_s:.9f} s")
     print(_range_line(generated))
-    if certified is not None and certified.certificate is None:
-        print(
-            f"certificate: the region map's cell keeps the margin {certified.margin_m * 1e3:.3f} mm "
-            f"(clearance >= {certified.certified_clearance_m * 1e3:.3f} mm over all of [0, T]): the regression's "
-            "answer, unchanged"
-        )
-    elif certified is not None:
-        certificate = certified.certificate
-        source = (
-            f"repaired in {certified.repair_seconds * 1e3:.1f} ms (the regression's answer: "
-            f"{certified.regression_certificate.certified_clearance_m * 1e3:.3f} mm)"
-            if certified.repaired
-            else "the regression's answer, unchanged"
-        )
-        print(
-            f"certificate: clearance >= {certificate.certified_clearance_m * 1e3:.3f} mm over all of [0, T] "
-            f"(rigorous lower bound, link {certificate.bound_link} at t = {certificate.bound_time_s:.4f} s; "
-            f"margin {certified.margin_m * 1e3:.3f} mm; {certificate.evaluations} Coal configurations): {source}"
-        )
     if certified is not None:
-        print("\n".join(_execution_lines(certified)))
+        print("\n".join([_certificate_line(certified), *_execution_lines(certified)]))
         print(f"repair_seconds = {certified.repair_seconds:.6f}")
     print(f"time: {elapsed * 1e3:.3f} ms")
     if out is not None:
