@@ -10,7 +10,7 @@ from types import MappingProxyType
 import numpy as np
 import pytest
 
-from pipeline.model.arm import PlanarArm, load_planar_arm
+from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
 from pipeline.model.scene import Scene
 
 _DOUBLE_PENDULUM = Path(
@@ -241,3 +241,34 @@ class RoundingBounds:
 def rounding() -> type[RoundingBounds]:
     """The bounds within which the compiled online core equals the NumPy route (``pipeline.online.kernel``)."""
     return RoundingBounds
+
+
+@pytest.fixture(scope="session")
+def urdf_with_links():
+    """The function writing the shipped URDF with other link lengths (:func:`_urdf_with_links`)."""
+    return _urdf_with_links
+
+
+def _urdf_with_links(folder: Path, l1: float, l2: float) -> Path:
+    """The shipped URDF with link lengths l1, l2 [m]: joint origins, link geometry and inertial
+    origins, and the rod inertias m l^2 / 12 (0.5 kg links)."""
+    text = DEFAULT_URDF.read_text(encoding="utf-8")
+    # Through placeholders, so that a new length equal to an old one is not replaced twice.
+    fields = {
+        '<origin xyz="0.15 0 0"': f'<origin xyz="{l1 / 2:g} 0 0"',
+        '<origin xyz="0.175 0 0"': f'<origin xyz="{l2 / 2:g} 0 0"',
+        'length="0.30"': f'length="{l1:g}"',
+        'length="0.35"': f'length="{l2:g}"',
+        '<origin xyz="0.30 0 0"': f'<origin xyz="{l1:g} 0 0"',
+        '<origin xyz="0.35 0 0"': f'<origin xyz="{l2:g} 0 0"',
+        'iyy="3.75e-3" iyz="0" izz="3.75e-3"': f'iyy="{0.5 * l1 * l1 / 12:.6g}" iyz="0" izz="{0.5 * l1 * l1 / 12:.6g}"',
+        'iyy="5.1e-3" iyz="0" izz="5.1e-3"': f'iyy="{0.5 * l2 * l2 / 12:.6g}" iyz="0" izz="{0.5 * l2 * l2 / 12:.6g}"',
+    }
+    for index, old in enumerate(fields):
+        assert text.count(old) >= 1, old
+        text = text.replace(old, f"@{index}@")
+    for index, new in enumerate(fields.values()):
+        text = text.replace(f"@{index}@", new)
+    path = folder / f"arm_{round(l1 * 100):03d}_{round(l2 * 100):03d}.urdf"
+    path.write_text(text, encoding="utf-8")
+    return path

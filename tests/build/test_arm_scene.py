@@ -11,33 +11,11 @@ from pipeline.build.arm_scene import scene_for_arm, window_for_build
 from pipeline.build.config import BuildConfig
 from pipeline.build.doe_fit import _check_before_work as check_before_work
 from pipeline.exceptions import InfeasibleSceneError, InvalidParameterError, NoSceneWindowError
-from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
+from pipeline.model.arm import load_planar_arm
 from pipeline.model.scene import Scene
 
 
-def urdf_with_links(folder: Path, l1: float, l2: float) -> Path:
-    """The shipped URDF with link lengths l1, l2 [m] (joint origins and link geometry)."""
-    text = DEFAULT_URDF.read_text(encoding="utf-8")
-    # Through placeholders, so that a new length equal to an old one is not replaced twice.
-    fields = {
-        '<origin xyz="0.15 0 0"': f'<origin xyz="{l1 / 2:g} 0 0"',
-        '<origin xyz="0.175 0 0"': f'<origin xyz="{l2 / 2:g} 0 0"',
-        'length="0.30"': f'length="{l1:g}"',
-        'length="0.35"': f'length="{l2:g}"',
-        '<origin xyz="0.30 0 0"': f'<origin xyz="{l1:g} 0 0"',
-        '<origin xyz="0.35 0 0"': f'<origin xyz="{l2:g} 0 0"',
-    }
-    for index, old in enumerate(fields):
-        assert text.count(old) >= 1, old
-        text = text.replace(old, f"@{index}@")
-    for index, new in enumerate(fields.values()):
-        text = text.replace(f"@{index}@", new)
-    path = folder / "arm.urdf"
-    path.write_text(text, encoding="utf-8")
-    return path
-
-
-def test_the_chosen_config_passes_the_pre_check_the_given_one_fails(tmp_path: Path) -> None:
+def test_the_chosen_config_passes_the_pre_check_the_given_one_fails(tmp_path: Path, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.40, 0.30)
     arm = load_planar_arm(urdf)
     given = BuildConfig(urdf_path=urdf, jobs=1)
@@ -52,7 +30,7 @@ def test_the_chosen_config_passes_the_pre_check_the_given_one_fails(tmp_path: Pa
     assert note.startswith("--top-y 0.635 chosen for this arm") and "\n" not in note and "shrunk" not in note
 
 
-def test_a_shrunk_range_is_put_into_the_config_and_said(tmp_path: Path) -> None:
+def test_a_shrunk_range_is_put_into_the_config_and_said(tmp_path: Path, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.30, 0.28)
     arm = load_planar_arm(urdf)
     chosen, note = scene_for_arm(arm, BuildConfig(urdf_path=urdf, jobs=1))
@@ -66,7 +44,7 @@ def test_a_shrunk_range_is_put_into_the_config_and_said(tmp_path: Path) -> None:
     check_before_work(narrow, arm)
 
 
-def test_an_arm_too_short_is_refused(tmp_path: Path) -> None:
+def test_an_arm_too_short_is_refused(tmp_path: Path, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.10, 0.10)
     with pytest.raises(NoSceneWindowError, match="P1"):
         scene_for_arm(load_planar_arm(urdf), BuildConfig(urdf_path=urdf, jobs=1))
@@ -77,7 +55,9 @@ def test_a_build_that_varies_d_has_no_single_d_to_choose(arm) -> None:
         window_for_build(arm, BuildConfig(vary=(("d", 0.55, 0.57),), jobs=1))
 
 
-def test_the_build_command_chooses_d_for_its_own_arm_and_keeps_a_given_one(tmp_path: Path, capsys) -> None:
+def test_the_build_command_chooses_d_for_its_own_arm_and_keeps_a_given_one(
+    tmp_path: Path, capsys, urdf_with_links
+) -> None:
     """``python -m pipeline.build --urdf`` without --top-y or --scene: d chosen and said on stderr;
     with --top-y, or the shipped arm, the scene is the user's; a missing parent is refused first."""
     from pipeline.commands import build as build_command

@@ -11,31 +11,8 @@ from pathlib import Path
 import pytest
 
 from pipeline.commands import scene
-from pipeline.model.arm import DEFAULT_URDF
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def urdf_with_links(folder: Path, l1: float, l2: float) -> Path:
-    """The shipped URDF with link lengths l1, l2 [m] (joint origins and link geometry)."""
-    text = DEFAULT_URDF.read_text(encoding="utf-8")
-    # Through placeholders, so that a new length equal to an old one is not replaced twice.
-    fields = {
-        '<origin xyz="0.15 0 0"': f'<origin xyz="{l1 / 2:g} 0 0"',
-        '<origin xyz="0.175 0 0"': f'<origin xyz="{l2 / 2:g} 0 0"',
-        'length="0.30"': f'length="{l1:g}"',
-        'length="0.35"': f'length="{l2:g}"',
-        '<origin xyz="0.30 0 0"': f'<origin xyz="{l1:g} 0 0"',
-        '<origin xyz="0.35 0 0"': f'<origin xyz="{l2:g} 0 0"',
-    }
-    for index, old in enumerate(fields):
-        assert text.count(old) >= 1, old
-        text = text.replace(old, f"@{index}@")
-    for index, new in enumerate(fields.values()):
-        text = text.replace(f"@{index}@", new)
-    path = folder / f"arm_{round(l1 * 100):03d}_{round(l2 * 100):03d}.urdf"
-    path.write_text(text, encoding="utf-8")
-    return path
 
 
 def run(capsys: pytest.CaptureFixture, *argv: str) -> tuple[int, str, str]:
@@ -52,7 +29,7 @@ def one_line_error(status: int, err: str) -> str:
     return lines[0]
 
 
-def test_a_040_030_arm_gets_a_window_and_the_build_command(tmp_path: Path, capsys) -> None:
+def test_a_040_030_arm_gets_a_window_and_the_build_command(tmp_path: Path, capsys, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.40, 0.30)
     status, out, _ = run(capsys, "--urdf", str(urdf))
     assert status == 0
@@ -63,7 +40,7 @@ def test_a_040_030_arm_gets_a_window_and_the_build_command(tmp_path: Path, capsy
     assert f"build: python -m pipeline.build --urdf {urdf} --top-y 0.635\n" in out
 
 
-def test_a_narrow_window_shrinks_the_length_range_and_says_so(tmp_path: Path, capsys) -> None:
+def test_a_narrow_window_shrinks_the_length_range_and_says_so(tmp_path: Path, capsys, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.30, 0.28)
     status, out, _ = run(capsys, "--urdf", str(urdf))
     assert status == 0
@@ -74,14 +51,14 @@ def test_a_narrow_window_shrinks_the_length_range_and_says_so(tmp_path: Path, ca
     assert "--L-range" not in out.splitlines()[-1]
 
 
-def test_a_025_020_arm_is_refused_in_one_line_naming_the_end_pose(tmp_path: Path, capsys) -> None:
+def test_a_025_020_arm_is_refused_in_one_line_naming_the_end_pose(tmp_path: Path, capsys, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.25, 0.20)
     status, out, err = run(capsys, "--urdf", str(urdf))
     line = one_line_error(status, err)
     assert out == "" and "nor a shrunk L or W range" in line and "the arm's pose at P5 collides" in line
 
 
-def test_a_010_010_arm_is_refused_in_one_line_naming_p1(tmp_path: Path, capsys) -> None:
+def test_a_010_010_arm_is_refused_in_one_line_naming_p1(tmp_path: Path, capsys, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.10, 0.10)
     started = time.perf_counter()
     status, out, err = run(capsys, "--urdf", str(urdf))
@@ -90,7 +67,7 @@ def test_a_010_010_arm_is_refused_in_one_line_naming_p1(tmp_path: Path, capsys) 
     assert "no d brings P1 of every obstacle into the arm's reach" in one_line_error(status, err)
 
 
-def test_the_build_command_carries_the_ranges_and_scene_options_given(tmp_path: Path, capsys) -> None:
+def test_the_build_command_carries_the_ranges_and_scene_options_given(tmp_path: Path, capsys, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.40, 0.30)
     status, out, _ = run(capsys, "--urdf", str(urdf), "--W-range", "0.08", "0.10", "--margin", "0.008")
     assert status == 0

@@ -20,7 +20,7 @@ from pipeline.exceptions import (
     NoSceneWindowError,
     UnreachableObstacleError,
 )
-from pipeline.model.arm import DEFAULT_URDF, PlanarArm, load_planar_arm
+from pipeline.model.arm import PlanarArm, load_planar_arm
 from pipeline.model.scene import Scene
 from pipeline.offline.convergence import grid_problems
 from pipeline.offline.fitness import FitnessConfig
@@ -40,38 +40,13 @@ RANGES = (DEFAULT.length_range_m, DEFAULT.width_range_m)
 EDGE_TOLERANCE_M = 2e-4
 
 
-def urdf_with_links(folder: Path, l1: float, l2: float) -> Path:
-    """The shipped URDF with link lengths l1, l2 [m]: joint origins, link geometry and inertial
-    origins, and the rod inertias m l^2 / 12 (0.5 kg links)."""
-    text = DEFAULT_URDF.read_text(encoding="utf-8")
-    # Through placeholders, so that a new length equal to an old one is not replaced twice.
-    fields = {
-        '<origin xyz="0.15 0 0"': f'<origin xyz="{l1 / 2:g} 0 0"',
-        '<origin xyz="0.175 0 0"': f'<origin xyz="{l2 / 2:g} 0 0"',
-        'length="0.30"': f'length="{l1:g}"',
-        'length="0.35"': f'length="{l2:g}"',
-        '<origin xyz="0.30 0 0"': f'<origin xyz="{l1:g} 0 0"',
-        '<origin xyz="0.35 0 0"': f'<origin xyz="{l2:g} 0 0"',
-        'iyy="3.75e-3" iyz="0" izz="3.75e-3"': f'iyy="{0.5 * l1 * l1 / 12:.6g}" iyz="0" izz="{0.5 * l1 * l1 / 12:.6g}"',
-        'iyy="5.1e-3" iyz="0" izz="5.1e-3"': f'iyy="{0.5 * l2 * l2 / 12:.6g}" iyz="0" izz="{0.5 * l2 * l2 / 12:.6g}"',
-    }
-    for index, old in enumerate(fields):
-        assert text.count(old) >= 1, old
-        text = text.replace(old, f"@{index}@")
-    for index, new in enumerate(fields.values()):
-        text = text.replace(f"@{index}@", new)
-    path = folder / f"arm_{round(l1 * 100):03d}_{round(l2 * 100):03d}.urdf"
-    path.write_text(text, encoding="utf-8")
-    return path
-
-
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("arms")
 
 
 @pytest.fixture(scope="module")
-def arm_040(folder: Path) -> PlanarArm:
+def arm_040(folder: Path, urdf_with_links) -> PlanarArm:
     return load_planar_arm(urdf_with_links(folder, 0.40, 0.30))
 
 
@@ -157,7 +132,7 @@ def test_the_paper_arm_keeps_its_d_for_the_pre_check_but_not_for_the_margin(arm:
     assert least_end_pose_clearance_m(arm, 0.56) < 0.01
 
 
-def test_a_narrow_window_shrinks_the_length_range(folder: Path) -> None:
+def test_a_narrow_window_shrinks_the_length_range(folder: Path, urdf_with_links) -> None:
     """l1 = 0.30, l2 = 0.28: over the default range the window is about 5 mm wide (its build does
     not converge); the widest L range that leaves at least 1 cm is searched for."""
     arm = load_planar_arm(urdf_with_links(folder, 0.30, 0.28))
@@ -179,7 +154,7 @@ def test_a_narrow_window_shrinks_the_length_range(folder: Path) -> None:
     assert wider.narrow
 
 
-def test_a_025_025_arm_is_refused_though_slivers_of_the_range_fit(folder: Path) -> None:
+def test_a_025_025_arm_is_refused_though_slivers_of_the_range_fit(folder: Path, urdf_with_links) -> None:
     arm = load_planar_arm(urdf_with_links(folder, 0.25, 0.25))
     with pytest.raises(NoSceneWindowError) as refused:
         scene_window(arm, Scene(), *RANGES)
@@ -188,7 +163,7 @@ def test_a_025_025_arm_is_refused_though_slivers_of_the_range_fit(folder: Path) 
     assert sliver.narrow  # 4 mm: not offered
 
 
-def test_a_025_020_arm_is_refused_naming_the_end_pose_where_the_reach_allows(folder: Path) -> None:
+def test_a_025_020_arm_is_refused_naming_the_end_pose_where_the_reach_allows(folder: Path, urdf_with_links) -> None:
     """P3 = (0, d - W - 0.10) needs d >= 0.12 + 0.10 + 0.05 = 0.27 m, P1 = (0.27, d) at L = 0.30
     needs d <= sqrt(0.45^2 - 0.27^2) = 0.36 m; in between the pose at P5 collides, and no L or W
     range of at least half the default's lets it pass."""
@@ -204,7 +179,7 @@ def test_a_025_020_arm_is_refused_naming_the_end_pose_where_the_reach_allows(fol
     assert narrow.high_m - narrow.low_m < 0.005
 
 
-def test_a_010_010_arm_is_refused_naming_p1_quickly(folder: Path) -> None:
+def test_a_010_010_arm_is_refused_naming_p1_quickly(folder: Path, urdf_with_links) -> None:
     arm = load_planar_arm(urdf_with_links(folder, 0.10, 0.10))
     started = time.perf_counter()
     with pytest.raises(NoSceneWindowError) as refused:
@@ -215,7 +190,9 @@ def test_a_010_010_arm_is_refused_naming_p1_quickly(folder: Path) -> None:
     assert refused.value.shrink_tried and refused.value.lowest_m is None and refused.value.highest_m is None
 
 
-def test_reach_constraints_that_contradict_each_other_are_named_with_their_bounds(folder: Path) -> None:
+def test_reach_constraints_that_contradict_each_other_are_named_with_their_bounds(
+    folder: Path, urdf_with_links
+) -> None:
     """l1 = 0.45, l2 = 0.10: P3 = (0, d - W - 0.10) needs d >= 0.12 + 0.10 + 0.35 = 0.57 m, P1 =
     (0.27, d) at L = 0.30 needs d <= sqrt(0.55^2 - 0.27^2) = 0.4792 m."""
     arm = load_planar_arm(urdf_with_links(folder, 0.45, 0.10))
