@@ -33,7 +33,7 @@ import numpy as np
 
 from pipeline.certify.execution_bounds import COLUMNS as EXECUTION_COLUMNS
 from pipeline.certify.execution_bounds import ExecutionBounds
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, READABLE_FORMATS, STATUSES, RegionMap
+from pipeline.certify.region_map import DEFAULT_MAP_NAME, READABLE_FORMATS, STATUSES, RegionMap, header_fields
 from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.io.jsonio import dumps, read_json, write_bytes_atomic
 from pipeline.offline.variables import SIZE
@@ -185,7 +185,7 @@ def _checked_table(path: Path, leaves: dict) -> np.ndarray:
 
 def _from_table(document: dict, table: np.ndarray, source: Path) -> RegionMap:
     """The map of a checked header and table."""
-    link, fitted = document["coefficients"], document["fitted_range"]
+    fitted = document["fitted_range"]
     axes = tuple(document["axes"])
     statuses = tuple(document["statuses"])
     if statuses != STATUSES:
@@ -193,13 +193,7 @@ def _from_table(document: dict, table: np.ndarray, source: Path) -> RegionMap:
     extra = axes[2:]
     execution = document.get("execution")
     return RegionMap(
-        family=str(link["family"]),
-        coefficients_source=str(link["source"]),
-        coefficients_sha256=str(link["sha256"]),
-        length_range_m=(float(fitted["L"][0]), float(fitted["L"][1])),
-        width_range_m=(float(fitted["W"][0]), float(fitted["W"][1])),
-        margin_m=float(document["margin_m"]),
-        endpoint_tolerance_m=float(document["endpoint_tolerance_m"]),
+        **header_fields(document),
         depth=table["depth"],
         index_l=table["index_L"],
         index_w=table["index_W"],
@@ -208,7 +202,6 @@ def _from_table(document: dict, table: np.ndarray, source: Path) -> RegionMap:
         endpoint_clearance_upper_m=table["endpoint_clearance_upper_m"],
         status=table["status"],
         seconds=math.nan,
-        details=dict(document.get("details", {})),
         split_w=table["split_W"],
         execution=None
         if execution is None

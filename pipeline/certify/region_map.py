@@ -594,7 +594,7 @@ class RegionMap:
             expected = f"one of {', '.join(repr(f) for f in READABLE_FORMATS)}"
             raise DataFileError(source, f"format is {document.get('format')!r}, expected {expected}")
         try:
-            link, fitted, cells = document["coefficients"], document["fitted_range"], document["cells"]
+            fitted, cells = document["fitted_range"], document["cells"]
             axes = _checked_axes(tuple(document["axes"])) if document["format"] == FORMAT_KD else SIZE
             extra = axes[2:]
             missing = [c for c in (*_COLUMNS, *(f"index_{name}" for name in extra)) if c not in cells]
@@ -605,13 +605,7 @@ class RegionMap:
                 raise DataFileError(source, f"fitted_range lacks {absent}")
             status = [STATUSES.index(s) for s in cells["status"]]
             return cls(
-                family=str(link["family"]),
-                coefficients_source=str(link["source"]),
-                coefficients_sha256=str(link["sha256"]),
-                length_range_m=(float(fitted["L"][0]), float(fitted["L"][1])),
-                width_range_m=(float(fitted["W"][0]), float(fitted["W"][1])),
-                margin_m=float(document["margin_m"]),
-                endpoint_tolerance_m=float(document["endpoint_tolerance_m"]),
+                **header_fields(document),
                 depth=np.array(cells["depth"], dtype=np.int64),
                 index_l=np.array(cells["index_L"], dtype=np.int64),
                 index_w=np.array(cells["index_W"], dtype=np.int64),
@@ -622,7 +616,6 @@ class RegionMap:
                 ),
                 status=np.array(status, dtype=np.int64),
                 seconds=float(document.get("summary", {}).get("seconds", math.nan)),  # NaN unless the summary has it
-                details=dict(document.get("details", {})),
                 split_w=np.array(cells.get("split_W", [0] * len(status)), dtype=np.int64),
                 execution=None
                 if document.get("execution") is None
@@ -830,6 +823,26 @@ def _claim(table: np.ndarray, positions: np.ndarray, values: np.ndarray) -> None
     table[positions] = values
     if not np.array_equal(table[positions], values):  # two of ``positions`` alike
         raise InvalidParameterError("cells", "overlaps", "leaves tiling the range")
+
+
+def header_fields(document: dict) -> dict:
+    """The map's fields that every format stores alike, from its document (or header): the link to
+    the coefficients, the fitted range of L and W, the margin and tolerance, the settings.
+
+    Raises:
+        KeyError, TypeError, ValueError, IndexError: a field missing or malformed.
+    """
+    link, fitted = document["coefficients"], document["fitted_range"]
+    return {
+        "family": str(link["family"]),
+        "coefficients_source": str(link["source"]),
+        "coefficients_sha256": str(link["sha256"]),
+        "length_range_m": (float(fitted["L"][0]), float(fitted["L"][1])),
+        "width_range_m": (float(fitted["W"][0]), float(fitted["W"][1])),
+        "margin_m": float(document["margin_m"]),
+        "endpoint_tolerance_m": float(document["endpoint_tolerance_m"]),
+        "details": dict(document.get("details", {})),
+    }
 
 
 def source_name(source: object) -> str:
