@@ -149,68 +149,11 @@ def best_clearance_at(
         raise InvalidParameterError("rng", rng, "a numpy.random.Generator when restarts > 0")
     if tuple(coefficients.family.free_parameter_names) != PARAMETER_NAMES:
         raise InvalidParameterError("family", coefficients.family.name, "a family regressing all 8 parameters")
-    scene = coefficients.scene
-    obstacle = Obstacle.in_scene(length_m, width_m, scene)
-    path = desired_path(obstacle, scene)
-    ends = np.array([path.points_m[0], path.points_m[-1]])
-    duration = path.duration_s
-    times = np.linspace(0.0, duration, _SEARCH_SAMPLES)
-    limits = np.asarray(arm.position_limits_rad, dtype=float)
-    speed_limits = _INSIDE * np.asarray(arm.velocity_limits_rad_s, dtype=float)
+    search = _Search.at(coefficients, arm, length_m, width_m, tolerance_m)
     regression = np.asarray(coefficients.predict_free(length_m, width_m), dtype=float).ravel()
-
-    def clearance_rows(x: np.ndarray) -> np.ndarray:
-        return (analytic_link_clearance(joint_angles(x[:8], times), arm, obstacle) - x[8]).ravel() * 100.0
-
-    def endpoint_rows(x: np.ndarray) -> np.ndarray:
-        tips = forward_kinematics(joint_angles(x[:8], np.array([0.0, duration])), arm.link_lengths_m)
-        return 1.0 - np.sum((tips - ends) ** 2, -1) / (_INSIDE * tolerance_m) ** 2
-
-    def family_rows(x: np.ndarray) -> np.ndarray:
-        theta = joint_angles(x[:8], times)
-        return np.concatenate(
-            [
-                (theta - limits[:, 0]).ravel(),
-                (limits[:, 1] - theta).ravel(),
-                coefficients.elbow * theta[:, 1] - _BRANCH_INSIDE_RAD,
-                (speed_limits - np.abs(joint_velocities(x[:8], times))).ravel(),
-            ]
-        )
-
-    def outcome(parameters: np.ndarray) -> tuple[np.ndarray, bool]:
-        """|tip(0) - P1| and |tip(T) - P5| [m], and whether the trajectory is in the family."""
-        tips = forward_kinematics(joint_angles(parameters, np.array([0.0, duration])), arm.link_lengths_m)
-        trajectory = JointTrajectory(tuple(float(v) for v in parameters), duration)
-        return np.linalg.norm(tips - ends, axis=-1), in_family(trajectory, arm, coefficients.elbow)
-
-    def search(start: np.ndarray) -> np.ndarray:
-        z0 = float(analytic_link_clearance(joint_angles(start, times), arm, obstacle).min())
-        result = minimize(
-            lambda x: -100.0 * x[8],
-            np.append(start, z0),
-            jac=lambda x: np.append(np.zeros(8), -100.0),
-            method="SLSQP",
-            constraints=[
-                {"type": "ineq", "fun": clearance_rows},
-                {"type": "ineq", "fun": endpoint_rows},
-                {"type": "ineq", "fun": family_rows},
-            ],
-            options={"maxiter": _MAX_ITERATIONS, "ftol": 1e-10},
-        )
-        return result.x[:8]
-
     starts = [regression] + [regression + rng.normal(0.0, 1.0, 8) * _RESTART_SCALE for _ in range(restarts)]
-    regression_outcome = outcome(regression)
-    # If nothing ends inside the tolerance and the family, the regression's trajectory is reported.
-    chosen, chosen_outcome, best_sampled = regression, regression_outcome, -np.inf
-    for found in [regression, *(search(start) for start in starts)]:  # the regression's own trajectory competes too
-        result = regression_outcome if found is regression else outcome(found)
-        if result[0].max() > tolerance_m or not result[1]:
-            continue
-        sampled = float(analytic_link_clearance(joint_angles(found, times), arm, obstacle).min())
-        if sampled > best_sampled:
-            chosen, chosen_outcome, best_sampled = found, result, sampled
-    errors, member = chosen_outcome
+    chosen, (errors, member) = search.best(regression, starts)
+    duration, obstacle = search.duration_s, search.obstacle
     regression_clearance = _certified(regression, duration, arm, obstacle)
     return Witness(
         length_m=float(length_m),
@@ -222,6 +165,118 @@ def best_clearance_at(
         within_tolerance=bool(errors.max() <= tolerance_m),
         within_family=member,
     )
+
+
+@dataclass(frozen=True)
+class _Search:
+    """The local search of the module docstring at one obstacle: its SLSQP problem and its choice.
+
+    Attributes:
+        arm: The arm (link lengths and radii, joint limits).
+        obstacle: The obstacle in the coefficients' scene.
+        elbow: The coefficients' elbow branch (+1 or -1).
+        ends: The path's first and last points P1 and P5, (2, 2) [m].
+        duration_s: The path's duration T [s].
+        times_s: The search's samples over [0, T] [s].
+        limits_rad: The arm's joint angle limits, (2, 2) [rad].
+        speed_limits_rad_s: The joint speed limits the search holds (a hair inside the arm's) [rad/s].
+        tolerance_m: Endpoint tolerance [m].
+    """
+
+    arm: PlanarArm
+    obstacle: Obstacle
+    elbow: int
+    ends: np.ndarray
+    duration_s: float
+    times_s: np.ndarray
+    limits_rad: np.ndarray
+    speed_limits_rad_s: np.ndarray
+    tolerance_m: float
+
+    @classmethod
+    def at(
+        cls, coefficients: Coefficients, arm: PlanarArm, length_m: float, width_m: float, tolerance_m: float
+    ) -> _Search:
+        """The search at obstacle (``length_m``, ``width_m``) [m] of the coefficients' scene."""
+        scene = coefficients.scene
+        obstacle = Obstacle.in_scene(length_m, width_m, scene)
+        path = desired_path(obstacle, scene)
+        return cls(
+            arm=arm,
+            obstacle=obstacle,
+            elbow=coefficients.elbow,
+            ends=np.array([path.points_m[0], path.points_m[-1]]),
+            duration_s=path.duration_s,
+            times_s=np.linspace(0.0, path.duration_s, _SEARCH_SAMPLES),
+            limits_rad=np.asarray(arm.position_limits_rad, dtype=float),
+            speed_limits_rad_s=_INSIDE * np.asarray(arm.velocity_limits_rad_s, dtype=float),
+            tolerance_m=tolerance_m,
+        )
+
+    def sampled_clearance(self, parameters: np.ndarray) -> float:
+        """The least clearance [m] of both links over the search's samples."""
+        return float(analytic_link_clearance(joint_angles(parameters, self.times_s), self.arm, self.obstacle).min())
+
+    def clearance_rows(self, x: np.ndarray) -> np.ndarray:
+        """Each sample's clearance above the clearance variable ``x[8]`` [m], scaled to cm."""
+        angles = joint_angles(x[:8], self.times_s)
+        return (analytic_link_clearance(angles, self.arm, self.obstacle) - x[8]).ravel() * 100.0
+
+    def endpoint_rows(self, x: np.ndarray) -> np.ndarray:
+        """1 - (endpoint error / held tolerance)^2 at t = 0 and T: >= 0 where the tolerance is held."""
+        tips = forward_kinematics(joint_angles(x[:8], np.array([0.0, self.duration_s])), self.arm.link_lengths_m)
+        return 1.0 - np.sum((tips - self.ends) ** 2, -1) / (_INSIDE * self.tolerance_m) ** 2
+
+    def family_rows(self, x: np.ndarray) -> np.ndarray:
+        """The family's constraints at the samples: room to the angle limits [rad], the elbow branch
+        [rad] and room to the speed limits [rad/s]."""
+        theta = joint_angles(x[:8], self.times_s)
+        limits = self.limits_rad
+        return np.concatenate(
+            [
+                (theta - limits[:, 0]).ravel(),
+                (limits[:, 1] - theta).ravel(),
+                self.elbow * theta[:, 1] - _BRANCH_INSIDE_RAD,
+                (self.speed_limits_rad_s - np.abs(joint_velocities(x[:8], self.times_s))).ravel(),
+            ]
+        )
+
+    def outcome(self, parameters: np.ndarray) -> tuple[np.ndarray, bool]:
+        """|tip(0) - P1| and |tip(T) - P5| [m], and whether the trajectory is in the family."""
+        tips = forward_kinematics(joint_angles(parameters, np.array([0.0, self.duration_s])), self.arm.link_lengths_m)
+        trajectory = JointTrajectory(tuple(float(v) for v in parameters), self.duration_s)
+        return np.linalg.norm(tips - self.ends, axis=-1), in_family(trajectory, self.arm, self.elbow)
+
+    def search(self, start: np.ndarray) -> np.ndarray:
+        """SLSQP from ``start``: the parameters maximising the sampled clearance within the constraints."""
+        result = minimize(
+            lambda x: -100.0 * x[8],
+            np.append(start, self.sampled_clearance(start)),
+            jac=lambda x: np.append(np.zeros(8), -100.0),
+            method="SLSQP",
+            constraints=[
+                {"type": "ineq", "fun": self.clearance_rows},
+                {"type": "ineq", "fun": self.endpoint_rows},
+                {"type": "ineq", "fun": self.family_rows},
+            ],
+            options={"maxiter": _MAX_ITERATIONS, "ftol": 1e-10},
+        )
+        return result.x[:8]
+
+    def best(self, regression: np.ndarray, starts: list[np.ndarray]) -> tuple[np.ndarray, tuple[np.ndarray, bool]]:
+        """Of the regression's own parameters and the search's result from each start, the one with
+        the largest sampled clearance that ends within the tolerance and in the family, with its
+        :meth:`outcome`; the regression's if none does."""
+        regression_outcome = self.outcome(regression)
+        chosen, chosen_outcome, best_sampled = regression, regression_outcome, -np.inf
+        for found in [regression, *(self.search(start) for start in starts)]:
+            result = regression_outcome if found is regression else self.outcome(found)
+            if result[0].max() > self.tolerance_m or not result[1]:
+                continue
+            sampled = self.sampled_clearance(found)
+            if sampled > best_sampled:
+                chosen, chosen_outcome, best_sampled = found, result, sampled
+        return chosen, chosen_outcome
 
 
 def witnesses_for_map(
