@@ -7,9 +7,12 @@ of the table beside it (``region_map.npy``), its sha256, its row count and its f
 is one structured array, one row per leaf, little-endian, with the leaf's node (``depth``, an
 ``index_<axis>`` per axis, ``split_W``), its ``status`` (index into the header's statuses), its
 three bounds and, with execution bounds, their columns
-(:data:`pipeline.certify.execution_bounds.COLUMNS`), every number as the map holds it
-(float64: a round trip keeps every bit). ``numpy.save`` writes no timestamp, so the same map
-gives the same bytes.
+(:data:`pipeline.certify.execution_bounds.COLUMNS`), every number as the map holds it: a float
+column as float64, or, where every value of it is a short decimal (the execution bounds, rounded
+outward to 7 digits), as an int32 mantissa and an int8 exponent (fields ``<name>.mantissa``,
+``<name>.exponent``: :mod:`pipeline.io.decimal_columns`, 5 bytes instead of 8), chosen only where
+the round trip keeps every bit. ``numpy.save`` writes no timestamp, so the same map gives the
+same bytes.
 
 Reading checks, before anything is built from them: the header's format, the table's sha256
 (a table truncated or edited after it was written is refused), and its fields and row count
@@ -35,6 +38,7 @@ from pipeline.certify.execution_bounds import COLUMNS as EXECUTION_COLUMNS
 from pipeline.certify.execution_bounds import ExecutionBounds
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, READABLE_FORMATS, STATUSES, RegionMap, header_fields
 from pipeline.exceptions import DataFileError, InvalidParameterError
+from pipeline.io.decimal_columns import decimal_parts, from_decimal_parts
 from pipeline.io.jsonio import dumps, read_json, write_bytes_atomic
 from pipeline.offline.variables import SIZE
 
@@ -54,6 +58,8 @@ FORMAT_ARRAYS = "twolink-region-map/4"
 LEAVES_SUFFIX = ".npy"
 #: The bound columns of every map, in the table's order.
 _BOUNDS = ("clearance_bound_m", "endpoint_bound_m", "endpoint_clearance_upper_m")
+#: Suffixes of the two fields of a float column stored as short decimals.
+_MANTISSA, _EXPONENT = ".mantissa", ".exponent"
 
 
 def table_name(header_name: str) -> str:
@@ -61,27 +67,44 @@ def table_name(header_name: str) -> str:
     return Path(header_name).with_suffix(LEAVES_SUFFIX).name
 
 
-def _dtype(axes: tuple[str, ...], execution: bool) -> np.dtype:
-    """The table's row type for a map over ``axes`` (with execution columns if ``execution``)."""
-    fields = [("depth", "<i1"), *((f"index_{axis}", "<i4") for axis in axes), ("split_W", "<i1"), ("status", "<i1")]
-    fields += [(name, "<f8") for name in _BOUNDS]
-    fields += [(name, "<f8") for name in EXECUTION_COLUMNS] if execution else []
-    return np.dtype(fields)
+def _columns(region_map: RegionMap) -> dict[str, np.ndarray]:
+    """The map's leaf columns in the table's order, by field name: the node, the status, then the
+    float columns, each as short decimals where that keeps every bit (``<name>.mantissa``,
+    ``<name>.exponent``: :mod:`pipeline.io.decimal_columns`), else as float64."""
+    indices = (
+        region_map.index_l,
+        region_map.index_w,
+        *(() if region_map.extra_index is None else region_map.extra_index.T),
+    )
+    columns = {"depth": region_map.depth.astype("<i1")}
+    columns |= {f"index_{axis}": index.astype("<i4") for axis, index in zip(region_map.axes, indices, strict=True)}
+    columns |= {"split_W": region_map.split_w.astype("<i1"), "status": region_map.status.astype("<i1")}
+    floats = {name: getattr(region_map, name) for name in _BOUNDS}
+    if region_map.execution is not None:
+        floats |= {name: region_map.execution.columns[name] for name in EXECUTION_COLUMNS}
+    for name, values in floats.items():
+        parts = decimal_parts(values)
+        if parts is None:
+            columns[name] = np.asarray(values, dtype="<f8")
+        else:
+            columns[f"{name}{_MANTISSA}"], columns[f"{name}{_EXPONENT}"] = parts[0].astype("<i4"), parts[1]
+    return columns
 
 
 def _table(region_map: RegionMap) -> np.ndarray:
     """The map's leaves as one structured array (module docstring)."""
-    table = np.zeros(region_map.depth.size, dtype=_dtype(region_map.axes, region_map.execution is not None))
-    table["depth"], table["split_W"], table["status"] = region_map.depth, region_map.split_w, region_map.status
-    table["index_L"], table["index_W"] = region_map.index_l, region_map.index_w
-    for column, axis in enumerate(region_map.axes[2:]):
-        table[f"index_{axis}"] = region_map.extra_index[:, column]
-    for name in _BOUNDS:
-        table[name] = getattr(region_map, name)
-    if region_map.execution is not None:
-        for name in EXECUTION_COLUMNS:
-            table[name] = region_map.execution.columns[name]
+    columns = _columns(region_map)
+    table = np.zeros(region_map.depth.size, dtype=np.dtype([(name, c.dtype.str) for name, c in columns.items()]))
+    for name, column in columns.items():
+        table[name] = column
     return table
+
+
+def _float_column(table: np.ndarray, name: str) -> np.ndarray:
+    """The float64 column ``name`` of a table: stored as such, or as short decimals."""
+    if name in table.dtype.names:
+        return table[name]
+    return from_decimal_parts(table[f"{name}{_MANTISSA}"], table[f"{name}{_EXPONENT}"])
 
 
 def _header(region_map: RegionMap, table_bytes: bytes, name: str, rows: int, fields: tuple[str, ...]) -> dict:
@@ -197,16 +220,16 @@ def _from_table(document: dict, table: np.ndarray, source: Path) -> RegionMap:
         depth=table["depth"],
         index_l=table["index_L"],
         index_w=table["index_W"],
-        clearance_bound_m=table["clearance_bound_m"],
-        endpoint_bound_m=table["endpoint_bound_m"],
-        endpoint_clearance_upper_m=table["endpoint_clearance_upper_m"],
+        clearance_bound_m=_float_column(table, "clearance_bound_m"),
+        endpoint_bound_m=_float_column(table, "endpoint_bound_m"),
+        endpoint_clearance_upper_m=_float_column(table, "endpoint_clearance_upper_m"),
         status=table["status"],
         seconds=math.nan,
         split_w=table["split_W"],
         execution=None
         if execution is None
         else ExecutionBounds.from_json(
-            {**execution, "columns": {name: table[name] for name in EXECUTION_COLUMNS}}, source
+            {**execution, "columns": {name: _float_column(table, name) for name in EXECUTION_COLUMNS}}, source
         ),
         axes=axes if axes != SIZE else SIZE,
         extra_ranges_m=tuple((float(fitted[name][0]), float(fitted[name][1])) for name in extra),

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.certify.execution_bounds import COLUMNS, ExecutionBounds
+from pipeline.certify.execution_bounds import COLUMNS, ROUNDED_DOWN, ExecutionBounds, outward
 from pipeline.certify.map_files import FORMAT_ARRAYS, load_region_map, region_map_files, save_region_map
 from pipeline.certify.region_map import STATUSES, RegionMap, save_region_map_json
 from pipeline.exceptions import DataFileError
@@ -64,7 +64,7 @@ def _map(axes: tuple[str, ...], rng: np.random.Generator, execution: ExecutionBo
 
 def _execution(n: int, rng: np.random.Generator) -> ExecutionBounds:
     arm = load_planar_arm(DEFAULT_URDF)
-    columns = {name: rng.uniform(0.1, 5.0, n) for name in COLUMNS}
+    columns = {name: outward(rng.uniform(0.1, 5.0, n), name in ROUNDED_DOWN) for name in COLUMNS}  # as the build
     columns["speed_scale"][0], columns["ramp_s"][0] = math.nan, math.nan  # a leaf no rest-to-rest timing keeps
     columns["paper_torque1_n_m"][1] = math.inf
     return ExecutionBounds(ArmLimits.from_arm(arm), identify_dynamics(arm), columns)
@@ -106,6 +106,11 @@ def test_a_round_trip_keeps_every_number_and_the_bytes(region_map: RegionMap, tm
     header = json.loads(path.read_text())
     assert header["format"] == FORMAT_ARRAYS and header["leaves"]["file"] == "region_map.npy"
     assert header["leaves"]["rows"] == region_map.depth.size and "cells" not in header
+    fields = header["leaves"]["fields"]
+    assert "clearance_bound_m" in fields  # full doubles stay float64
+    if region_map.execution is not None:  # short decimals: 5 bytes each instead of 8, every bit kept
+        assert {"duration_lo_s.mantissa", "duration_lo_s.exponent", "speed_scale.mantissa"} <= set(fields)
+        assert "duration_lo_s" not in fields
     again = load_region_map(path)
     _same(region_map, again)
     points = np.array(
