@@ -192,70 +192,112 @@ def box_clearance_bounds(
     point = _geometry(model, center, np.zeros_like(radius))
     box = _geometry(model, center, radius)
     r_corner = model.scene.corner_radius_m
+    rect = _core_rectangle(model, center)
     x_col, d_col = model.x_column, model.d_column
-    rect_x = np.zeros(center.shape[0]) if x_col is None else center[:, x_col]
-    d = model.scene.top_y_m if d_col is None else center[:, d_col]
-    rect_center = np.stack([rect_x, d - center[:, 1] / 2], -1)
-    rect_half = np.stack([center[:, 0] / 2 - r_corner, center[:, 1] / 2 - r_corner], -1)
-    l1, l2 = model.link_lengths_m
     hausdorff = obstacle_motion_m(
         radius[:, 0],
         radius[:, 1],
         None if x_col is None else radius[:, x_col],
         None if d_col is None else radius[:, d_col],
     )
-
     link_lower = np.empty((center.shape[0], 2))
     centre_values = np.empty((center.shape[0], 2))
-    motion = []
     for k in (0, 1):
-        (pa, pb), (ba, bb) = point["links"][k], box["links"][k]
+        pa, pb = point["links"][k]
         a_c = np.stack([pa[0].value.mid, pa[1].value.mid], -1)
         b_c = np.stack([pb[0].value.mid, pb[1].value.mid], -1)
-        clearance_c = segment_rectangle_distance(a_c, b_c, rect_center, rect_half) - model.link_radii_m[k] - r_corner
+        clearance_c = segment_rectangle_distance(a_c, b_c, *rect) - model.link_radii_m[k] - r_corner
         centre_values[:, k] = clearance_c
         inflate = model.link_radii_m[k] + r_corner
-
-        # (a) separating direction fixed at the centre's closest pair.
-        n, valid = _witness_directions(a_c, b_c, rect_center, rect_half)
-        pairs = []
-        for p_end, b_end in ((pa, ba), (pb, bb)):
-            for pv, bv in zip(point["vertices"], box["vertices"], strict=True):
-                p_jet = _dot(n, (p_end[0] - pv[0], p_end[1] - pv[1]))
-                b_jet = _dot(n, (b_end[0] - bv[0], b_end[1] - bv[1]))
-                pairs.append(lower_bound(p_jet, b_jet, radius))
-        bound_a = np.where(valid, np.min(pairs, axis=0), -np.inf) - inflate
-
-        # (b) the supporting line of the link.
-        pm, bm = point["normals"][k], box["normals"][k]
-        lows, highs = [], []
-        for pv, bv in zip(point["vertices"], box["vertices"], strict=True):
-            p_jet = pm[0] * (pv[0] - pa[0]) + pm[1] * (pv[1] - pa[1])
-            b_jet = bm[0] * (bv[0] - ba[0]) + bm[1] * (bv[1] - ba[1])
-            lows.append(lower_bound(p_jet, b_jet, radius))
-            highs.append(upper_bound(p_jet, b_jet, radius))
-        bound_b = np.maximum(np.min(lows, axis=0), -np.max(highs, axis=0)) - inflate
-
-        # (c) Lipschitz form around the centre's distance.
-        d_theta1 = np.sum(box["theta"][0].grad.mag() * radius, axis=1) + point["theta"][0].value.rad
-        d_phi2 = np.sum(box["theta"][1].grad.mag() * radius, axis=1) + point["theta"][1].value.rad
-        move = l1 * d_theta1 if k == 0 else l1 * d_theta1 + l2 * d_phi2
+        bound_a = _separating_direction_bound(point, box, k, (a_c, b_c), rect, radius) - inflate
+        bound_b = _supporting_line_bound(point, box, k, radius) - inflate
         given = clearance_c if center_clearance_m is None else np.asarray(center_clearance_m)[:, k]
         error = distance_error_m if center_clearance_m is not None else ANALYTIC_DISTANCE_ERROR_M
-        bound_c = given - move - hausdorff - error
+        bound_c = given - _link_motion_m(model, point, box, k, radius) - hausdorff - error
         link_lower[:, k] = np.maximum(np.maximum(bound_a, bound_b), bound_c) - FLOAT_SLACK_M
-        if k == 1:
-            g1, g2 = box["theta"][0].grad.mag(), box["theta"][1].grad.mag()
-            motion = l1 * g1 * radius + l2 * g2 * radius
-    k = model.k
-    axes_term = motion[:, 0]
-    for i in range(1, k):
-        axes_term = axes_term + motion[:, i]
-    split_s = motion[:, k] > axes_term + hausdorff
     lower = np.where(np.isnan(link_lower), -np.inf, link_lower)
     return BoxBounds(
         lower_m=np.min(lower, axis=1),
         link_lower_m=lower,
         center_m=np.min(centre_values, axis=1),
-        split_s=split_s,
+        split_s=_split_s(model, box, radius, hausdorff),
     )
+
+
+def _core_rectangle(model: RangeModel, center: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The obstacle's core rectangle at each box centre: its centre and half sizes, (N, 2) each [m]."""
+    r_corner = model.scene.corner_radius_m
+    x_col, d_col = model.x_column, model.d_column
+    rect_x = np.zeros(center.shape[0]) if x_col is None else center[:, x_col]
+    d = model.scene.top_y_m if d_col is None else center[:, d_col]
+    rect_center = np.stack([rect_x, d - center[:, 1] / 2], -1)
+    rect_half = np.stack([center[:, 0] / 2 - r_corner, center[:, 1] / 2 - r_corner], -1)
+    return rect_center, rect_half
+
+
+def _separating_direction_bound(
+    point: dict,
+    box: dict,
+    k: int,
+    segment: tuple[np.ndarray, np.ndarray],
+    rect: tuple[np.ndarray, np.ndarray],
+    radius: np.ndarray,
+) -> np.ndarray:
+    """Bound (a) of the module docstring on dist(S_k, R) [m] over each box, the separating direction
+    fixed at the centre's closest pair (-inf where there is none): not yet less the inflation.
+
+    Args:
+        point, box: :func:`_geometry` at the centres and over the boxes.
+        k: The link (0 or 1).
+        segment: The link's ends at the centres, (N, 2) each [m].
+        rect: The core rectangle's centres and half sizes, (N, 2) each [m].
+        radius: The boxes' half widths.
+    """
+    (pa, pb), (ba, bb) = point["links"][k], box["links"][k]
+    n, valid = _witness_directions(segment[0], segment[1], rect[0], rect[1])
+    pairs = []
+    for p_end, b_end in ((pa, ba), (pb, bb)):
+        for pv, bv in zip(point["vertices"], box["vertices"], strict=True):
+            p_jet = _dot(n, (p_end[0] - pv[0], p_end[1] - pv[1]))
+            b_jet = _dot(n, (b_end[0] - bv[0], b_end[1] - bv[1]))
+            pairs.append(lower_bound(p_jet, b_jet, radius))
+    return np.where(valid, np.min(pairs, axis=0), -np.inf)
+
+
+def _supporting_line_bound(point: dict, box: dict, k: int, radius: np.ndarray) -> np.ndarray:
+    """Bound (b) of the module docstring on dist(S_k, R) [m] over each box, from the supporting line
+    of link ``k`` (0 or 1): not yet less the inflation. ``point``, ``box``, ``radius`` as in
+    :func:`_separating_direction_bound`."""
+    (pa, _), (ba, _) = point["links"][k], box["links"][k]
+    pm, bm = point["normals"][k], box["normals"][k]
+    lows, highs = [], []
+    for pv, bv in zip(point["vertices"], box["vertices"], strict=True):
+        p_jet = pm[0] * (pv[0] - pa[0]) + pm[1] * (pv[1] - pa[1])
+        b_jet = bm[0] * (bv[0] - ba[0]) + bm[1] * (bv[1] - ba[1])
+        lows.append(lower_bound(p_jet, b_jet, radius))
+        highs.append(upper_bound(p_jet, b_jet, radius))
+    return np.maximum(np.min(lows, axis=0), -np.max(highs, axis=0))
+
+
+def _link_motion_m(model: RangeModel, point: dict, box: dict, k: int, radius: np.ndarray) -> np.ndarray:
+    """How far [m] link ``k``'s segment (0 or 1) moves over each box (bound (c) of the module docstring):
+    l1 |d theta1|, and l1 |d theta1| + l2 |d(theta1 + theta2)| for link 2."""
+    l1, l2 = model.link_lengths_m
+    d_theta1 = np.sum(box["theta"][0].grad.mag() * radius, axis=1) + point["theta"][0].value.rad
+    if k == 0:
+        return l1 * d_theta1
+    d_phi2 = np.sum(box["theta"][1].grad.mag() * radius, axis=1) + point["theta"][1].value.rad
+    return l1 * d_theta1 + l2 * d_phi2
+
+
+def _split_s(model: RangeModel, box: dict, radius: np.ndarray, hausdorff: np.ndarray) -> np.ndarray:
+    """Where the tip's motion along s [m] exceeds its motion along all the axes and the obstacle's
+    (``hausdorff`` [m]) over the box: the boxes better split along s (:attr:`BoxBounds.split_s`)."""
+    l1, l2 = model.link_lengths_m
+    g1, g2 = box["theta"][0].grad.mag(), box["theta"][1].grad.mag()
+    motion = l1 * g1 * radius + l2 * g2 * radius
+    k = model.k
+    axes_term = motion[:, 0]
+    for i in range(1, k):
+        axes_term = axes_term + motion[:, i]
+    return motion[:, k] > axes_term + hausdorff
