@@ -149,6 +149,7 @@ and spans [d0, d1] (d0 + d1 = 2 d_c, d1 - d0 = 2 h_d); without an x axis read x 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -362,83 +363,186 @@ def _upper_bounds_and_witnesses(
     n = center2.shape[0]
     out = np.empty((n, 2))
     found = np.zeros((n, 2), dtype=bool)
-    xi, di = model.x_column, model.d_column
-    moved = xi is not None or di is not None  # the obstacles of a cell are not nested
+    moved = model.x_column is not None or model.d_column is not None  # the obstacles of a cell are not nested
     corner = center2 - radius2
-    bound_lw, witness_lw, degenerate = _cell_obstacles(model, center2, radius2)
+    obstacles = _cell_obstacles(model, center2, radius2)
+    degenerate = obstacles[2]
     rho = _disc_radius(model, radius2, tolerance_m)
     for column, side in enumerate((1.0, -1.0)):
-        # P(centre) and P of the smallest corner (L0[, x0][, d0]), where a witness must end.
-        px = side * (center2[:, 0] / 2 + model.scene.start_dx_m)
-        px0 = side * (corner[:, 0] / 2 + model.scene.start_dx_m)
-        if xi is not None:  # P1, P5 move with the obstacle's centre x
-            px, px0 = px + center2[:, xi], px0 + corner[:, xi]
-        py = np.full(n, model.scene.y1_m) if di is None else center2[:, di]  # y1 = d with a d axis
-        py0 = py if di is None else corner[:, di]
-        dist = np.hypot(px, py)
-        spread = np.arcsin(np.minimum(rho / dist, 1.0))
-        psi = np.arctan2(py, px)
-        # Active sub-boxes: owner cell, r and psi ranges.
-        owner = np.arange(n)
-        r_lo, r_hi = dist - rho, dist + rho
-        p_lo, p_hi = psi - spread, psi + spread
-        if np.any(degenerate):  # no O*: no bound (+inf below), no sub-boxes
-            owner, r_lo, r_hi, p_lo, p_hi = (a[~degenerate] for a in (owner, r_lo, r_hi, p_lo, p_hi))
-        best = np.full(n, -np.inf)
-        # A witness: the pose with its tip exactly at P(L0[, x0][, d0]) clears the margin against
-        # O(L0, W0[, x0][, d0]).
-        dist0, psi0 = np.hypot(px0, py0), np.arctan2(py0, px0)
-        _, exact_c, _, _ = _pose_box_upper_bounds(model, dist0, dist0, psi0, psi0, bound_lw, witness_lw)
-        witnessed = exact_c >= margin_m
-        floor = np.full(n, -np.inf)  # with x or d: the clearance against O* of a pose of the disc
-        for depth in range(max_depth + 1):
-            upper, centre_c, tip, bound_c = _pose_box_upper_bounds(
-                model, r_lo, r_hi, p_lo, p_hi, bound_lw[owner], None if witness_lw is None else witness_lw[owner]
-            )
-            # A witness needs its tip within the tolerance of P(L0), the corner's own end point.
-            in_set = np.hypot(tip[:, 0] - px0[owner], tip[:, 1] - py0[owner]) <= tolerance_m
-            hit = in_set & (centre_c >= margin_m)
-            np.logical_or.at(witnessed, owner[hit], True)
-            # Sub-boxes of the polar box that miss the disc hold no pose of the set.
-            meets = _sector_distance(dist[owner], psi[owner], r_lo, r_hi, p_lo, p_hi) <= rho[owner] * (1 + 1e-12)
-            upper = np.where(meets, upper, -np.inf)
-            open_ = (upper >= margin_m) & ~witnessed[owner]
-            if moved:
-                # A pose with its tip in the disc that clears the margin against O* keeps the
-                # bound at or above the margin however far the sub-boxes are cut (module
-                # docstring): the end is not proven, and its sub-boxes are closed.
-                stuck = (np.hypot(tip[:, 0] - px[owner], tip[:, 1] - py[owner]) <= rho[owner]) & (bound_c >= margin_m)
-                np.maximum.at(floor, owner[stuck], bound_c[stuck])
-                blocked = floor[owner] >= margin_m
-                upper = np.where(blocked, -np.inf, upper)  # the end's value is its floor
-                open_ &= ~blocked
-            closed = ~open_ | (depth == max_depth)
-            np.maximum.at(best, owner[closed], upper[closed])
-            fine = (r_hi - r_lo < _POLAR_RESOLUTION_M) & (r_hi * (p_hi - p_lo) < _POLAR_RESOLUTION_M)
-            np.maximum.at(best, owner[open_ & fine], upper[open_ & fine])
-            keep = open_ & ~fine & (depth < max_depth)
-            if np.count_nonzero(keep) > _MAX_SUB_BOXES:  # memory cap: close the rest with their (valid) bounds
-                np.maximum.at(best, owner[keep], upper[keep])
-                keep[:] = False
-            if not np.any(keep):
-                break
-            owner, r_lo, r_hi, p_lo, p_hi = owner[keep], r_lo[keep], r_hi[keep], p_lo[keep], p_hi[keep]
-            r_mid, p_mid = (r_lo + r_hi) / 2, (p_lo + p_hi) / 2
-            owner = np.repeat(owner, 4)
-            r_lo, r_hi = (
-                np.stack([r_lo, r_lo, r_mid, r_mid], 1).ravel(),
-                np.stack([r_mid, r_mid, r_hi, r_hi], 1).ravel(),
-            )
-            p_lo, p_hi = (
-                np.stack([p_lo, p_mid, p_lo, p_mid], 1).ravel(),
-                np.stack([p_mid, p_hi, p_mid, p_hi], 1).ravel(),
-            )
+        disc = _EndDisc.at(model, center2, corner, rho, side)
+        witnessed = _corner_witnesses(model, disc, obstacles, margin_m)
+        best, floor = _polar_search(model, disc, obstacles, witnessed, (tolerance_m, margin_m), max_depth, moved)
         out[:, column] = np.where(witnessed, np.maximum(best, margin_m), best)
         if moved:
             out[:, column] = np.maximum(out[:, column], floor)
             out[degenerate, column] = np.inf
         found[:, column] = witnessed
     return out, found
+
+
+@dataclass(frozen=True)
+class _EndDisc:
+    """Per cell, one end (P1 or P5) of the path: where it lies for the cell's centre and for its
+    smallest corner, and the disc of the tips the end's poses may have (module docstring).
+
+    Attributes:
+        px, py: The end at the cell's centre [m].
+        px0, py0: The end at the cell's smallest corner (L0[, x0][, d0]), where a witness must end [m].
+        dist, psi: The end at the centre in polar form [m], [rad].
+        rho: The disc's radius [m] (:func:`_disc_radius`).
+        spread: The half angle [rad] under which the disc is seen from the base.
+    """
+
+    px: np.ndarray
+    py: np.ndarray
+    px0: np.ndarray
+    py0: np.ndarray
+    dist: np.ndarray
+    psi: np.ndarray
+    rho: np.ndarray
+    spread: np.ndarray
+
+    @classmethod
+    def at(cls, model: RangeModel, center: np.ndarray, corner: np.ndarray, rho: np.ndarray, side: float) -> _EndDisc:
+        """The end on ``side`` (+1: P1, -1: P5) of cells with centres ``center`` and smallest corners
+        ``corner`` ((n, k) [m]) and disc radii ``rho`` [m]."""
+        xi, di = model.x_column, model.d_column
+        px = side * (center[:, 0] / 2 + model.scene.start_dx_m)
+        px0 = side * (corner[:, 0] / 2 + model.scene.start_dx_m)
+        if xi is not None:  # P1, P5 move with the obstacle's centre x
+            px, px0 = px + center[:, xi], px0 + corner[:, xi]
+        py = np.full(center.shape[0], model.scene.y1_m) if di is None else center[:, di]  # y1 = d with a d axis
+        py0 = py if di is None else corner[:, di]
+        dist = np.hypot(px, py)
+        spread = np.arcsin(np.minimum(rho / dist, 1.0))
+        return cls(px, py, px0, py0, dist, np.arctan2(py, px), rho, spread)
+
+
+def _corner_witnesses(
+    model: RangeModel, disc: _EndDisc, obstacles: tuple[np.ndarray, np.ndarray | None, np.ndarray], margin_m: float
+) -> np.ndarray:
+    """Per cell, whether the pose with its tip exactly at the end of the smallest corner
+    P(L0[, x0][, d0]) clears ``margin_m`` [m] against that corner's obstacle O(L0, W0[, x0][, d0]):
+    a witness. ``obstacles`` as :func:`_cell_obstacles` returns them."""
+    bound_lw, witness_lw, _ = obstacles
+    dist0, psi0 = np.hypot(disc.px0, disc.py0), np.arctan2(disc.py0, disc.px0)
+    _, exact_c, _, _ = _pose_box_upper_bounds(model, dist0, dist0, psi0, psi0, bound_lw, witness_lw)
+    return exact_c >= margin_m
+
+
+def _polar_search(
+    model: RangeModel,
+    disc: _EndDisc,
+    obstacles: tuple[np.ndarray, np.ndarray | None, np.ndarray],
+    witnessed: np.ndarray,
+    limits: tuple[float, float],
+    max_depth: int,
+    moved: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The branch and bound over polar boxes (r, psi) of the tips of one end's poses, per cell: the
+    upper bound [m] on their clearance, the boxes cut in quarters while it is at or above the margin
+    and no witness is found (``witnessed`` updated in place), down to :data:`_POLAR_RESOLUTION_M`,
+    ``max_depth`` or :data:`_MAX_SUB_BOXES`.
+
+    Args:
+        limits: (endpoint tolerance, clearance margin) [m].
+        moved: Whether the cells move the obstacle (x or d axes): then :func:`_floored` applies.
+
+    Returns:
+        (the bound per cell [m], the floor per cell [m]: with x or d, the clearance against O* of a
+        pose of the disc, -inf where none was found).
+    """
+    tolerance_m, margin_m = limits
+    bound_lw, witness_lw, degenerate = obstacles
+    n = disc.dist.size
+    boxes = _initial_polar_boxes(disc, degenerate)
+    best = np.full(n, -np.inf)
+    floor = np.full(n, -np.inf)  # with x or d: the clearance against O* of a pose of the disc
+    for depth in range(max_depth + 1):
+        owner, r_lo, r_hi, p_lo, p_hi = boxes
+        upper, centre_c, tip, bound_c = _pose_box_upper_bounds(
+            model, r_lo, r_hi, p_lo, p_hi, bound_lw[owner], None if witness_lw is None else witness_lw[owner]
+        )
+        # A witness needs its tip within the tolerance of P(L0), the corner's own end point.
+        in_set = np.hypot(tip[:, 0] - disc.px0[owner], tip[:, 1] - disc.py0[owner]) <= tolerance_m
+        hit = in_set & (centre_c >= margin_m)
+        np.logical_or.at(witnessed, owner[hit], True)
+        # Sub-boxes of the polar box that miss the disc hold no pose of the set.
+        gap = _sector_distance(disc.dist[owner], disc.psi[owner], r_lo, r_hi, p_lo, p_hi)
+        upper = np.where(gap <= disc.rho[owner] * (1 + 1e-12), upper, -np.inf)
+        open_ = (upper >= margin_m) & ~witnessed[owner]
+        if moved:
+            upper, open_ = _floored(disc, owner, (tip, bound_c), (upper, open_), floor, margin_m)
+        closed = ~open_ | (depth == max_depth)
+        np.maximum.at(best, owner[closed], upper[closed])
+        fine = (r_hi - r_lo < _POLAR_RESOLUTION_M) & (r_hi * (p_hi - p_lo) < _POLAR_RESOLUTION_M)
+        np.maximum.at(best, owner[open_ & fine], upper[open_ & fine])
+        keep = open_ & ~fine & (depth < max_depth)
+        if np.count_nonzero(keep) > _MAX_SUB_BOXES:  # memory cap: close the rest with their (valid) bounds
+            np.maximum.at(best, owner[keep], upper[keep])
+            keep[:] = False
+        if not np.any(keep):
+            break
+        boxes = _quartered(tuple(a[keep] for a in boxes))
+    return best, floor
+
+
+def _initial_polar_boxes(disc: _EndDisc, degenerate: np.ndarray) -> tuple[np.ndarray, ...]:
+    """One polar box per cell around its disc: (owner cell, r_lo, r_hi [m], psi_lo, psi_hi [rad]);
+    none for the cells without O* (no bound: +inf)."""
+    boxes = (
+        np.arange(disc.dist.size),
+        disc.dist - disc.rho,
+        disc.dist + disc.rho,
+        disc.psi - disc.spread,
+        disc.psi + disc.spread,
+    )
+    if np.any(degenerate):
+        boxes = tuple(a[~degenerate] for a in boxes)
+    return boxes
+
+
+def _floored(
+    disc: _EndDisc,
+    owner: np.ndarray,
+    poses: tuple[np.ndarray, np.ndarray],
+    boxes: tuple[np.ndarray, np.ndarray],
+    floor: np.ndarray,
+    margin_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """With x or d: a pose with its tip in the disc that clears the margin against O* keeps the bound
+    at or above the margin however far the sub-boxes are cut (module docstring): the end is not
+    proven, its value is its ``floor`` (raised in place) and its sub-boxes are closed.
+
+    Args:
+        disc: The end's disc per cell; ``owner`` the cell of each sub-box.
+        poses: Each sub-box's centre pose's tip (m, 2) [m] and its clearance against O* [m].
+        boxes: The sub-boxes' bounds [m] and which are open.
+        margin_m: The clearance margin [m].
+
+    Returns:
+        The sub-boxes' bounds [m] and which stay open.
+    """
+    tip, bound_c = poses
+    upper, open_ = boxes
+    in_disc = np.hypot(tip[:, 0] - disc.px[owner], tip[:, 1] - disc.py[owner]) <= disc.rho[owner]
+    stuck = in_disc & (bound_c >= margin_m)
+    np.maximum.at(floor, owner[stuck], bound_c[stuck])
+    blocked = floor[owner] >= margin_m
+    return np.where(blocked, -np.inf, upper), open_ & ~blocked
+
+
+def _quartered(boxes: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """Each polar box (owner, r_lo, r_hi [m], psi_lo, psi_hi [rad]) cut in four at its midpoints."""
+    owner, r_lo, r_hi, p_lo, p_hi = boxes
+    r_mid, p_mid = (r_lo + r_hi) / 2, (p_lo + p_hi) / 2
+    return (
+        np.repeat(owner, 4),
+        np.stack([r_lo, r_lo, r_mid, r_mid], 1).ravel(),
+        np.stack([r_mid, r_mid, r_hi, r_hi], 1).ravel(),
+        np.stack([p_lo, p_mid, p_lo, p_mid], 1).ravel(),
+        np.stack([p_mid, p_hi, p_mid, p_hi], 1).ravel(),
+    )
 
 
 def infeasibility_upper_bounds(
