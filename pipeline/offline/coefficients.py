@@ -368,36 +368,9 @@ def fit_over_variables(
             columns; an endpoint constraint for a family that is exact by construction; or as
             :func:`pipeline.offline.regression.fit_quadratic_points`.
     """
-    variables = Variables.of(variables)
-    if variables.names[:2] != SIZE:
-        raise InvalidParameterError("variables", variables.names, "variables that hold L and W")
-    if variables.is_size_only:
-        variables = DEFAULT_VARIABLES  # the instance an (L, W) Coefficients carries (its fast route)
-        points = np.column_stack([doe.lengths_m, doe.widths_m])
-    else:
-        points = np.asarray(doe.points, dtype=float)
-        if points.shape[1:] != (variables.k,):
-            raise InvalidParameterError("variables", variables.names, f"the DOE's {doe.variables.names}")
+    variables, points = _fit_points(doe, variables)
     fitted_range = {name: (float(fitted_range_m[name][0]), float(fitted_range_m[name][1])) for name in variables.names}
-    free = doe.free_parameters()
-    if endpoint_constraint is None:
-        fit = fit_quadratic_points(points, free, variables)
-        method = {"regression": "least squares"}
-    elif doe.family.pins_endpoints:
-        raise InvalidParameterError(
-            "endpoint_constraint", endpoint_constraint, f"None for the {doe.family.name} family (exact by construction)"
-        )
-    else:
-        targets = endpoint_targets(
-            fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.grid_points, variables
-        )
-        check = None
-        if endpoint_constraint.check_points:
-            check = endpoint_targets(
-                fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.check_points, variables
-            )
-        fit, report = fit_points_with_endpoints(points, free, targets, endpoint_constraint, check)
-        method = {"regression": "least squares + endpoint constraint", "endpoint_constraint": report}
+    fit, method = _fit_free_parameters(doe, points, variables, fitted_range, endpoint_constraint)
     quality = {
         "r_squared": fit.r_squared,
         "loo_rmse": fit.loo_rmse,
@@ -417,3 +390,52 @@ def fit_over_variables(
         variables=variables,
     )
     return coefficients, fit
+
+
+def _fit_points(doe, variables: Variables) -> tuple[Variables, np.ndarray]:
+    """The variables of the fit and the DOE's runs over them, (n, k) [m]: for (L, W) the instance an
+    (L, W) :class:`Coefficients` carries (its fast route) and the DOE's lengths and widths.
+
+    Raises:
+        InvalidParameterError: ``variables`` without L and W first, or other than the DOE's columns.
+    """
+    variables = Variables.of(variables)
+    if variables.names[:2] != SIZE:
+        raise InvalidParameterError("variables", variables.names, "variables that hold L and W")
+    if variables.is_size_only:
+        return DEFAULT_VARIABLES, np.column_stack([doe.lengths_m, doe.widths_m])
+    points = np.asarray(doe.points, dtype=float)
+    if points.shape[1:] != (variables.k,):
+        raise InvalidParameterError("variables", variables.names, f"the DOE's {doe.variables.names}")
+    return variables, points
+
+
+def _fit_free_parameters(
+    doe,
+    points: np.ndarray,
+    variables: Variables,
+    fitted_range: dict[str, tuple[float, float]],
+    endpoint_constraint: EndpointConstraint | None,
+) -> tuple[QuadraticFit, dict]:
+    """The quadratic fit of the DOE's free parameters on its runs ``points`` (n, k) [m], by plain
+    least squares or with the endpoint errors held over ``fitted_range`` [m], and how it was fitted
+    (the coefficients' ``fit`` method keys).
+
+    Raises:
+        InvalidParameterError: an endpoint constraint for a family that is exact by construction.
+    """
+    free = doe.free_parameters()
+    if endpoint_constraint is None:
+        return fit_quadratic_points(points, free, variables), {"regression": "least squares"}
+    if doe.family.pins_endpoints:
+        raise InvalidParameterError(
+            "endpoint_constraint", endpoint_constraint, f"None for the {doe.family.name} family (exact by construction)"
+        )
+    targets = endpoint_targets(fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.grid_points, variables)
+    check = None
+    if endpoint_constraint.check_points:
+        check = endpoint_targets(
+            fitted_range, doe.scene, doe.link_lengths_m, endpoint_constraint.check_points, variables
+        )
+    fit, report = fit_points_with_endpoints(points, free, targets, endpoint_constraint, check)
+    return fit, {"regression": "least squares + endpoint constraint", "endpoint_constraint": report}
