@@ -376,61 +376,156 @@ def run_sweep(
     """
     settings = settings or MeasureSettings()
     coefficients = coefficients if coefficients is not None else load_coefficients(source, region_map=None)
+    fitted, chosen = _sweep_ranges(coefficients, sweep_range)
+    variables = coefficients.variables
+    cases = sample_cases(chosen, n, seed) if cases_m is None else _cases_array(cases_m, variables.names)
+    arm = _sweep_arm(coefficients, arm, urdf_path, chosen)
+    plan = _SweepPlan(source, label or source_label(source), coefficients, arm, settings, fitted, chosen)
+    start = time.perf_counter()
+    results = plan.measure(cases, jobs, progress, region_map)
+    elapsed = time.perf_counter() - start
+    studies = measure_case_studies(coefficients, arm, settings, fitted) if case_studies else ()
+    provenance = plan.provenance(seed, len(results), cases_m is not None, sweep_range is None, argv)
+    return plan.sweep_run(results, studies, provenance, (elapsed, jobs), (region_map, region_map_path))
+
+
+def _sweep_ranges(coefficients: Coefficients, sweep_range: SweepRange | None) -> tuple[SweepRange, SweepRange]:
+    """The coefficients' fitted range and the range to sample (``sweep_range``, default the fitted one).
+
+    Raises:
+        InvalidParameterError: a sweep range over other variables than the coefficients'.
+    """
     variables = coefficients.variables
     fitted = SweepRange.from_fitted(coefficients.fitted_range_m, variables.names)
     chosen = sweep_range or fitted
     if chosen.names != variables.names:
         wanted = ", ".join(variables.names)
         raise InvalidParameterError("sweep range", list(chosen.names), f"a range over the variables {wanted}")
-    cases = sample_cases(chosen, n, seed) if cases_m is None else _cases_array(cases_m, variables.names)
+    return fitted, chosen
+
+
+def _sweep_arm(
+    coefficients: Coefficients, arm: PlanarArm | None, urdf_path: str | None, chosen: SweepRange
+) -> PlanarArm:
+    """The sweep's arm (``arm``, checked against the coefficients, or the one of ``urdf_path`` or of
+    the coefficients' record); the obstacles at the low and the high corner of ``chosen`` built
+    first, so that impossible sizes fail early.
+
+    Raises:
+        PipelineError: coefficients fitted for another arm, or an impossible obstacle.
+    """
     if arm is None:
         arm = arm_for_sweep(coefficients, urdf_path)
     else:
         check_arm_matches(coefficients, arm)
+    variables = coefficients.variables
     for corner in zip(*chosen.ranges_m, strict=True):  # the low and the high corner
         scene = variables.scene_for(coefficients.scene, dict(zip(variables.extra, corner[2:], strict=True)))
         Obstacle.in_scene(corner[0], corner[1], scene)  # fails early on impossible sizes
-    name = label or source_label(source)
-    start = time.perf_counter()
-    results = run_cases(
-        source,
-        cases,
-        settings,
-        jobs=jobs,
-        progress=progress,
-        label=name,
-        coefficients=coefficients,
-        arm=arm,
-        region_map=region_map,
-    )
-    elapsed = time.perf_counter() - start
-    studies = measure_case_studies(coefficients, arm, settings, fitted) if case_studies else ()
-    provenance = _provenance(source, coefficients, chosen, fitted, settings, seed=seed, n_cases=len(results), arm=arm)
-    provenance.update(
-        cases_given_explicitly=cases_m is not None,
-        range_is_fitted_range=sweep_range is None,
-        command=list(argv) if argv is not None else None,
-    )
-    return SweepRun(
-        label=name,
-        source=source,
-        cases=results,
-        case_studies=studies,
-        summary=summarize(results, settings.thresholds),
-        provenance=json_safe(provenance),
-        sweep_range=chosen,
-        fitted_range=fitted,
-        elapsed_s=elapsed,
-        jobs=resolve_jobs(jobs),
-        settings=settings,
-        range_check=(
-            None
-            if region_map is None
-            else check_range(
-                region_map, coefficients, results, settings, path=region_map_path, dynamics=dynamics_of(arm)
-            )
-        ),
-    )
+    return arm
+
+
+@dataclass(frozen=True)
+class _SweepPlan:
+    """What one sweep judges, checked before any case is measured.
+
+    Attributes:
+        source: Coefficients file or the paper's name.
+        label: Name of the run.
+        coefficients: The coefficients.
+        arm: The arm (checked against the coefficients).
+        settings: Measurement settings.
+        fitted: The coefficients' fitted range.
+        chosen: The sampled range.
+    """
+
+    source: str
+    label: str
+    coefficients: Coefficients
+    arm: PlanarArm
+    settings: MeasureSettings
+    fitted: SweepRange
+    chosen: SweepRange
+
+    def measure(
+        self, cases: np.ndarray, jobs: int, progress: bool, region_map: RegionMap | None
+    ) -> tuple[CaseResult, ...]:
+        """:func:`run_cases` on ``cases`` (n, k) [m] with ``jobs`` worker processes."""
+        return run_cases(
+            self.source,
+            cases,
+            self.settings,
+            jobs=jobs,
+            progress=progress,
+            label=self.label,
+            coefficients=self.coefficients,
+            arm=self.arm,
+            region_map=region_map,
+        )
+
+    def provenance(
+        self, seed: int, n_cases: int, cases_given: bool, range_is_fitted: bool, argv: Sequence[str] | None
+    ) -> dict[str, Any]:
+        """:func:`_provenance` with what only :func:`run_sweep` knows: whether the cases were given
+        and the range is the fitted one, and the command line."""
+        provenance = _provenance(
+            self.source,
+            self.coefficients,
+            self.chosen,
+            self.fitted,
+            self.settings,
+            seed=seed,
+            n_cases=n_cases,
+            arm=self.arm,
+        )
+        provenance.update(
+            cases_given_explicitly=cases_given,
+            range_is_fitted_range=range_is_fitted,
+            command=list(argv) if argv is not None else None,
+        )
+        return provenance
+
+    def sweep_run(
+        self,
+        results: tuple[CaseResult, ...],
+        studies: tuple[CaseResult, ...],
+        provenance: dict[str, Any],
+        timing: tuple[float, int],
+        region: tuple[RegionMap | None, str | None],
+    ) -> SweepRun:
+        """The :class:`SweepRun` of the measured ``results`` and case ``studies``.
+
+        Args:
+            timing: The measuring's wall time [s] and the ``jobs`` asked for.
+            region: The region map to cross-check the cases against (or None) and its file.
+        """
+        elapsed, jobs = timing
+        region_map, region_map_path = region
+        return SweepRun(
+            label=self.label,
+            source=self.source,
+            cases=results,
+            case_studies=studies,
+            summary=summarize(results, self.settings.thresholds),
+            provenance=json_safe(provenance),
+            sweep_range=self.chosen,
+            fitted_range=self.fitted,
+            elapsed_s=elapsed,
+            jobs=resolve_jobs(jobs),
+            settings=self.settings,
+            range_check=(
+                None
+                if region_map is None
+                else check_range(
+                    region_map,
+                    self.coefficients,
+                    results,
+                    self.settings,
+                    path=region_map_path,
+                    dynamics=dynamics_of(self.arm),
+                )
+            ),
+        )
 
 
 def measure_case_studies(
