@@ -553,6 +553,72 @@ def run_bench(
     """
     started = time.perf_counter()
     machine = machine_info()  # load average at the start
+    ready = _prepared(source, settings, log, (coefficients, arm, coefficients_x), progress)
+    ctx, config, pso_source = ready.ctx, ready.config, ready.pso_source
+    measured = _measured_methods(ctx, ready.bench_map, config, pso_source, ready.coefficients_x)
+    build_info = _build_info(ctx, ready.build_timing, config)
+    settings_json = {key: (str(value) if isinstance(value, Path) else value) for key, value in asdict(settings).items()}
+    settings_json.update(pso_resolved=asdict(config.pso), polish=config.polish, pso_settings_source=pso_source)
+    coefficients = ctx.coefficients
+    return BenchReport(
+        coefficients={
+            "source": source,
+            "family": coefficients.family.name,
+            "sha256": coefficients.source_sha256,
+            "fitted_range_m": {k: list(v) for k, v in coefficients.fitted_range_m.items()},
+        },
+        settings=settings_json,
+        cases_m=ctx.cases,
+        margin_m=ctx.margin_m,
+        methods=tuple(measured.methods),
+        skipped=measured.skipped,
+        sweep=measured.sweep,
+        build=build_info,
+        range_map=ready.bench_map.to_json(),
+        machine=machine,
+        command=command,
+        elapsed_s=time.perf_counter() - started,
+        over_x=measured.over_x,
+        near_optimal=measured.near_optimal,
+    )
+
+
+@dataclass(frozen=True)
+class _Prepared:
+    """What :func:`run_bench` reads and checks before minutes of work.
+
+    Attributes:
+        ctx: What every method shares (coefficients, arm, cases, margin, settings, log).
+        build_timing: The build timing file's contents (None if none is named).
+        config: The PSO and fitness settings of (c) and a build; ``pso_source`` where they came from.
+        bench_map: The region map of the coefficients (read, or certified in-process).
+        coefficients_x: Coefficients over (L, W, x) for their rows (None: those rows are left out).
+    """
+
+    ctx: _Context
+    build_timing: dict[str, Any] | None
+    config: SolverConfig
+    pso_source: str
+    bench_map: BenchRegionMap
+    coefficients_x: Coefficients | None
+
+
+def _prepared(
+    source: str,
+    settings: BenchSettings,
+    log: Callable[[str], None],
+    loaded: tuple[Coefficients | None, PlanarArm | None, Coefficients | None],
+    progress: ProgressCallback | None,
+) -> _Prepared:
+    """The benchmark's inputs, every file read and checked in the order that reports a bad one
+    before minutes of work: the coefficients, the arm, the cases, the build timing, a named region
+    map, the coefficients over (L, W, x); last the map beside the coefficients, or certified.
+
+    Args:
+        loaded: The coefficients, arm and coefficients over (L, W, x) already loaded (each optional),
+            as :func:`run_bench` takes them.
+    """
+    coefficients, arm, coefficients_x = loaded
     if coefficients is None:
         coefficients = load_coefficients(source, region_map=None if settings.region_map is not None else BESIDE)
     if arm is None:
@@ -572,7 +638,40 @@ def run_bench(
         coefficients_x = None if path_x is None else over_x.timed_load(path_x, arm, log)
     if bench_map is None:  # the map beside the coefficients, or certified in-process (minutes)
         bench_map = bench_region_map(coefficients, None, log=log, progress=progress, arm=arm)
-    rows = _time_per_query(ctx, bench_map, coefficients_x if settings.run_x else None)
+    return _Prepared(ctx, timing, config, pso_source, bench_map, coefficients_x if settings.run_x else None)
+
+
+@dataclass(frozen=True)
+class _Measured:
+    """The methods :func:`run_bench` timed, with what the report says beside them.
+
+    Attributes:
+        methods: Every method's result, in the order they ran.
+        skipped: Method key -> why it was skipped.
+        sweep: Sweep rates.
+        near_optimal: (n*) against TOPP-RA (None if (n*) did not run).
+        over_x: The rows over (L, W, x) (None if they did not run).
+    """
+
+    methods: list[MethodResult]
+    skipped: dict[str, str]
+    sweep: dict[str, Any] | None
+    near_optimal: dict[str, Any] | None
+    over_x: dict[str, Any] | None
+
+
+def _measured_methods(
+    ctx: _Context,
+    bench_map: BenchRegionMap,
+    config: SolverConfig,
+    pso_source: str,
+    coefficients_x: Coefficients | None,
+) -> _Measured:
+    """Every method on the same obstacles, in turn: the per-query rows, the sweep and the generator,
+    the range certificate's rows, rest-to-rest, (b), (n*) and TOPP-RA, (c) the PSO, (d) OMPL, and
+    the rows over (L, W, x) if ``coefficients_x`` is given."""
+    settings = ctx.settings
+    rows = _time_per_query(ctx, bench_map, coefficients_x)
     methods, sweep_info, answers_a = _sweep_and_generator(ctx, rows["a"])
     methods.extend(_range_methods(ctx, bench_map, answers_a, rows["a_range"]))
     methods.extend(_rest_to_rest_methods(ctx, bench_map))
@@ -586,34 +685,11 @@ def run_bench(
         skipped["c"] = "--pso-cases 0"
     methods.extend(_ompl_methods(ctx, skipped))
     info_x = None
-    if settings.run_x and coefficients_x is not None:
+    if coefficients_x is not None:
         methods_x, info_x = over_x.x_methods(
-            rows[over_x.KEY], arm, settings, log=log, skipped=skipped, ompl_margin_m=settings.ompl_margin_m
+            rows[over_x.KEY], ctx.arm, settings, log=ctx.log, skipped=skipped, ompl_margin_m=settings.ompl_margin_m
         )
         methods.extend(methods_x)
     else:
         skipped[over_x.KEY] = over_x.missing_reason(settings)
-    build_info = _build_info(ctx, timing, config)
-    settings_json = {key: (str(value) if isinstance(value, Path) else value) for key, value in asdict(settings).items()}
-    settings_json.update(pso_resolved=asdict(config.pso), polish=config.polish, pso_settings_source=pso_source)
-    return BenchReport(
-        coefficients={
-            "source": source,
-            "family": coefficients.family.name,
-            "sha256": coefficients.source_sha256,
-            "fitted_range_m": {k: list(v) for k, v in coefficients.fitted_range_m.items()},
-        },
-        settings=settings_json,
-        cases_m=cases,
-        margin_m=ctx.margin_m,
-        methods=tuple(methods),
-        skipped=skipped,
-        sweep=sweep_info,
-        build=build_info,
-        range_map=bench_map.to_json(),
-        machine=machine,
-        command=command,
-        elapsed_s=time.perf_counter() - started,
-        over_x=info_x,
-        near_optimal=near_summary,
-    )
+    return _Measured(methods, skipped, sweep_info, near_summary, info_x)
