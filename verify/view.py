@@ -69,6 +69,16 @@ def build_parser() -> argparse.ArgumentParser:
         description="Show a generated trajectory around the rounded obstacle in Meshcat (live on "
         "127.0.0.1, as a self-contained HTML file, or as a PNG screenshot).",
     )
+    _add_trajectory_arguments(parser)
+    _add_output_arguments(parser)
+    _add_joint_plot_arguments(parser)
+    _add_scene_arguments(parser)
+    return parser
+
+
+def _add_trajectory_arguments(parser: argparse.ArgumentParser) -> None:
+    """Which trajectory to show: the obstacle (L, W [m] and the scene variables), the coefficients
+    or the paper's Test 1, and the arm's URDF."""
     parser.add_argument(
         "--L", type=float, metavar="METRES", help="obstacle length L [m], > 0 (required unless --paper-test1)"
     )
@@ -94,6 +104,10 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="URDF of the arm (default: the one recorded with the coefficients; given, it must match them)",
     )
+
+
+def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where it goes instead of a live server: an HTML file, a PNG screenshot or a joint plot."""
     output = parser.add_mutually_exclusive_group()
     output.add_argument(
         "--html",
@@ -114,6 +128,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="write a PNG of q, dq, ddq and tau (RNEA) against time, with the arm's limits and the certified "
         "bounds, instead of the scene (certifies the answer: exit 1 if refused)",
     )
+
+
+def _add_joint_plot_arguments(parser: argparse.ArgumentParser) -> None:
+    """The joint plot's timing and limits (acceleration [rad/s^2], jerk [rad/s^3])."""
     parser.add_argument(
         "--timing",
         choices=("near-optimal", "rest-to-rest", "paper"),
@@ -128,6 +146,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_jerk_limit_argument(
         parser, "--joint-plot's limits (default: none; the near-optimal timing fills in the acceleration limit / 50 ms)"
     )
+
+
+def _add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    """How the scene is drawn and served: screenshot size [px], style, serving time [s], frame rate
+    [1/s], samples per path and autoplay."""
     parser.add_argument(
         "--size", type=_size, default=(1200, 800), metavar="WxH", help="screenshot size [px] (default: 1200x800)"
     )
@@ -153,7 +176,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--no-play", action="store_true", help="do not start the animation on load (default: it plays once)"
     )
-    return parser
 
 
 def _check_args(args: argparse.Namespace) -> None:
