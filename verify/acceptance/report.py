@@ -52,10 +52,30 @@ def _over(run: SweepRun) -> str:
 
 
 def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
+    """The summary's (label, text) rows: what was swept, the verdicts, the joints, the sampling, the
+    region map's check, the speed and the errors."""
     s = run.summary
-    t = run.settings.thresholds
     n = s.n_cases
-    rows = [
+    rows = _swept_rows(run) + _verdict_rows(run)
+    if s.peak_velocity_max_rad_s is not None and s.peak_acceleration_max_rad_s2 is not None:
+        measured = n - s.n_errors
+        rows.append(_joints_row(s, measured))
+        rows += _rest_to_rest_rows(s, measured)
+    rows.append(_sampling_row(run))
+    if run.range_check is not None:
+        rows += _map_rows(run.range_check)
+    rate = n / run.elapsed_s if run.elapsed_s > 0 else float("inf")
+    rows.append(("speed", f"{run.elapsed_s:.1f} s, {rate:.1f} cases/s with {run.jobs} job(s)"))
+    if s.n_errors:
+        rows.append(("errors", f"{s.n_errors} cases could not be generated"))
+    return rows
+
+
+def _swept_rows(run: SweepRun) -> list[tuple[str, str]]:
+    """The coefficients, the cases and range swept, and how many lie outside the fitted range."""
+    s = run.summary
+    n = s.n_cases
+    return [
         (
             "coefficients",
             f"{run.source} (family {run.provenance['coefficients']['family']}, "
@@ -71,6 +91,15 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
             f"{s.n_extrapolated} / {n} cases outside the fitted range "
             + ", ".join(f"{name} [{lo:.4f}, {hi:.4f}] m" for name, (lo, hi) in _ranges(run.fitted_range)),
         ),
+    ]
+
+
+def _verdict_rows(run: SweepRun) -> list[tuple[str, str]]:
+    """The cases passed, collision-free and keeping the margin; clearance, endpoint and tracking errors."""
+    s = run.summary
+    t = run.settings.thresholds
+    n = s.n_cases
+    return [
         ("PASSED", f"{s.n_passed} / {n} ({100.0 * (s.pass_rate or 0.0):.1f} %)"),
         (
             "collision-free",
@@ -100,45 +129,41 @@ def _summary_rows(run: SweepRun) -> list[tuple[str, str]]:
             f"RMS median {_mm(s.tracking_rms.median, 2)}",
         ),
     ]
-    if s.peak_velocity_max_rad_s is not None and s.peak_acceleration_max_rad_s2 is not None:
-        measured = n - s.n_errors
-        rows.append(
-            (
-                "joints",
-                "speed peak ({:.3f}, {:.3f}) rad/s, acceleration peak ({:.3f}, {:.3f}) rad/s^2, "
-                "certified torque bound ({:.4f}, {:.4f}) N m (paper timing); {} / {} within the URDF limits".format(
-                    *s.peak_velocity_max_rad_s,
-                    *s.peak_acceleration_max_rad_s2,
-                    *(s.torque_bound_max_n_m or (float("nan"), float("nan"))),
-                    s.n_within_joint_limits,
-                    measured,
-                ),
-            )
-        )
-        rows += _rest_to_rest_rows(s, measured)
-    rows.append(
-        (
-            "sampling",
-            f"{_samples(s.time_samples_range)} clearance samples per case"
-            + (
-                " (the certificate's)"
-                if run.settings.certify
-                else f" ({run.settings.resolution_m * 1e3:g} mm motion resolution)"
-                if run.settings.time_samples is None
-                else " (fixed by --samples)"
-            )
-            + f", certificate {run.settings.certificate_mode}, tolerance "
-            f"{run.settings.tolerance_m * 1e3:g} mm, {s.certificate_evaluations_total} clearance evaluations"
-            + (f", {s.n_certificate_not_converged} not converged" if s.n_certificate_not_converged else ""),
-        )
+
+
+def _joints_row(s: SweepSummary, measured: int) -> tuple[str, str]:
+    """The joints' speed and acceleration peaks, the certified torque bound (paper timing) and the
+    cases within the URDF's limits, of the ``measured`` cases."""
+    return (
+        "joints",
+        "speed peak ({:.3f}, {:.3f}) rad/s, acceleration peak ({:.3f}, {:.3f}) rad/s^2, "
+        "certified torque bound ({:.4f}, {:.4f}) N m (paper timing); {} / {} within the URDF limits".format(
+            *s.peak_velocity_max_rad_s,
+            *s.peak_acceleration_max_rad_s2,
+            *(s.torque_bound_max_n_m or (float("nan"), float("nan"))),
+            s.n_within_joint_limits,
+            measured,
+        ),
     )
-    if run.range_check is not None:
-        rows += _map_rows(run.range_check)
-    rate = n / run.elapsed_s if run.elapsed_s > 0 else float("inf")
-    rows.append(("speed", f"{run.elapsed_s:.1f} s, {rate:.1f} cases/s with {run.jobs} job(s)"))
-    if s.n_errors:
-        rows.append(("errors", f"{s.n_errors} cases could not be generated"))
-    return rows
+
+
+def _sampling_row(run: SweepRun) -> tuple[str, str]:
+    """The clearance samples per case, the certificate's mode and tolerance, and its evaluations."""
+    s = run.summary
+    return (
+        "sampling",
+        f"{_samples(s.time_samples_range)} clearance samples per case"
+        + (
+            " (the certificate's)"
+            if run.settings.certify
+            else f" ({run.settings.resolution_m * 1e3:g} mm motion resolution)"
+            if run.settings.time_samples is None
+            else " (fixed by --samples)"
+        )
+        + f", certificate {run.settings.certificate_mode}, tolerance "
+        f"{run.settings.tolerance_m * 1e3:g} mm, {s.certificate_evaluations_total} clearance evaluations"
+        + (f", {s.n_certificate_not_converged} not converged" if s.n_certificate_not_converged else ""),
+    )
 
 
 def _room_text(room: dict[str, Pair | None]) -> str:
