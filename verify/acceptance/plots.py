@@ -23,7 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.cm import ScalarMappable
-from matplotlib.collections import PolyCollection
+from matplotlib.collections import PathCollection, PolyCollection
 from matplotlib.colors import LinearSegmentedColormap, Normalize, TwoSlopeNorm
 from matplotlib.patches import FancyBboxPatch, Patch, Rectangle
 
@@ -347,56 +347,87 @@ def plot_slices(
     value_of = np.array([c.extra_values.get(name, np.nan) for c in cases], dtype=float)
     lw_mm = np.array([[c.L_m, c.W_m] for c in cases], dtype=float).reshape(-1, 2) * 1e3
     clearance = np.array([np.nan if c.clearance_m is None else c.clearance_m for c in cases], dtype=float) * 1e3
-    finite = clearance[np.isfinite(clearance)]
     centre = margin_m * 1e3
-    if finite.size and finite.min() < centre < finite.max():
-        norm: Normalize = TwoSlopeNorm(vcenter=centre, vmin=float(finite.min()), vmax=float(finite.max()))
-    else:
-        top = float(finite.max()) if finite.size else 1.0
-        low = float(finite.min()) if finite.size else 0.0
-        norm = Normalize(vmin=low, vmax=top if top > low else low + 1e-9)
+    norm = _clearance_norm(clearance, centre)
     rgb = leaf_drawing(region_map).rgb if region_map is not None else None
     full = np.array([*sweep_range.L_m, *sweep_range.W_m]) * 1e3
     points = None
     for j, (value, (a, b)) in enumerate(zip(values, slabs, strict=True)):
         last = j == len(values) - 1
         near = (value_of >= a) & ((value_of <= b) if last else (value_of < b))
-        shown = lw_mm[near]
         wrong = np.array([c.index in bad for c in cases], dtype=bool) & near
-        label = f"{name} = {value * 1e3:.1f} mm"
-        slab = f"{name} in [{a * 1e3:.1f}, {b * 1e3:.1f}] mm"
         if region_map is not None and rgb is not None:
-            ax = axes[0, j]
-            fractions = _draw_slice_leaves(ax, region_map, rgb, (value, *others))
-            ax.scatter(shown[:, 0], shown[:, 1], s=3, color="black", linewidths=0)
-            text = ", ".join(f"{k.replace('_', '-')} {100 * v:.1f} %" for k, v in fractions.items() if v > 0)
-            ax.set_title(f"map at {label}\n{text}", fontsize=8)
-        ax = axes[rows - 1, j]
-        ok = near & np.isfinite(clearance)
-        points = ax.scatter(lw_mm[ok, 0], lw_mm[ok, 1], c=clearance[ok], cmap="RdYlGn", norm=norm, s=10, linewidths=0)
-        missing = near & ~np.isfinite(clearance)
-        if missing.any():
-            ax.scatter(lw_mm[missing, 0], lw_mm[missing, 1], marker="x", color="0.5", s=20, label="not generated")
-        ax.set_title(f"sampled clearance, {int(near.sum())} cases with {slab}", fontsize=8)
+            label = f"{name} = {value * 1e3:.1f} mm"
+            _draw_map_slice(axes[0, j], region_map, rgb, (value, *others), lw_mm[near], label)
+        slab = f"{name} in [{a * 1e3:.1f}, {b * 1e3:.1f}] mm"
+        points = _draw_clearance_slice(axes[rows - 1, j], lw_mm, clearance, near, norm, slab)
         for row in range(rows):
-            axis = axes[row, j]
-            if wrong.any():
-                axis.scatter(
-                    lw_mm[wrong, 0], lw_mm[wrong, 1], marker="x", s=50, color="red", label="contradict the map"
-                )
-            axis.set_xlim(full[0], full[1])
-            axis.set_ylim(full[2], full[3])
-            axis.set_xlabel("obstacle length L [mm]")
-            axis.set_ylabel("obstacle width W [mm]")
+            _finish_slice_axis(axes[row, j], lw_mm[wrong], full)
     fig.suptitle(title, fontsize=10)
     fig.subplots_adjust(
         left=0.06, right=0.9, top=0.9, bottom=0.16 if region_map is not None else 0.12, hspace=0.35, wspace=0.28
     )
+    _slice_keys(fig, axes[rows - 1, -1], points, centre, region_map is not None)
+    return save_figure(fig, path)
+
+
+def _clearance_norm(clearance_mm: np.ndarray, centre_mm: float) -> Normalize:
+    """The colour scale of the sampled clearances [mm]: centred on ``centre_mm`` (the margin) when it
+    lies between their least and largest finite values, else plainly over their range."""
+    finite = clearance_mm[np.isfinite(clearance_mm)]
+    if finite.size and finite.min() < centre_mm < finite.max():
+        return TwoSlopeNorm(vcenter=centre_mm, vmin=float(finite.min()), vmax=float(finite.max()))
+    top = float(finite.max()) if finite.size else 1.0
+    low = float(finite.min()) if finite.size else 0.0
+    return Normalize(vmin=low, vmax=top if top > low else low + 1e-9)
+
+
+def _draw_map_slice(
+    ax: plt.Axes, region_map: RegionMap, rgb: np.ndarray, at: tuple[float, ...], shown_mm: np.ndarray, label: str
+) -> None:
+    """One top-row panel of :func:`plot_slices`: the map's leaves at the extra axes' values ``at`` [m],
+    the slab's cases (L, W) [mm] as dots, and the statuses' area fractions in the title."""
+    fractions = _draw_slice_leaves(ax, region_map, rgb, at)
+    ax.scatter(shown_mm[:, 0], shown_mm[:, 1], s=3, color="black", linewidths=0)
+    text = ", ".join(f"{k.replace('_', '-')} {100 * v:.1f} %" for k, v in fractions.items() if v > 0)
+    ax.set_title(f"map at {label}\n{text}", fontsize=8)
+
+
+def _draw_clearance_slice(
+    ax: plt.Axes, lw_mm: np.ndarray, clearance_mm: np.ndarray, near: np.ndarray, norm: Normalize, slab: str
+) -> PathCollection:
+    """One bottom-row panel of :func:`plot_slices`: the sampled clearance [mm] of the cases ``near``
+    the slice over (L, W) [mm], the cases not generated as grey crosses; returns the coloured dots."""
+    ok = near & np.isfinite(clearance_mm)
+    points = ax.scatter(lw_mm[ok, 0], lw_mm[ok, 1], c=clearance_mm[ok], cmap="RdYlGn", norm=norm, s=10, linewidths=0)
+    missing = near & ~np.isfinite(clearance_mm)
+    if missing.any():
+        ax.scatter(lw_mm[missing, 0], lw_mm[missing, 1], marker="x", color="0.5", s=20, label="not generated")
+    ax.set_title(f"sampled clearance, {int(near.sum())} cases with {slab}", fontsize=8)
+    return points
+
+
+def _finish_slice_axis(axis: plt.Axes, wrong_mm: np.ndarray, full_mm: np.ndarray) -> None:
+    """A panel of :func:`plot_slices` finished: the cases that contradict the map (L, W) [mm] as red
+    crosses, the swept (L, W) box ``full_mm`` (L lo, L hi, W lo, W hi) [mm] as limits, axis labels."""
+    if wrong_mm.shape[0]:
+        axis.scatter(wrong_mm[:, 0], wrong_mm[:, 1], marker="x", s=50, color="red", label="contradict the map")
+    axis.set_xlim(full_mm[0], full_mm[1])
+    axis.set_ylim(full_mm[2], full_mm[3])
+    axis.set_xlabel("obstacle length L [mm]")
+    axis.set_ylabel("obstacle width W [mm]")
+
+
+def _slice_keys(
+    fig: plt.Figure, corner: plt.Axes, points: PathCollection | None, centre_mm: float, with_map: bool
+) -> None:
+    """The keys of :func:`plot_slices`: the clearance scale beside the bottom row's last panel
+    ``corner`` (centred on the ``centre_mm`` margin [mm]) and, ``with_map``, the map statuses' legend."""
     if points is not None:  # the clearance scale beside the bottom row
-        box = axes[rows - 1, -1].get_position()
+        box = corner.get_position()
         bar = fig.add_axes((box.x1 + 0.015, box.y0, 0.012, box.height))
-        fig.colorbar(points, cax=bar, label=f"sampled clearance [mm] (centre: {centre:g} mm margin)")
-    if region_map is not None:
+        fig.colorbar(points, cax=bar, label=f"sampled clearance [mm] (centre: {centre_mm:g} mm margin)")
+    if with_map:
         statuses = [Patch(color=STATUS_SHADES[k][0], label=k.replace("_", "-")) for k in STATUSES]
         fig.legend(
             handles=statuses,
@@ -406,7 +437,6 @@ def plot_slices(
             title="map status (darker = smaller clearance bound)",
             title_fontsize=8,
         )
-    return save_figure(fig, path)
 
 
 def draw_case_study(ax: plt.Axes, study: CaseStudy, arm: PlanarArm, *, snapshots: int = 7, title: str = "") -> None:
@@ -489,8 +519,18 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
+    written = _lw_maps(run, directory)
+    written += _region_map_plots(run, directory)
+    if run.case_studies:
+        written.append(_case_studies_plot(run, directory, urdf_path))
+    return written
+
+
+def _lw_maps(run: SweepRun, directory: Path) -> list[Path]:
+    """clearance_map.png and endpoint_error_map.png: the run's certified clearance and endpoint
+    error [mm] over (L, W), every case whatever its other variables."""
     margin_mm = run.settings.thresholds.margin_m * 1e3
-    written = [
+    return [
         plot_map(
             run.cases,
             lambda c: c.certified_clearance_m,
@@ -514,6 +554,12 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
             case_studies=run.case_studies,
         ),
     ]
+
+
+def _region_map_plots(run: SweepRun, directory: Path) -> list[Path]:
+    """slices.png for a sweep over more variables than (L, W) (with the checked map if it belongs);
+    region_map.png for a checked map over (L, W) that belongs to the run's coefficients."""
+    written = []
     check = run.range_check
     region_map = None if check is None else check.region_map
     if run.sweep_range.extra_m:
@@ -540,22 +586,24 @@ def write_plots(run: SweepRun, directory: Path, *, urdf_path: str | None = None)
                 violations=check.violations,
             )
         )
-    if run.case_studies:
-        coefficients = load_coefficients(run.source, region_map=None)
-        arm = load_planar_arm(urdf_path if urdf_path is not None else run.provenance["urdf"]["path"])
-        studies = []
-        for result in run.case_studies:
-            try:
-                generated = generate(coefficients, result.L_m, result.W_m, out_of_range="ignore", **result.extra_values)
-            except PipelineError:
-                continue
-            studies.append(CaseStudy(result, generated.trajectory, generated.path, generated.obstacle))
-        written.append(
-            plot_case_studies(
-                studies,
-                arm,
-                directory / "case_studies.png",
-                suptitle=f"{run.label}: four case studies inside the fitted range, off the DOE grid (cf. Fig. 5)",
-            )
-        )
     return written
+
+
+def _case_studies_plot(run: SweepRun, directory: Path, urdf_path: str | None) -> Path:
+    """case_studies.png: the run's case studies regenerated from its coefficients and drawn with its
+    arm (``urdf_path``, default the run's recorded URDF); cases that cannot be generated left out."""
+    coefficients = load_coefficients(run.source, region_map=None)
+    arm = load_planar_arm(urdf_path if urdf_path is not None else run.provenance["urdf"]["path"])
+    studies = []
+    for result in run.case_studies:
+        try:
+            generated = generate(coefficients, result.L_m, result.W_m, out_of_range="ignore", **result.extra_values)
+        except PipelineError:
+            continue
+        studies.append(CaseStudy(result, generated.trajectory, generated.path, generated.obstacle))
+    return plot_case_studies(
+        studies,
+        arm,
+        directory / "case_studies.png",
+        suptitle=f"{run.label}: four case studies inside the fitted range, off the DOE grid (cf. Fig. 5)",
+    )
