@@ -122,15 +122,31 @@ def x_methods(
     Returns:
         (the rows, the report's ``over_x``: coefficients, map and obstacles).
     """
-    coefficients, cases, times, answers = timed.coefficients, timed.cases, timed.times_s, timed.answers
-    region_map, margin = timed.region_map, coefficients.scene.margin_m
-    counts = range_counts(answers, margin)
+    methods = [_generator_row(timed, settings)]
+    if not settings.run_ompl:
+        skipped["d_x"] = "--no-ompl"
+    elif not planner.ompl_available():
+        skipped["d_x"] = "ompl is not installed (pip install ompl, or the project's 'bench' extra)"
+    else:
+        log(f"timing (d) OMPL RRT-Connect on the same moved obstacles ({settings.ompl_time_s} s budget per query) ...")
+        try:
+            methods.extend(_ompl_rows(timed, arm, settings, ompl_margin_m))
+        except ImportError as exc:
+            skipped["d_x"] = f"ompl could not be imported ({exc})"
+    return methods, _over_x_report(timed)
+
+
+def _generator_row(timed: PerQueryRow, settings: BenchSettings) -> MethodResult:
+    """The row (a*) over (L, W, x): the generator with the region map, each call timed [s], and how many
+    in-range queries it answered with a certified clearance > 0 and >= the margin."""
+    coefficients, cases, answers = timed.coefficients, timed.cases, timed.answers
+    counts = range_counts(answers, coefficients.scene.margin_m)
     answered = [a for a in answers if a is not None]
-    row = MethodResult(
+    return MethodResult(
         key=KEY,
         label=f"{NAME}: generator + map",
         obstacles=len(cases),
-        times_s=tuple(times),
+        times_s=tuple(timed.times_s),
         queries=len(cases),
         answered=len(answered),
         certified=counts.certified,
@@ -141,36 +157,44 @@ def x_methods(
         "the margin",
         extra={"in_range_queries": counts.in_range, "certified_clearance_min_m": counts.clearance_min_m},
     )
-    methods = [row]
-    if not settings.run_ompl:
-        skipped["d_x"] = "--no-ompl"
-    elif not planner.ompl_available():
-        skipped["d_x"] = "ompl is not installed (pip install ompl, or the project's 'bench' extra)"
-    else:
-        log(f"timing (d) OMPL RRT-Connect on the same moved obstacles ({settings.ompl_time_s} s budget per query) ...")
-        validity = margin if ompl_margin_m is None else ompl_margin_m
-        scenes = [moved_scene(coefficients, case, answer) for case, answer in zip(cases, answers, strict=True)]
-        simplify = " + simplify" if settings.ompl_simplify else ""
-        try:
-            methods.extend(
-                bench_ompl(
-                    coefficients,
-                    cases,
-                    arm,
-                    settings,
-                    validity,
-                    margin,
-                    scenes=scenes,
-                    rows=(
-                        ("d_x", f"(d) over (L, W, x): OMPL RRT-Connect{simplify}"),
-                        ("d_x_cert", "(d+) over (L, W, x): + our certificate"),
-                    ),
-                )
-            )
-        except ImportError as exc:
-            skipped["d_x"] = f"ompl could not be imported ({exc})"
-    summary = region_map.summary()
-    info = {
+
+
+def _ompl_rows(
+    timed: PerQueryRow, arm: PlanarArm, settings: BenchSettings, ompl_margin_m: float | None
+) -> list[MethodResult]:
+    """(d) and (d+) over (L, W, x): OMPL RRT-Connect, then our certificate of its path, on the row's
+    moved obstacles, valid at ``ompl_margin_m`` [m] (None: the scene margin).
+
+    Raises:
+        ImportError: ompl could not be imported.
+    """
+    coefficients, cases, answers = timed.coefficients, timed.cases, timed.answers
+    margin = coefficients.scene.margin_m
+    validity = margin if ompl_margin_m is None else ompl_margin_m
+    scenes = [moved_scene(coefficients, case, answer) for case, answer in zip(cases, answers, strict=True)]
+    simplify = " + simplify" if settings.ompl_simplify else ""
+    return bench_ompl(
+        coefficients,
+        cases,
+        arm,
+        settings,
+        validity,
+        margin,
+        scenes=scenes,
+        rows=(
+            ("d_x", f"(d) over (L, W, x): OMPL RRT-Connect{simplify}"),
+            ("d_x_cert", "(d+) over (L, W, x): + our certificate"),
+        ),
+    )
+
+
+def _over_x_report(timed: PerQueryRow) -> dict[str, Any]:
+    """The report's ``over_x``: the coefficients over (L, W, x), their region map and the obstacles
+    (cases [m], and the centre x [m] of each answered one)."""
+    coefficients, cases = timed.coefficients, timed.cases
+    answered = [a for a in timed.answers if a is not None]
+    summary = timed.region_map.summary()
+    return {
         "source": coefficients.source,
         "sha256": coefficients.source_sha256,
         "fitted_range_m": {k: list(v) for k, v in coefficients.fitted_range_m.items()},
@@ -183,7 +207,6 @@ def x_methods(
         "cases_m": [[float(v) for v in case] for case in cases],
         "obstacle_centre_x_m": [float(a.obstacle.centre_x_m) for a in answered],
     }
-    return methods, info
 
 
 def timed_load(path: Path, arm: PlanarArm, log: Callable[[str], None]) -> Coefficients:
