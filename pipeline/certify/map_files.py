@@ -4,7 +4,9 @@
 link to its coefficients, the axes and fitted range, margin and tolerance, the statuses, the
 summary, the settings, the execution bounds' limits and dynamics, and ``leaves``: the file name
 of the table beside it (``region_map.npy``), its sha256, its row count and its fields. The table
-is one structured array, one row per leaf, little-endian, with the leaf's node (``depth``, an
+is one record of columns (a 0-d structured array whose fields each hold a column of one value per
+leaf, stored one after the other: a column read from the memory-mapped file is contiguous),
+little-endian, with the leaf's node (``depth``, an
 ``index_<axis>`` per axis, ``split_W``), its ``status`` (index into the header's statuses), its
 three bounds and, with execution bounds, their columns
 (:data:`pipeline.certify.execution_bounds.COLUMNS`), every number as the map holds it: a float
@@ -92,9 +94,12 @@ def _columns(region_map: RegionMap) -> dict[str, np.ndarray]:
 
 
 def _table(region_map: RegionMap) -> np.ndarray:
-    """The map's leaves as one structured array (module docstring)."""
+    """The map's leaves as one record of columns (module docstring): a 0-d structured array whose
+    every field is one column of n values, stored one after the other, so that a column read from
+    the memory-mapped file is contiguous."""
     columns = _columns(region_map)
-    table = np.zeros(region_map.depth.size, dtype=np.dtype([(name, c.dtype.str) for name, c in columns.items()]))
+    n = region_map.depth.size
+    table = np.zeros((), dtype=np.dtype([(name, c.dtype.str, (n,)) for name, c in columns.items()]))
     for name, column in columns.items():
         table[name] = column
     return table
@@ -131,7 +136,7 @@ def region_map_files(region_map: RegionMap, header_name: str = DEFAULT_MAP_NAME)
     np.save(buffer, table, allow_pickle=False)
     table_bytes = buffer.getvalue()
     name = table_name(header_name)
-    header = _header(region_map, table_bytes, name, table.size, table.dtype.names)
+    header = _header(region_map, table_bytes, name, region_map.depth.size, table.dtype.names)
     return {name: table_bytes, header_name: dumps(header).encode("utf-8")}
 
 
@@ -197,11 +202,15 @@ def _checked_table(path: Path, leaves: dict) -> np.ndarray:
             table_path, f"sha256 differs from the one {path.name} records: the table changed after the map was written"
         )
     table = np.load(table_path, mmap_mode="r", allow_pickle=False)
-    if table.dtype.names != tuple(leaves["fields"]) or table.shape != (int(leaves["rows"]),):
+    names, fields = table.dtype.names or (), tuple(leaves["fields"])
+    # A record of columns (each field n values), or a table of rows (each field one value).
+    rows = sorted({table.dtype[name].shape[0] if table.dtype[name].shape else table.size for name in names})
+    if table.ndim > 1 or names != fields or rows != [int(leaves["rows"])]:
+        missing = sorted(set(fields) - set(names)) or sorted(set(names) - set(fields))
         raise DataFileError(
             table_path,
-            f"holds {table.shape[0]} rows of {table.dtype.names}, "
-            f"the header says {leaves['rows']} of {tuple(leaves['fields'])}",
+            f"holds {'/'.join(map(str, rows))} rows of {len(names)} columns, the header says {leaves['rows']} rows "
+            f"of {len(fields)} columns" + (f" (differing: {', '.join(missing[:3])})" if missing else ""),
         )
     return table
 

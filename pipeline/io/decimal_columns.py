@@ -18,6 +18,8 @@ __all__ = ["decimal_parts", "from_decimal_parts"]
 
 #: Largest |e|: 10^22 is the largest power of ten that is an exact double.
 _EXACT_POWERS = 22
+#: 10^0 .. 10^22, each an exact double.
+_POWERS = 10.0 ** np.arange(_EXACT_POWERS + 1)
 #: Reserved exponents of the non-finite values.
 _PLUS_INF, _MINUS_INF, _NAN = 127, 126, -128
 #: Significant digits a value is read at.
@@ -28,12 +30,15 @@ def from_decimal_parts(mantissa: np.ndarray, exponent: np.ndarray) -> np.ndarray
     """The float64 values of ``mantissa`` (int) and ``exponent`` (int8) arrays, with the reserved
     exponents read as +inf, -inf and NaN."""
     m = np.asarray(mantissa, dtype=np.float64)
-    e = np.asarray(exponent, dtype=np.int64)
-    powers = 10.0 ** np.clip(np.abs(e), 0, _EXACT_POWERS)
+    e = np.asarray(exponent, dtype=np.int8)
+    powers = _POWERS[np.minimum(np.abs(e.astype(np.int16)), _EXACT_POWERS)]
     values = np.where(e >= 0, m * powers, m / powers)
-    values[e == _PLUS_INF] = np.inf
-    values[e == _MINUS_INF] = -np.inf
-    values[e == _NAN] = np.nan
+    special = e.astype(np.int16) >= _MINUS_INF
+    special |= e == _NAN
+    if special.any():
+        values[e == _PLUS_INF] = np.inf
+        values[e == _MINUS_INF] = -np.inf
+        values[e == _NAN] = np.nan
     return values
 
 
