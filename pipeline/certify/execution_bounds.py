@@ -208,13 +208,13 @@ class ExecutionBounds:
         if dynamics != self.dynamics:
             raise RegionMapLimitsError("inertia (mass matrix)", _dynamics_json(self.dynamics), _dynamics_json(dynamics))
 
+    def header_json(self) -> dict:
+        """The limits and dynamics the bounds are of, as plain JSON (without the columns)."""
+        return {"limits": _limits_json(self.limits), "dynamics": _dynamics_json(self.dynamics)}
+
     def to_json(self) -> dict:
         """Plain JSON (non-finite values are written as null by the map's writer)."""
-        return {
-            "limits": _limits_json(self.limits),
-            "dynamics": _dynamics_json(self.dynamics),
-            "columns": {k: self.columns[k].tolist() for k in COLUMNS},
-        }
+        return {**self.header_json(), "columns": {k: self.columns[k].tolist() for k in COLUMNS}}
 
     @classmethod
     def from_json(cls, document: dict, source: object) -> ExecutionBounds:

@@ -114,12 +114,9 @@ def _float_column(table: np.ndarray, name: str) -> np.ndarray:
 
 def _header(region_map: RegionMap, table_bytes: bytes, name: str, rows: int, fields: tuple[str, ...]) -> dict:
     """The header document (module docstring): the JSON document without its leaves."""
-    document = region_map.to_json()
-    del document["cells"]
-    document["format"] = FORMAT_ARRAYS
-    document["axes"] = list(region_map.axes)
+    document = {"format": FORMAT_ARRAYS, **region_map.header_json()}
     if region_map.execution is not None:
-        del document["execution"]["columns"]
+        document["execution"] = region_map.execution.header_json()
     document["leaves"] = {
         "file": name,
         "sha256": hashlib.sha256(table_bytes).hexdigest(),

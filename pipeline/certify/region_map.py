@@ -518,50 +518,14 @@ class RegionMap:
 
     # ------------------------------------------------------------------ JSON
 
-    def to_json(self) -> dict:
-        """The plain-JSON document (columnar cells): format /2 over (L, W), /3 over more axes."""
-        if self.extra_index is not None:
-            return self._to_json_kd()
-        return {
-            "format": FORMAT,
-            "coefficients": {
-                "source": self.coefficients_source,
-                "sha256": self.coefficients_sha256,
-                "family": self.family,
-            },
-            "fitted_range": {"L": list(self.length_range_m), "W": list(self.width_range_m)},
-            "margin_m": self.margin_m,
-            "endpoint_tolerance_m": self.endpoint_tolerance_m,
-            # No wall time in the file (nor the worker count in ``details``): the same
-            # coefficients and settings give the same bytes.
-            "summary": {k: v for k, v in self.summary().items() if k != "seconds"},
-            "details": self.details,
-            "statuses": list(STATUSES),
-            "cells": {
-                "depth": self.depth.tolist(),
-                "index_L": self.index_l.tolist(),
-                "index_W": self.index_w.tolist(),
-                "clearance_bound_m": self.clearance_bound_m.tolist(),
-                "endpoint_bound_m": self.endpoint_bound_m.tolist(),
-                "endpoint_clearance_upper_m": self.endpoint_clearance_upper_m.tolist(),
-                "status": [STATUSES[k] for k in self.status],
-                "split_W": self.split_w.tolist(),
-            },
-        } | ({} if self.execution is None else {"execution": self.execution.to_json()})
-
-    def _to_json_kd(self) -> dict:
-        """The document of a map over more axes than (L, W): format /3, with ``axes``, the fitted
-        range of every axis and an ``index_<axis>`` column per axis, no ``split_W`` column."""
-        extra = zip(self.axes[2:], self.extra_ranges_m, self.extra_index.T, strict=True)
-        columns: dict[str, list] = {"depth": self.depth.tolist()}
-        columns["index_L"] = self.index_l.tolist()
-        columns["index_W"] = self.index_w.tolist()
+    def header_json(self) -> dict:
+        """What describes the map beside its leaves, as plain JSON: the link to its coefficients, the
+        axes and the fitted range of each, margin and tolerance, the summary (without the wall time,
+        nor the worker count in ``details``: the same coefficients and settings give the same bytes),
+        the settings and the statuses."""
         fitted = {"L": list(self.length_range_m), "W": list(self.width_range_m)}
-        for name, bounds, index in extra:
-            fitted[name] = list(bounds)
-            columns[f"index_{name}"] = index.tolist()
+        fitted |= {name: list(bounds) for name, bounds in zip(self.axes[2:], self.extra_ranges_m, strict=True)}
         return {
-            "format": FORMAT_KD,
             "coefficients": {
                 "source": self.coefficients_source,
                 "sha256": self.coefficients_sha256,
@@ -574,14 +538,30 @@ class RegionMap:
             "summary": {k: v for k, v in self.summary().items() if k != "seconds"},
             "details": self.details,
             "statuses": list(STATUSES),
-            "cells": columns
-            | {
-                "clearance_bound_m": self.clearance_bound_m.tolist(),
-                "endpoint_bound_m": self.endpoint_bound_m.tolist(),
-                "endpoint_clearance_upper_m": self.endpoint_clearance_upper_m.tolist(),
-                "status": [STATUSES[k] for k in self.status],
-            },
-        } | ({} if self.execution is None else {"execution": self.execution.to_json()})
+        }
+
+    def to_json(self) -> dict:
+        """The plain-JSON document (columnar cells): format /2 over (L, W) (no ``axes``), /3 over more
+        axes (an ``index_<axis>`` column per axis, no ``split_W`` column)."""
+        header = self.header_json()
+        columns: dict[str, list] = {"depth": self.depth.tolist()}
+        columns["index_L"] = self.index_l.tolist()
+        columns["index_W"] = self.index_w.tolist()
+        if self.extra_index is not None:
+            extra = zip(self.axes[2:], self.extra_index.T, strict=True)
+            columns |= {f"index_{name}": index.tolist() for name, index in extra}
+        columns |= {
+            "clearance_bound_m": self.clearance_bound_m.tolist(),
+            "endpoint_bound_m": self.endpoint_bound_m.tolist(),
+            "endpoint_clearance_upper_m": self.endpoint_clearance_upper_m.tolist(),
+            "status": [STATUSES[k] for k in self.status],
+        }
+        if self.extra_index is None:
+            del header["axes"]
+            document = {"format": FORMAT, **header, "cells": columns | {"split_W": self.split_w.tolist()}}
+        else:
+            document = {"format": FORMAT_KD, **header, "cells": columns}
+        return document | ({} if self.execution is None else {"execution": self.execution.to_json()})
 
     @classmethod
     def from_json(cls, document: dict, source: object = "<memory>") -> RegionMap:
