@@ -68,6 +68,7 @@ from pipeline.motion.interval_arithmetic import (
     scale,
     sin_extremes,
     sin_range,
+    sinusoid_ranges,
     square,
     widen,
 )
@@ -95,25 +96,16 @@ _QUANTITIES = (
 )  # fmt: skip
 
 
-def _joint_enclosures(timed: TimedTrajectory, lo: np.ndarray, hi: np.ndarray):
-    """Per joint, the intervals of q, dq, ddq and the jerk over each [lo_k, hi_k] (module docstring)."""
+def _joint_enclosures(timed, lo: np.ndarray, hi: np.ndarray):
+    """Per joint, the intervals of q, dq, ddq and the jerk over each [lo_k, hi_k] (module docstring),
+    for every path between ``timed.parameter_bounds`` (one path, or a box of them)."""
     s_lo, s_hi, d1_lo, d1_hi, d2_lo, d2_hi, d3_lo, d3_hi = timed.timing.ranges_with_jerk(lo, hi)
-    p = timed.parameters
     d1_sq = square(d1_lo, d1_hi)
     d1_cube = mul(*d1_sq, d1_lo, d1_hi)
     d1_d2 = mul(d1_lo, d1_hi, d2_lo, d2_hi)
     theta, speed, accel, jerk = [], [], [], []
-    for i in (0, 1):
-        amplitude, w, phi, gamma = p[4 * i : 4 * i + 4]
-        ph_a, ph_b = w * s_lo + phi, w * s_hi + phi
-        ph_lo, ph_hi = np.minimum(ph_a, ph_b), np.maximum(ph_a, ph_b)
-        sin_lo, sin_hi = sin_range(ph_lo, ph_hi)
-        cos_lo, cos_hi = sin_range(ph_lo + np.pi / 2, ph_hi + np.pi / 2)
-        t_lo, t_hi = scale(amplitude, sin_lo, sin_hi)
-        theta.append(widen(t_lo + gamma, t_hi + gamma))
-        v = scale(amplitude * w, cos_lo, cos_hi)
-        a = scale(-amplitude * w * w, sin_lo, sin_hi)
-        j = scale(-amplitude * w**3, cos_lo, cos_hi)
+    for angle, v, a, j in sinusoid_ranges(*timed.parameter_bounds, s_lo, s_hi):
+        theta.append(widen(*angle))
         speed.append(widen(*mul(*v, d1_lo, d1_hi)))
         first, second = mul(*a, *d1_sq), mul(*v, d2_lo, d2_hi)
         accel.append(widen(first[0] + second[0], first[1] + second[1]))

@@ -24,6 +24,7 @@ __all__ = [
     "scale",
     "sin_extremes",
     "sin_range",
+    "sinusoid_ranges",
     "square",
     "widen",
 ]
@@ -84,3 +85,33 @@ def widen(lo, hi):
 def magnitude(interval) -> np.ndarray:
     """The largest |value| of an interval."""
     return np.maximum(np.abs(interval[0]), np.abs(interval[1]))
+
+
+def sinusoid_ranges(lower, upper, s_lo, s_hi):
+    """Per joint i, the intervals of theta_i = A sin(w s + phi) + gamma and of its first three
+    derivatives in s, over s in [s_lo, s_hi] (arrays, s_lo <= s_hi) and every parameter vector
+    between ``lower`` and ``upper`` (the eight (A, w, phi, gamma) of the two joints; equal for one path).
+
+    The phase interval is [w] [s] + [phi]; the ranges of sin and cos over it are exact, and the
+    coefficients A w, A w^2, A w^3 are interval products (w^3 is monotone). For one path (lower =
+    upper) every operation gives the same floats as the scalar expressions (corner products of
+    degenerate intervals are the products themselves).
+
+    Returns:
+        ``[(theta, d1, d2, d3) for each joint]``, each an interval ``(lo, hi)``, not yet widened.
+    """
+    out = []
+    for i in (0, 1):
+        a_lo, w_lo, phi_lo, gamma_lo = lower[4 * i : 4 * i + 4]
+        a_hi, w_hi, phi_hi, gamma_hi = upper[4 * i : 4 * i + 4]
+        ph_lo, ph_hi = mul(w_lo, w_hi, s_lo, s_hi)
+        ph_lo, ph_hi = ph_lo + phi_lo, ph_hi + phi_hi
+        sin = sin_range(ph_lo, ph_hi)
+        cos = sin_range(ph_lo + math.pi / 2, ph_hi + math.pi / 2)
+        aw = mul(a_lo, a_hi, w_lo, w_hi)
+        aw2 = mul(*aw, w_lo, w_hi)
+        aw3 = mul(a_lo, a_hi, w_lo**3, w_hi**3)
+        theta = mul(a_lo, a_hi, *sin)
+        d2, d3 = mul(*aw2, *sin), mul(*aw3, *cos)
+        out.append(((theta[0] + gamma_lo, theta[1] + gamma_hi), mul(*aw, *cos), (-d2[1], -d2[0]), (-d3[1], -d3[0])))
+    return out

@@ -47,6 +47,7 @@ from pipeline.motion.interval_arithmetic import (
     mul,
     scale,
     sin_range,
+    sinusoid_ranges,
     square,
     widen,
 )
@@ -106,21 +107,19 @@ def enclose_path(parameters, edges_s: np.ndarray, dynamics: PlanarDynamics) -> P
     """Enclose theta', theta'', theta''' and the torque coefficients over each piece of ``edges_s``.
 
     Args:
-        parameters: The eight sinusoid parameters (A1, w1, phi1, gamma1, A2, w2, phi2, gamma2).
+        parameters: The eight sinusoid parameters (A1, w1, phi1, gamma1, A2, w2, phi2, gamma2) of
+            one path, or a pair (lower, upper) of them: every path of that box at once.
         edges_s: Increasing path times [s], (n + 1,).
         dynamics: The arm's closed-form dynamics.
     """
-    p = np.asarray(parameters, dtype=float).reshape(2, 4)
-    amplitude, w, phi, gamma = p[:, 0], p[:, 1], p[:, 2], p[:, 3]
-    s_lo, s_hi = edges_s[:-1, None], edges_s[1:, None]
-    ph_a, ph_b = w * s_lo + phi, w * s_hi + phi
-    ph_lo, ph_hi = np.minimum(ph_a, ph_b), np.maximum(ph_a, ph_b)
-    sin = sin_range(ph_lo, ph_hi)
-    cos = sin_range(ph_lo + math.pi / 2, ph_hi + math.pi / 2)
-    d1 = widen(*scale(amplitude * w, *cos))
-    d2 = widen(*scale(-amplitude * w * w, *sin))
-    d3 = widen(*scale(-amplitude * w**3, *cos))
-    q2 = widen(*(v + gamma[1] for v in scale(amplitude[1], sin[0][:, 1], sin[1][:, 1])))
+    if isinstance(parameters, tuple) and len(parameters) == 2:
+        lower, upper = (np.asarray(p, dtype=float) for p in parameters)
+    else:
+        lower = upper = np.asarray(parameters, dtype=float)
+    joints = sinusoid_ranges(lower, upper, edges_s[:-1], edges_s[1:])
+    pair = lambda k: (np.stack([j[k][0] for j in joints], 1), np.stack([j[k][1] for j in joints], 1))  # noqa: E731
+    d1, d2, d3 = (widen(*pair(k)) for k in (1, 2, 3))
+    q2 = widen(*joints[1][0])
     sin2, cos2 = sin_range(*q2), sin_range(q2[0] + math.pi / 2, q2[1] + math.pi / 2)
     m0, mc, ms = (np.asarray(m) for m in (dynamics.m0, dynamics.mc, dynamics.ms))
     mass = [[affine_trig(m0[i, j], mc[i, j], ms[i, j], *cos2, *sin2) for j in (0, 1)] for i in (0, 1)]

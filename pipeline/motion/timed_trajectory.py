@@ -56,6 +56,12 @@ class TimedTrajectory:
         """The eight sinusoid parameters of the path."""
         return self.trajectory.parameters
 
+    @property
+    def parameter_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The parameters as a degenerate box (lower = upper), as the certificates read them."""
+        p = np.asarray(self.trajectory.parameters, dtype=float)
+        return p, p
+
     def as_dict(self) -> dict[str, float]:
         """The parameters by name."""
         return self.trajectory.as_dict()
