@@ -72,6 +72,7 @@ from pipeline.motion.interval_arithmetic import (
     square,
     widen,
 )
+from pipeline.motion.path_box import TimedPathBox
 from pipeline.motion.smooth_timing import SmoothTiming
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.timing import PaperTiming, RestToRestTiming
@@ -356,7 +357,7 @@ def _initial_partition(timed: TimedTrajectory, tight: bool) -> tuple[np.ndarray,
 
 
 def certify_execution(
-    timed: TimedTrajectory,
+    timed: TimedTrajectory | TimedPathBox,
     dynamics: PlanarDynamics,
     limits: ArmLimits | None = None,
     relative_tolerance: float = DEFAULT_RELATIVE_TOLERANCE,
@@ -366,7 +367,8 @@ def certify_execution(
     """Bound the angles, speeds, accelerations, torques and jerks of ``timed`` over all of [0, T'].
 
     Args:
-        timed: The trajectory with its timing.
+        timed: The trajectory with its timing, or every path of a box under one timing
+            (:class:`pipeline.motion.path_box.TimedPathBox`: the NumPy route, its bounds hold for all of them).
         dynamics: The arm's inverse dynamics.
         limits: None: tight bounds (within the tolerance of the maxima); given: only decide
             whether each quantity stays within its limit (module docstring), the fastest question.
@@ -380,7 +382,7 @@ def certify_execution(
         coarse = _closed_form(timed, dynamics, limits)
         if coarse is not None:
             return coarse
-    if isinstance(timed.timing, SmoothTiming) and compiled:
+    if isinstance(timed, TimedTrajectory) and isinstance(timed.timing, SmoothTiming) and compiled:
         from pipeline.motion.certificate_kernel import certify_smooth_execution
 
         mass_terms = np.array([dynamics.m0, dynamics.mc, dynamics.ms], dtype=float)

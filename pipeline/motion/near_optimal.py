@@ -46,7 +46,9 @@ from pipeline.exceptions import InvalidParameterError, TimingRefusedError
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.execution_certificate import ExecutionCertificate, LimitViolation, certify_execution
-from pipeline.motion.path_constraints import compiled_piece_constraints
+from pipeline.motion.interval_arithmetic import magnitude
+from pipeline.motion.path_box import PathBox, TimedPathBox
+from pipeline.motion.path_constraints import compiled_piece_constraints, enclose_path, piece_constraints
 from pipeline.motion.smooth_timing import SmoothTiming, smoothed
 from pipeline.motion.speed_profile import fastest_profile
 from pipeline.motion.timed_trajectory import TimedTrajectory
@@ -62,7 +64,15 @@ _NO_BOUND = 1e300
 #: Rounds of sizing the ramps for the steps of one sign they overlap.
 _WINDOW_ROUNDS = 3
 
-__all__ = ["NEAR_OPTIMAL", "NearOptimal", "NearOptimalSettings", "NearOptimalTiming", "near_optimal_timing"]
+__all__ = [
+    "NEAR_OPTIMAL",
+    "NearOptimal",
+    "NearOptimalSettings",
+    "NearOptimalTiming",
+    "near_optimal_box_timing",
+    "near_optimal_timing",
+    "profile_timing",
+]
 
 
 @dataclass(frozen=True)
@@ -125,12 +135,15 @@ class NearOptimalTiming:
         certificate: Its bounds over all of [0, T'], decided against the limits.
         limit_share: The share of the acceleration and effort limits the certified profile was built on.
         attempts: Profiles built until one was certified.
+        profile: For a box (:func:`near_optimal_box_timing`), the stored profile (x, ramp widths),
+            float32, from which :func:`profile_timing` rebuilds the timing; None for one path.
     """
 
-    executed: TimedTrajectory
+    executed: TimedTrajectory | TimedPathBox
     certificate: ExecutionCertificate
     limit_share: float
     attempts: int
+    profile: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def _check_jerk(limits: ArmLimits) -> None:
@@ -195,8 +208,9 @@ def _clustered(times, steps, gain, rounds):
     return windows
 
 
-def _smooth_timing(trajectory, edges, peaks, x, u, limits, jerk_share, widen) -> SmoothTiming:
-    """Steps 2 to 3 of the module docstring, the ramps widened by ``widen``."""
+def _ramps(edges, peaks, x, u, limits, jerk_share, widen) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The step times, steps and ramp widths of step 3 of the module docstring, (n + 1,) each,
+    the ramps widened by ``widen``."""
     ds = edges[1] - edges[0]
     rates = np.sqrt(x)
     durations = 2.0 * ds / (rates[:-1] + rates[1:])
@@ -206,10 +220,41 @@ def _smooth_timing(trajectory, edges, peaks, x, u, limits, jerk_share, widen) ->
     # Ramps at least as wide as the pieces beside them: the small steps between pieces then blend
     # into one another (sigma'' close to linear between the pieces' midpoints) instead of short bursts of jerk.
     spacing = np.concatenate([[0.0], np.minimum(durations[:-1], durations[1:]), [0.0]])  # not at the ends
+    return times, steps, np.maximum(windows, spacing)
+
+
+def _smooth_timing(path_duration_s: float, edges, peaks, x, u, limits, jerk_share, widen) -> SmoothTiming:
+    """Steps 2 to 3 of the module docstring, the ramps widened by ``widen``."""
+    times, steps, windows = _ramps(edges, peaks, x, u, limits, jerk_share, widen)
     keep = np.abs(steps) > 0.0
-    windows = np.maximum(windows, spacing)
-    timing, _ = smoothed(times[keep], steps[keep], windows[keep], trajectory.duration_s)
+    timing, _ = smoothed(times[keep], steps[keep], windows[keep], path_duration_s)
     return timing
+
+
+def profile_timing(x: np.ndarray, windows_s: np.ndarray) -> SmoothTiming:
+    """The smooth timing of the normalised path time [0, 1] from a stored profile: ``x`` (n + 1,)
+    the squared path speed at the ends of n equal pieces [1/s^2] (0 at both ends), ``windows_s``
+    (n + 1,) the ramp widths of its steps [s]; the path acceleration of a piece is
+    ``(x_k+1 - x_k) / (2 ds)``. One function, so that a timing stored as (x, windows) and
+    certified is the timing rebuilt from them, float for float."""
+    x, windows_s = np.asarray(x, dtype=float), np.asarray(windows_s, dtype=float)
+    ds = 1.0 / (x.size - 1)
+    rates = np.sqrt(x)
+    times = np.concatenate([[0.0], np.cumsum(2.0 * ds / (rates[:-1] + rates[1:]))])
+    steps = np.diff(np.concatenate([[0.0], np.diff(x) / (2.0 * ds), [0.0]]))
+    keep = np.abs(steps) > 0.0
+    timing, _ = smoothed(times[keep], steps[keep], windows_s[keep], 1.0)
+    return timing
+
+
+def _stored(edges, peaks, x, u, limits, jerk_share, widen) -> tuple[SmoothTiming, np.ndarray, np.ndarray]:
+    """The box route's timing: the profile and its ramp widths rounded to float32 (how they are
+    stored), and the timing rebuilt from them by :func:`profile_timing`."""
+    _, _, windows = _ramps(edges, peaks, x, u, limits, jerk_share, widen)
+    x32 = x.astype(np.float32)
+    x32[0] = x32[-1] = 0.0
+    windows32 = np.maximum(windows, np.finfo(np.float32).tiny).astype(np.float32)
+    return profile_timing(x32, windows32), x32, windows32
 
 
 def _jerk_speed_cap(third: np.ndarray, limits: ArmLimits) -> np.ndarray:
@@ -273,15 +318,69 @@ def near_optimal_timing(
     """
     _check_jerk(limits)
     edges = np.linspace(0.0, trajectory.duration_s, settings.pieces + 1)
+
+    def constraints(share: float, speed_share: float):
+        return compiled_piece_constraints(trajectory.parameters, edges, dynamics, limits, share, speed_share)
+
+    def certified(timing: SmoothTiming):
+        executed = TimedTrajectory(trajectory, timing)
+        return executed, certify_execution(executed, dynamics, limits)
+
+    def timing_of(peaks, x, u, widen):
+        return _smooth_timing(trajectory.duration_s, edges, peaks, x, u, limits, settings.jerk_share, widen), None
+
+    return _fastest_certified(constraints, timing_of, certified, edges, limits, settings)
+
+
+def near_optimal_box_timing(
+    box: PathBox,
+    dynamics: PlanarDynamics,
+    limits: ArmLimits,
+    settings: NearOptimalSettings = NearOptimalSettings(),
+) -> NearOptimalTiming:
+    """One near time-optimal timing of the normalised path time for every path of ``box``
+    (:mod:`pipeline.motion.path_box`): the same steps as :func:`near_optimal_timing`, on the
+    box's enclosures, certified over the box (the NumPy route of the execution certificate).
+
+    Returns:
+        The timing (``executed`` a :class:`pipeline.motion.path_box.TimedPathBox`) and its
+        certificate, whose bounds hold for every path of the box.
+
+    Raises:
+        As :func:`near_optimal_timing`.
+    """
+    _check_jerk(limits)
+    edges = np.linspace(0.0, 1.0, settings.pieces + 1)
+    enclosures = enclose_path((box.lower, box.upper), edges, dynamics)
+    peaks = np.stack([magnitude(d) for d in (enclosures.d1, enclosures.d2, enclosures.d3)])
+
+    def constraints(share: float, speed_share: float):
+        return piece_constraints(enclosures, limits, share, speed_share), peaks
+
+    def certified(timing: SmoothTiming):
+        executed = box.timed(timing)
+        return executed, certify_execution(executed, dynamics, limits, compiled=False)
+
+    def timing_of(peaks, x, u, widen):
+        timing, x32, windows32 = _stored(edges, peaks, x, u, limits, settings.jerk_share, widen)
+        return timing, (x32, windows32)
+
+    return _fastest_certified(constraints, timing_of, certified, edges, limits, settings)
+
+
+def _fastest_certified(constraints, timing_of, certified, edges, limits: ArmLimits, settings: NearOptimalSettings):
+    """Steps 1 to 4 of the module docstring: ``constraints(share, speed_share)`` gives the rows and
+    peaks of the pieces of ``edges``, ``timing_of(peaks, x, u, widen)`` the smooth timing of a
+    profile (and what stores it), ``certified(timing)`` the executed motion and its certificate."""
     share, speed_share, widen = settings.limit_share, settings.speed_share, 1.0
     found: list[LimitViolation] = []
     for attempt in range(1, settings.tries + 1):
-        rows, peaks = compiled_piece_constraints(trajectory.parameters, edges, dynamics, limits, share, speed_share)
+        rows, peaks = constraints(share, speed_share)
         cap = np.minimum(rows.speed_cap, _jerk_speed_cap(peaks[2], limits))
         x, u = _jerk_aware_profile(rows, cap, peaks, limits, edges[1] - edges[0])
         if not np.all(x[1:-1] > 0.0):
             raise TimingRefusedError(("the limits leave the path no speed: a limit binds at rest",))
-        timing = _smooth_timing(trajectory, edges, peaks, x, u, limits, settings.jerk_share, widen)
+        timing, profile = timing_of(peaks, x, u, widen)
         if timing.duration_s > settings.longest_duration_s:
             raise TimingRefusedError(
                 (
@@ -289,11 +388,10 @@ def near_optimal_timing(
                     "a limit far below what the path needs",
                 )
             )
-        executed = TimedTrajectory(trajectory, timing)
-        certificate = certify_execution(executed, dynamics, limits)
+        executed, certificate = certified(timing)
         found = certificate.violations(limits)
         if not found:
-            return NearOptimalTiming(executed, certificate, share, attempt)
+            return NearOptimalTiming(executed, certificate, share, attempt, profile)
         if any(v.quantity == "angle" for v in found):
             break
         speed, other = _excess(found, ("speed",)), _excess(found, ("acceleration", "torque"))

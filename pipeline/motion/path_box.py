@@ -1,0 +1,122 @@
+"""Every path of a box of obstacles at once, in normalised path time, and its motion under one timing.
+
+Over a box of obstacles (a cell of the fitted range) the regression's sinusoid parameters and
+the path duration T lie in intervals (:mod:`pipeline.certify.execution_range`). In the
+normalised path time u = s / T in [0, 1] every path of the box reads
+
+    theta_i(u) = A_i sin(Omega_i u + phi_i) + gamma_i,   Omega_i = w_i T,
+
+so one timing u = sigma(tau) of [0, T'] onto [0, 1] serves them all: an obstacle with duration T
+executes ``q(tau) = theta(T sigma(tau))``, the timing ``T sigma`` of its own path. A
+:class:`PathBox` holds the intervals of (A, Omega, phi, gamma) and one path of the box (its
+centre, normalised, for the samples the certificates take); a :class:`TimedPathBox` is that box
+under a timing. The execution certificate (:func:`pipeline.motion.execution_certificate.certify_execution`)
+and the path constraints (:func:`pipeline.motion.path_constraints.enclose_path`) read the box's
+intervals (``parameter_bounds``) where they read one path's parameters, so their bounds hold for
+every path of the box; their samples are the centre's, values one path of the box takes.
+
+**Rounding.** Omega's interval is the interval product [w] [T] widened like every enclosure
+(:func:`pipeline.motion.interval_arithmetic.widen`); a path's own ``w * T`` rounds within it. A
+query executing ``T sigma`` evaluates ``w (T sigma)`` where the certificate enclosed
+``(w T) sigma``: the two differ by a few ulps of the phase, far below the certificates' slack.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.exceptions import InvalidParameterError
+from pipeline.motion.interval_arithmetic import mul, widen
+from pipeline.motion.timed_trajectory import TimedTrajectory
+from pipeline.motion.timing import Timing
+from pipeline.motion.trajectory import JointTrajectory
+
+__all__ = ["PathBox", "TimedPathBox", "normalised_parameters"]
+
+#: Positions of w in the eight parameters (A, w, phi, gamma per joint).
+_FREQUENCIES = (1, 5)
+
+
+def normalised_parameters(parameters, duration_s: float) -> np.ndarray:
+    """A path's parameters in normalised path time: each w replaced by w T [rad]."""
+    p = np.array(parameters, dtype=float)
+    p[list(_FREQUENCIES)] *= duration_s
+    return p
+
+
+@dataclass(frozen=True, eq=False)
+class PathBox:
+    """The paths of a box of obstacles in normalised path time (module docstring).
+
+    Attributes:
+        lower, upper: (8,) bounds of (A, Omega, phi, gamma) per joint [rad, rad, rad, rad].
+        centre: One path of the box, normalised (duration 1, its w the Omega = w T of its own T).
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    centre: JointTrajectory
+
+    def __post_init__(self) -> None:
+        lower, upper = np.asarray(self.lower, dtype=float), np.asarray(self.upper, dtype=float)
+        if lower.shape != (8,) or upper.shape != (8,) or not np.all(np.isfinite(lower) & np.isfinite(upper)):
+            raise InvalidParameterError("lower, upper", (lower.shape, upper.shape), "finite (8,) bounds")
+        if not np.all(lower <= upper):
+            raise InvalidParameterError("lower", lower.tolist(), f"at most upper = {upper.tolist()}")
+        centre = np.asarray(self.centre.parameters, dtype=float)
+        if self.centre.duration_s != 1.0 or not np.all((lower <= centre) & (centre <= upper)):
+            raise InvalidParameterError("centre", centre.tolist(), "a normalised path (T = 1) inside the box")
+        object.__setattr__(self, "lower", lower)
+        object.__setattr__(self, "upper", upper)
+
+    @classmethod
+    def of_intervals(
+        cls, lower, upper, duration_s: tuple[float, float], centre_parameters, centre_duration_s: float
+    ) -> PathBox:
+        """The box of parameters in [lower, upper] (w as w, not yet normalised) and durations in
+        ``duration_s`` [s], with one path of it (its parameters and T [s]) as the centre."""
+        lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
+        for k in _FREQUENCIES:
+            lower[k], upper[k] = (float(v) for v in widen(*mul(lower[k], upper[k], *duration_s)))
+        centre = JointTrajectory(tuple(normalised_parameters(centre_parameters, centre_duration_s)), 1.0)
+        return cls(lower, upper, centre)
+
+    def timed(self, timing: Timing) -> TimedPathBox:
+        """The box under ``timing`` (of [0, T'] onto the normalised path time [0, 1])."""
+        return TimedPathBox(self, timing)
+
+
+@dataclass(frozen=True, eq=False)
+class TimedPathBox:
+    """Every path of a box under one timing of the normalised path time (module docstring).
+
+    Attributes:
+        box: The paths.
+        timing: Maps the executed time [0, T'] onto [0, 1].
+    """
+
+    box: PathBox
+    timing: Timing
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_centre", TimedTrajectory(self.box.centre, self.timing))
+
+    @property
+    def duration_s(self) -> float:
+        """T' [s]."""
+        return self.timing.duration_s
+
+    @property
+    def parameter_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The box's bounds of the normalised parameters, as the certificates read them."""
+        return self.box.lower, self.box.upper
+
+    def states(self, t_s, *, outside: str = "error") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """q, dq, ddq of the box's centre path at executed times ``t_s`` [s]."""
+        return self._centre.states(t_s, outside=outside)
+
+    def jerk(self, t_s, *, outside: str = "error") -> np.ndarray:
+        """The jerk of the box's centre path at executed times ``t_s`` [s]."""
+        return self._centre.jerk(t_s, outside=outside)
