@@ -63,7 +63,7 @@ from pipeline.model.limits import ArmLimits
 from pipeline.motion.execution_certificate import FLOAT_SLACK_ABSOLUTE, FLOAT_SLACK_RELATIVE
 from pipeline.motion.rest_to_rest import rest_to_rest_scales
 
-__all__ = ["TIME_PIECES", "execution_bounds", "kinematic_bounds"]
+__all__ = ["TIME_PIECES", "execution_bounds", "kinematic_bounds", "leaf_parameters"]
 
 #: Pieces of the path time [0, T] per leaf.
 TIME_PIECES = 64
@@ -76,7 +76,7 @@ def _widen(interval: Interval) -> Interval:
     return Interval(interval.lo - slack, interval.hi + slack)
 
 
-def _leaf_parameters(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray) -> tuple[list[Interval], Interval]:
+def leaf_parameters(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray) -> tuple[list[Interval], Interval]:
     """Enclosures of the 8 sinusoid parameters and of T over each box of the axes (centres and
     half widths (n, k)): mean-value form at the centre intersected with the natural enclosure."""
     n = centre_m.shape[0]
@@ -124,7 +124,7 @@ def kinematic_bounds(
 def _kinematic_chunk(
     model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray, dynamics: PlanarDynamics
 ) -> dict[str, np.ndarray]:
-    params, T = _leaf_parameters(model, centre_m, half_m)
+    params, T = leaf_parameters(model, centre_m, half_m)
     edges = np.linspace(0.0, 1.0, TIME_PIECES + 1)
     t = Interval(edges[None, :-1] * T.lo[:, None], edges[None, 1:] * T.hi[:, None])  # (n, S), t >= 0
     out = {"duration_lo_s": T.lo.copy(), "duration_hi_s": T.hi.copy()}
