@@ -21,6 +21,7 @@ from pipeline.certify.certifiable_regression import (
 )
 from pipeline.certify.map_files import region_map_files
 from pipeline.certify.map_for_coefficients import default_config, with_execution_bounds
+from pipeline.certify.near_optimal_cells import cells_files, near_optimal_cells
 from pipeline.certify.range_certificate import certify_range
 from pipeline.certify.region_map import RegionMap
 from pipeline.io.jsonio import dumps
@@ -46,11 +47,13 @@ class CertifiedCoefficients:
         coefficients: As they read back from ``text`` (source: their file's path; sha256: of ``text``).
         text: The content of coefficients.json.
         region_map: Their range certificate; ``map_files`` its files by name (the header
-            region_map.json and the leaf table region_map.npy: :mod:`pipeline.certify.map_files`).
+            region_map.json and the leaf table region_map.npy: :mod:`pipeline.certify.map_files`;
+            near_optimal_cells.json and .npy: :mod:`pipeline.certify.near_optimal_cells`).
         refit_report: The certifiable regression's rounds (None if it did not run).
         timing: The wall times [s] of its stages (``stages_s``: ``clearance_refit``, the refit's
             rounds but their last map, if they ran; ``range_certificate``, the final map;
-            ``execution_bounds``, the map's bounds of the arm's motion) and
+            ``execution_bounds``, the map's bounds of the arm's motion; ``near_optimal_cells``, the
+            certified near-optimal timing of each cell) and
             ``clearance_refit_rounds`` (if the refit ran).
     """
 
@@ -131,6 +134,11 @@ def certify_coefficients(
         seconds["range_certificate"] = time.perf_counter() - started
     started = time.perf_counter()
     limits = ArmLimits.from_arm(arm, config.acceleration_limits_rad_s2)
-    region_map = with_execution_bounds(region_map, coefficients, identify_dynamics(arm), limits, map_config.run_on)
+    dynamics = identify_dynamics(arm)
+    region_map = with_execution_bounds(region_map, coefficients, dynamics, limits, map_config.run_on)
     seconds["execution_bounds"] = time.perf_counter() - started
-    return CertifiedCoefficients(coefficients, text, region_map, region_map_files(region_map), report, timing)
+    started = time.perf_counter()
+    cells = near_optimal_cells(coefficients, dynamics, limits.with_servo_defaults(), executor=map_config.run_on)
+    seconds["near_optimal_cells"] = time.perf_counter() - started
+    files = {**region_map_files(region_map), **cells_files(cells)}
+    return CertifiedCoefficients(coefficients, text, region_map, files, report, timing)

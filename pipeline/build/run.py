@@ -43,6 +43,7 @@ from pipeline.build.config import OPTIONS, BuildConfig
 from pipeline.build.doe_fit import DoeFit, fit_doe
 from pipeline.build.range_stage import as_written, certify_coefficients
 from pipeline.certify.map_files import table_name
+from pipeline.certify.near_optimal_cells import cells_file_names
 from pipeline.certify.range_model import axes_refusal
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, RegionMap
 from pipeline.exceptions import BuildNotConvergedError
@@ -190,7 +191,7 @@ def _locked_build(config: BuildConfig, progress: ProgressCallback | None, starte
         DOE_NAME: fit.doe_text,
         COEFFICIENTS_NAME: text,
         # A map of earlier coefficients must not stay beside these.
-        **dict.fromkeys((table_name(DEFAULT_MAP_NAME), DEFAULT_MAP_NAME)),
+        **dict.fromkeys((table_name(DEFAULT_MAP_NAME), DEFAULT_MAP_NAME, *cells_file_names())),
         **({} if certified is None else certified.map_files),
         TIMING_NAME: timing_text,
     }

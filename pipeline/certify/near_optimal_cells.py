@@ -50,7 +50,15 @@ from pipeline.motion.path_box import PathBox
 from pipeline.motion.smooth_timing import SmoothTiming
 from pipeline.offline.coefficients import Coefficients
 
-__all__ = ["CELLS_NAME", "FORMAT", "NearOptimalCells", "cells_files", "load_near_optimal_cells", "near_optimal_cells"]
+__all__ = [
+    "CELLS_NAME",
+    "FORMAT",
+    "NearOptimalCells",
+    "cells_file_names",
+    "cells_files",
+    "load_near_optimal_cells",
+    "near_optimal_cells",
+]
 
 FORMAT = "twolink-near-optimal-cells/1"
 CELLS_NAME = "near_optimal_cells.json"
@@ -128,6 +136,10 @@ class NearOptimalCells:
         count = int(np.prod(self.cells_per_axis))
         if len(self.cells_per_axis) != len(self.axes) or self.table.shape != (count,):
             raise InvalidParameterError("table", self.table.shape, f"one row per cell of {self.cells_per_axis}")
+        # What the queries reuse, owned by these cells: the box as Python floats for the scalar
+        # lookup, and each cell's timing rebuilt once, on first use.
+        object.__setattr__(self, "_box", tuple(zip(self.range_lo_m.tolist(), self.range_size_m.tolist(), strict=True)))
+        object.__setattr__(self, "_rebuilt", {})
 
     @property
     def certified(self) -> np.ndarray:
@@ -144,16 +156,25 @@ class NearOptimalCells:
         return np.where(inside, np.ravel_multi_index(tuple(index.T), tuple(grid)), -1)
 
     def cell_of(self, *values_m: float) -> int | None:
-        """The certified cell holding the point (its coordinates in the axes' order) [m], or None."""
-        cell = int(self.cells_of(np.array([values_m]))[0])
-        return cell if cell >= 0 and math.isfinite(self.table["duration_s"][cell]) else None
+        """The certified cell holding the point (its coordinates in the axes' order) [m], or None
+        (the scalar twin of :meth:`cells_of`, in Python floats)."""
+        if len(values_m) != len(self._box):
+            return None
+        cell = 0
+        for value, (lo, size), count in zip(values_m, self._box, self.cells_per_axis, strict=True):
+            scaled = (value - lo) / size
+            if not 0.0 <= scaled <= 1.0:
+                return None
+            cell = cell * count + min(math.floor(scaled * count), count - 1)
+        return cell if math.isfinite(self.table["duration_s"][cell]) else None
 
     def timing(self, cell: int, path_duration_s: float) -> SmoothTiming:
         """The cell's timing of a path of duration T = ``path_duration_s`` [s] (``T sigma``)."""
-        row = self.table[cell]
-        normalised = profile_timing(row["x"], row["windows_s"])
-        T = float(path_duration_s)
-        return SmoothTiming(T, normalised.breakpoints_s, T * normalised.start, T * normalised.jerk)
+        normalised = self._rebuilt.get(cell)
+        if normalised is None:
+            row = self.table[cell]
+            normalised = self._rebuilt.setdefault(cell, profile_timing(row["x"], row["windows_s"]))
+        return normalised.scaled(float(path_duration_s))
 
     def certificate(self, cell: int) -> ExecutionCertificate:
         """The cell's bounds as a certificate (source "range": proven for every obstacle of the cell)."""
@@ -265,12 +286,17 @@ def near_optimal_cells(
     )  # fmt: skip
 
 
+def cells_file_names(header_name: str = CELLS_NAME) -> tuple[str, str]:
+    """The names of the cells' two files: the table, then the header."""
+    return Path(header_name).with_suffix(".npy").name, header_name
+
+
 def cells_files(cells: NearOptimalCells, header_name: str = CELLS_NAME) -> dict[str, bytes]:
     """The cells' two files by name, table first: ``{table: .npy bytes, header: JSON bytes}``."""
     buffer = io.BytesIO()
     np.save(buffer, cells.table, allow_pickle=False)
     table_bytes = buffer.getvalue()
-    table_name = Path(header_name).with_suffix(".npy").name
+    table_name, _ = cells_file_names(header_name)
     return {table_name: table_bytes, header_name: dumps(cells.header_json(table_bytes, table_name)).encode("utf-8")}
 
 

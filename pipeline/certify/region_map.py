@@ -71,6 +71,7 @@ from pipeline.validation import check_non_negative
 
 if TYPE_CHECKING:
     from pipeline.certify.lookup import LookupTables
+    from pipeline.certify.near_optimal_cells import NearOptimalCells
 
 #: Format of a map over (L, W).
 FORMAT = "twolink-region-map/2"
@@ -155,6 +156,8 @@ class RegionMap:
         axes: The map's axes, the coefficients' variables in canonical order: ("L", "W"), or L, W
             and names of :data:`pipeline.offline.variables.NAMES` (e.g. ("L", "W", "x")).
         extra_ranges_m: The fitted range (lo, hi) of each axis beyond L and W, in ``axes`` order [m].
+        near_optimal_cells: The certified near-optimal timings per cell of a grid over the range
+            (:mod:`pipeline.certify.near_optimal_cells`, stored in files of their own), or None.
         extra_index: Per leaf, its node index along each axis beyond L and W, int array (n, k - 2)
             (counting cells at the leaf's depth); None for a map over (L, W).
     """
@@ -180,6 +183,7 @@ class RegionMap:
     axes: tuple[str, ...] = SIZE
     extra_ranges_m: tuple[tuple[float, float], ...] = ()
     extra_index: np.ndarray | None = None
+    near_optimal_cells: NearOptimalCells | None = None
     _index: np.ndarray = field(init=False, repr=False)
     _sub_index: np.ndarray = field(init=False, repr=False)
     _coarse_depth: int = field(init=False, repr=False)

@@ -72,6 +72,19 @@ class SmoothTiming(Timing):
         """T' [s]."""
         return float(self.breakpoints_s[-1])
 
+    def scaled(self, path_duration_s: float) -> SmoothTiming:
+        """``T sigma`` for a timing of the normalised path time [0, 1]: the same breakpoints, sigma
+        and its derivatives times T = ``path_duration_s`` [s] (built without re-validating: the
+        breakpoints are this timing's, checked when it was built)."""
+        timing = object.__new__(SmoothTiming)
+        fields = timing.__dict__
+        fields["path_duration_s"] = path_duration_s
+        fields["breakpoints_s"] = self.breakpoints_s
+        fields["start"] = path_duration_s * self.start
+        fields["jerk"] = path_duration_s * self.jerk
+        fields["name"] = self.name
+        return timing
+
     @property
     def knots_s(self) -> np.ndarray:
         """The breakpoints [s]: sigma is one cubic between consecutive knots."""

@@ -237,12 +237,12 @@ def execution_from_map(
     """The execution of the regression's answer ``generated`` read off the region map's leaf
     (module docstring), or None where the map does not decide it: no map or no execution bounds
     in it, another arm's limits or inertias, the obstacle outside the fitted range, an endpoint
-    bound above the tolerance, a leaf bound above a limit, or the near-optimal timing (certified
-    per query)."""
+    bound above the tolerance, a leaf bound above a limit, or, for the near-optimal timing, no
+    certified cell for this arm and limits."""
     if region_map is None or region_map.execution is None or generated.endpoint_error_bound_m is None:
         return None
     if isinstance(timing, NearOptimal):
-        return None
+        return _near_optimal_from_cells(generated, region_map, arm, limits, endpoint_tolerance_m, timing)
     bounds = region_map.execution
     if bounds.limits != limits or bounds.dynamics != dynamics_of(arm):
         return None
@@ -274,6 +274,37 @@ def execution_from_map(
         return None
     measured = measured_endpoint_errors(trajectory, generated, arm)
     return Execution(executed, certificate, limits, measured, endpoint_tolerance_m, (error, error))
+
+
+def _near_optimal_from_cells(
+    generated: GeneratedTrajectory,
+    region_map: RegionMap,
+    arm: PlanarArm,
+    limits: ArmLimits,
+    endpoint_tolerance_m: float,
+    timing: NearOptimal,
+) -> Execution | None:
+    """The near-optimal timing of the regression's answer from the map's cell holding the obstacle
+    (:mod:`pipeline.certify.near_optimal_cells`): its T' and bounds are the cell's, proven for every
+    obstacle of the cell; None where the cells do not decide it (none, another arm or limits, other
+    settings asked for, a cell without a certified timing, a bound above a limit)."""
+    cells = region_map.near_optimal_cells
+    used = limits.with_servo_defaults()
+    if cells is None or timing != NEAR_OPTIMAL or cells.limits != used or cells.dynamics != dynamics_of(arm):
+        return None
+    error = generated.endpoint_error_bound_m
+    if error > endpoint_tolerance_m or tuple(name for name, _ in generated.variables) != cells.axes[2:]:
+        return None
+    cell = cells.cell_of(generated.length_m, generated.width_m, *(v for _, v in generated.variables))
+    if cell is None:
+        return None
+    certificate = cells.certificate(cell)
+    if certificate.violations(used):
+        return None
+    trajectory = generated.trajectory
+    executed = TimedTrajectory(trajectory, cells.timing(cell, trajectory.duration_s))
+    measured = measured_endpoint_errors(trajectory, generated, arm)
+    return Execution(executed, certificate, used, measured, endpoint_tolerance_m, (error, error))
 
 
 def _slower(timing: RestToRestTiming) -> RestToRestTiming:

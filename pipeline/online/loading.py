@@ -71,6 +71,22 @@ def region_map_beside(coefficients: Coefficients) -> RegionMap | None:
             stacklevel=3,
         )
         return None
+    return _with_cells_beside(region_map, path, coefficients)
+
+
+def _with_cells_beside(region_map: RegionMap, map_path: Path, coefficients: Coefficients) -> RegionMap:
+    """``region_map`` with the near-optimal cells written beside it, if they were made from these
+    coefficients (:mod:`pipeline.certify.near_optimal_cells`, imported only where they are: it
+    needs Numba). The map was just read and is not shared yet: the cells are set on it in place,
+    without checking its leaves again."""
+    from pipeline.certify.near_optimal_cells import CELLS_NAME, load_near_optimal_cells
+
+    path = map_path.with_name(CELLS_NAME)
+    if not path.is_file():
+        return region_map
+    cells = load_near_optimal_cells(path)
+    if cells.coefficients_sha256 == coefficients.source_sha256:
+        object.__setattr__(region_map, "near_optimal_cells", cells)
     return region_map
 
 
