@@ -255,6 +255,7 @@ def near_optimal_cells(
     cells_per_axis: int | None = None,
     settings: NearOptimalSettings = CELL_SETTINGS,
     executor: int | Executor = 1,
+    only: np.ndarray | None = None,
 ) -> NearOptimalCells:
     """The certified near-optimal timing of every cell of the grid (module docstring).
 
@@ -266,6 +267,8 @@ def near_optimal_cells(
         settings: How each cell's timing is built.
         executor: Where the fixed chunks of cells run (local processes or an executor); the rows
             do not depend on it.
+        only: Compute only these cells (indices); the others hold NaN, as cells without a
+            certified timing do (for a question about a few obstacles).
     """
     model = RangeModel.from_coefficients(coefficients)
     k = model.k
@@ -277,9 +280,13 @@ def near_optimal_cells(
     size = model.range_size / grid_n
     centres = model.range_lo + (index + 0.5) * size
     halves = np.broadcast_to(size / 2.0, centres.shape).copy()
-    chunks = [(centres[i : i + _CHUNK], halves[i : i + _CHUNK]) for i in range(0, centres.shape[0], _CHUNK)]
+    wanted = np.arange(centres.shape[0]) if only is None else np.unique(np.asarray(only, dtype=np.int64))
+    chunks = [(centres[wanted[i : i + _CHUNK]], halves[wanted[i : i + _CHUNK]]) for i in range(0, wanted.size, _CHUNK)]
     task = functools.partial(_cell_rows, model, dynamics, limits, settings)
-    table = np.concatenate(map_tasks(executor, task, chunks, chunk_size=1))
+    table = np.zeros(centres.shape[0], dtype=_dtype(settings.pieces))
+    table["duration_s"], table["bounds"] = np.nan, np.nan
+    if chunks:
+        table[wanted] = np.concatenate(map_tasks(executor, task, chunks, chunk_size=1))
     return NearOptimalCells(
         coefficients.source_sha256, tuple(model.axes.names), model.range_lo.copy(), model.range_size.copy(),
         grid, limits, dynamics, settings, table,

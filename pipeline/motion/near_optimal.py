@@ -116,10 +116,14 @@ class NearOptimal:
 
     Attributes:
         settings: How it is built.
+        from_map: Where the region map's near-optimal cells hold this timing for the answer's
+            obstacle, arm and limits (:mod:`pipeline.certify.near_optimal_cells`; only with the
+            default settings), read it off them; False: build and certify it per query.
     """
 
     settings: NearOptimalSettings = NearOptimalSettings()
     name: str = "near-optimal"
+    from_map: bool = True
 
 
 #: The near time-optimal, smooth, certified timing with the default settings.

@@ -287,10 +287,12 @@ def _near_optimal_from_cells(
     """The near-optimal timing of the regression's answer from the map's cell holding the obstacle
     (:mod:`pipeline.certify.near_optimal_cells`): its T' and bounds are the cell's, proven for every
     obstacle of the cell; None where the cells do not decide it (none, another arm or limits, other
-    settings asked for, a cell without a certified timing, a bound above a limit)."""
+    settings or ``from_map=False`` asked for, a cell without a certified timing, a bound above a limit)."""
     cells = region_map.near_optimal_cells
     used = limits.with_servo_defaults()
-    if cells is None or timing != NEAR_OPTIMAL or cells.limits != used or cells.dynamics != dynamics_of(arm):
+    if cells is None or not timing.from_map or timing.settings != NEAR_OPTIMAL.settings:
+        return None
+    if cells.limits != used or cells.dynamics != dynamics_of(arm):
         return None
     error = generated.endpoint_error_bound_m
     if error > endpoint_tolerance_m or tuple(name for name, _ in generated.variables) != cells.axes[2:]:

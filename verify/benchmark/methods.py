@@ -83,17 +83,23 @@ def bench_range_batched(
 
 
 def bench_rest_to_rest(
-    coefficients: Any, cases: np.ndarray, arm: PlanarArm, region_map: RegionMap, repeats: int
+    coefficients: Any,
+    cases: np.ndarray,
+    arm: PlanarArm,
+    region_map: RegionMap,
+    repeats: int,
+    timing: Any = REST_TO_REST,
 ) -> tuple[list[float], list[Any]]:
     """(r*): time ``generate_certified(..., timing=REST_TO_REST, region_map=m)`` per query: the
     regression's answer certified in full (clearance, endpoints, and the shortest rest-to-rest
     timing's angles, speeds, accelerations and torques), from the map's leaf where it decides,
-    per query elsewhere. Returns (times [s], the last pass's answers, None where it refused)."""
+    per query elsewhere; (n*m) likewise with ``timing=NEAR_OPTIMAL`` (the map's near-optimal cells).
+    Returns (times [s], the last pass's answers, None where it refused)."""
 
     def one(length: float, width: float) -> Any:
         try:
             return generate_certified(
-                coefficients, length, width, arm, region_map=region_map, timing=REST_TO_REST, out_of_range="ignore"
+                coefficients, length, width, arm, region_map=region_map, timing=timing, out_of_range="ignore"
             )
         except (NoCertifiedTrajectoryError, ExecutionRefusedError):
             return None
@@ -113,16 +119,16 @@ def bench_rest_to_rest(
 
 
 def bench_rest_to_rest_batched(
-    coefficients: Any, cases: np.ndarray, region_map: RegionMap, repeats: int
+    coefficients: Any, cases: np.ndarray, region_map: RegionMap, repeats: int, timing: Any = REST_TO_REST
 ) -> tuple[list[float], GeneratedBatch, ExecutionBatch]:
     """(r*'): time ``generate_batch`` and ``execution_batch(..., REST_TO_REST)`` over all cases
-    at once (the map's bounds, no per-query certificate); returns (time per obstacle [s] of each
-    pass, the last pass's batch and its execution batch)."""
+    at once (the map's bounds, no per-query certificate); (n*m') likewise with ``NEAR_OPTIMAL``;
+    returns (time per obstacle [s] of each pass, the last pass's batch and its execution batch)."""
     lengths, widths = np.ascontiguousarray(cases[:, 0]), np.ascontiguousarray(cases[:, 1])
 
     def run() -> tuple[GeneratedBatch, ExecutionBatch]:
         batch = generate_batch(coefficients, lengths, widths, region_map=region_map)
-        return batch, execution_batch(coefficients, batch, REST_TO_REST, region_map=region_map)
+        return batch, execution_batch(coefficients, batch, timing, region_map=region_map)
 
     for _ in range(max(2, WARMUP_CALLS // 4)):
         run()

@@ -1,10 +1,11 @@
 """The benchmark's rows of the near time-optimal timing and its peer, TOPP-RA, on the same paths and limits.
 
 **(n*) near-optimal certified, per query** times
-``generate_certified(coefficients, L, W, timing=NEAR_OPTIMAL, region_map=m)`` one query at a
-time on the bench's obstacles: the regression's path, its clearance (from the map's cell where it
-decides, else per query), and the near time-optimal timing (:mod:`pipeline.motion.near_optimal`)
-certified in continuous time against the limits (the arm's URDF limits with the servo defaults
+``generate_certified(coefficients, L, W, timing=NearOptimal(from_map=False), region_map=m)`` one
+query at a time on the bench's obstacles: the regression's path, its clearance (from the map's
+cell where it decides, else per query), and the near time-optimal timing
+(:mod:`pipeline.motion.near_optimal`) built and certified per query in continuous time against
+the limits (the arm's URDF limits with the servo defaults
 for acceleration and jerk filled in: ``answer.execution.limits``).
 
 **(tp) toppra (N grid points), per query** times TOPP-RA (:mod:`verify.benchmark.toppra_peer`) on
@@ -36,7 +37,7 @@ from pipeline.exceptions import PipelineError
 from pipeline.model.arm import PlanarArm
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
-from pipeline.motion.near_optimal import NEAR_OPTIMAL
+from pipeline.motion.near_optimal import NearOptimal
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.online.execution import dynamics_of
 from pipeline.online.repair import generate_certified
@@ -56,6 +57,8 @@ __all__ = [
 ]
 
 #: Key of the near-optimal row.
+#: (n*)'s timing: built and certified per query, not read off the map's near-optimal cells.
+PER_QUERY = NearOptimal(from_map=False)
 KEY = "n_opt"
 #: Key of the TOPP-RA row.
 TOPPRA_KEY = "toppra"
@@ -205,7 +208,7 @@ def bench_near_optimal(
     def near(length: float, width: float) -> Any:
         try:
             return generate_certified(
-                coefficients, length, width, arm, timing=NEAR_OPTIMAL, region_map=region_map, out_of_range="ignore"
+                coefficients, length, width, arm, timing=PER_QUERY, region_map=region_map, out_of_range="ignore"
             )
         except PipelineError as exc:
             refusals[type(exc).__name__] = refusals.get(type(exc).__name__, 0) + 1

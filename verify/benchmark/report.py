@@ -150,6 +150,12 @@ def _near_optimal_lines(report: BenchReport) -> list[str]:
             f"T'/T_TOPP-RA median {summary['duration_ratio_median']:.4f}, max {summary['duration_ratio_max']:.4f} "
             f"(min {summary['duration_ratio_min']:.4f}) over {summary['paths']} paths."
         )
+    if summary.get("map_over_toppra"):
+        median, largest = summary["map_over_toppra"]
+        lines.append(
+            f"(n*m) near-optimal from the map vs (tp), same paths and limits: T'/T_TOPP-RA median {median:.4f}, "
+            f"max {largest:.4f}."
+        )
     lines.append(
         f"Largest relative excess over a limit, sampled at {summary['oversample']}x the grid: (n*) at "
         f"{summary['ours_samples_per_breakpoint']}x the breakpoints of its timing: "

@@ -60,6 +60,7 @@ from pipeline.geometry.sinusoid_certificate import certify_trajectory
 from pipeline.io.progress import ProgressCallback
 from pipeline.io.provenance import PACKAGES, package_versions
 from pipeline.model.arm import PlanarArm
+from pipeline.motion.near_optimal import NEAR_OPTIMAL
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.experiment import SolverConfig
@@ -453,7 +454,70 @@ def _near_optimal_methods(
                 },
             )
         )
+    map_methods, map_ratios = _near_optimal_map_methods(ctx, bench_map, rows)
+    methods.extend(map_methods)
+    summary.update(map_ratios)
     return methods, summary
+
+
+def _near_optimal_map_methods(
+    ctx: _Context, bench_map: BenchRegionMap, rows: near.NearOptimalRows
+) -> tuple[list[MethodResult], dict[str, Any]]:
+    """(n*m) per query and (n*m') batched: the near-optimal timing read off the map's near-optimal
+    cells; and T'/T_TOPP-RA of (n*m)'s answers on (tp)'s paths (the same obstacles)."""
+    region_map, settings, cases = bench_map.region_map, ctx.settings, ctx.cases
+    if region_map.near_optimal_cells is None:
+        return [], {}
+    ctx.log("timing (n*m) near-optimal from the map's cells, one query at a time ...")
+    times, answers = bench_rest_to_rest(
+        ctx.coefficients, cases, ctx.arm, region_map, settings.slow_repeats, NEAR_OPTIMAL
+    )
+    answered = [a for a in answers if a is not None]
+    from_map = sum(a.execution_source == "range" for a in answered)
+    per_query = MethodResult(
+        key="n_opt_map",
+        label="(n*m) near-optimal certified, from the map",
+        obstacles=len(cases),
+        times_s=tuple(times),
+        queries=len(answers),
+        answered=len(answered),
+        certified=sum(a.certified_clearance_m > 0.0 for a in answered),
+        keeps_margin=sum(a.certified_clearance_m >= ctx.margin_m for a in answered),
+        note="generate_certified(coefficients, L, W, timing=NEAR_OPTIMAL, region_map=m): clearance, endpoints, "
+        f"and the near-optimal timing with its bounds (jerk included) from the map's cell for {from_map} of "
+        f"{len(answered)} answers (per query for the rest); passes: {settings.slow_repeats}",
+        extra={"execution_from_map": from_map},
+    )
+    ctx.log("timing (n*m') near-optimal from the map's cells, batched ...")
+    batch_cases = _batch_cases(cases, settings.batch_size)
+    times_batch, batch, result = bench_rest_to_rest_batched(
+        ctx.coefficients, batch_cases, region_map, settings.batch_repeats, NEAR_OPTIMAL
+    )
+    n = len(cases)
+    within = result.within_limits[:n]
+    tolerance = endpoint_tolerance_of(ctx.coefficients)
+    full = within & (batch.certified_clearance_m[:n] >= ctx.margin_m) & (batch.endpoint_error_bound_m[:n] <= tolerance)
+    batched = MethodResult(
+        key="n_opt_map_batch",
+        label=f"(n*m') near-optimal certified, batched ({len(batch_cases)} per call)",
+        obstacles=len(cases),
+        times_s=tuple(times_batch),
+        queries=n,
+        answered=int(np.sum(full)),
+        certified=int(np.sum(full)),
+        keeps_margin=int(np.sum(full)),
+        note=f"generate_batch + execution_batch(coefficients, batch, NEAR_OPTIMAL) / {len(batch_cases)}: T' and "
+        f"the bounds of each obstacle's near-optimal cell; {int(np.sum(within))} of {n} obstacles within the "
+        f"limits, {int(np.sum(full))} also with the margin and the endpoint tolerance from the map",
+        extra={"within_limits": int(np.sum(within)), "certified_in_full": int(np.sum(full))},
+    )
+    ratios = [
+        a.duration_s / r.duration_s
+        for a, r in zip(answers, rows.toppra, strict=True)
+        if a is not None and r is not None and a.execution_source == "range"
+    ]
+    summary = {"map_over_toppra": [float(np.median(ratios)), float(np.max(ratios))] if ratios else None}
+    return [per_query, batched], summary
 
 
 def _pso_method(ctx: _Context, config: SolverConfig, pso_source: str) -> MethodResult:
