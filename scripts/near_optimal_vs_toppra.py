@@ -20,7 +20,8 @@ acceleration limit / 50 ms, 100 rad/s^3 at 5 rad/s^2), then again with each of `
 T_TOPP-RA is the same for every jerk limit (computed once per path and limit set), so a lower jerk
 limit shows as a larger ratio. For the default jerk limit it also reports the ratio of the timing
 the map holds (:mod:`pipeline.certify.near_optimal_cells`, the cells made for that limit set, only
-those holding the obstacles): one timing per cell, certified for every obstacle of the cell. It also reports TOPP-RA's own largest relative excess over each
+those holding the obstacles): one timing per cell, certified for every obstacle of the cell.
+It also reports TOPP-RA's own largest relative excess over each
 limit, sampling its reconstructed motion at ``--oversample`` x its gridpoints (what the
 gridpoint-only constraints let through between gridpoints). No threshold is applied: the script
 reports, and exits 0 (2 on bad input).
