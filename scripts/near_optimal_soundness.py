@@ -33,6 +33,10 @@ refined maximum to certified bound and the largest ratio to the limit per quanti
 max) and the wall time per obstacle; ``--json`` writes all of it (and every violation and refusal).
 Exit status: 0 no violation, 1 a violation, 2 bad input.
 
+``--from-map`` audits the timing the map holds instead (:mod:`pipeline.certify.near_optimal_cells`):
+per limit set the cells are made for it (every cell of the grid), and each obstacle executes its
+cell's timing scaled to its path's T, checked against the cell's certificate.
+
     python scripts/near_optimal_soundness.py --coefficients results/coefficients.json --n 10000 --jobs 2
 """
 
@@ -41,10 +45,12 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import tempfile
 import time
 from bisect import bisect_right
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -331,13 +337,32 @@ def _audit(executed, certificate, limits, dynamics, arm, samples: int, top: int,
     }
 
 
+def _from_cells(cells_path: str, trajectory, length: float, width: float):
+    """The map's near-optimal timing of the obstacle's cell (``--from-map``), as the online step
+    executes it: the cell's timing scaled to the path's T, with the cell's certificate."""
+    from types import SimpleNamespace
+
+    from pipeline.certify.near_optimal_cells import load_near_optimal_cells
+    from pipeline.exceptions import TimingRefusedError
+    from pipeline.motion.timed_trajectory import TimedTrajectory
+
+    cells = _WORKER.get(cells_path)
+    if cells is None:
+        cells = _WORKER[cells_path] = load_near_optimal_cells(cells_path)
+    cell = cells.cell_of(length, width)
+    if cell is None:
+        raise TimingRefusedError(("no certified cell holds the obstacle",))
+    executed = TimedTrajectory(trajectory, cells.timing(cell, trajectory.duration_s))
+    return SimpleNamespace(executed=executed, certificate=cells.certificate(cell), attempts=0, limit_share=math.nan)
+
+
 def _audit_chunk(task: tuple) -> list[dict]:
     """Build and audit the timings of one chunk of obstacles for one limit set (in a worker)."""
     from pipeline import generate
     from pipeline.exceptions import PipelineError, TimingRefusedError
     from pipeline.motion.near_optimal import near_optimal_timing
 
-    name, obstacles, samples, top, seed = task
+    name, obstacles, samples, top, seed, cells_path = task
     coefficients, arm, dynamics = _WORKER["coefficients"], _WORKER["arm"], _WORKER["dynamics"]
     limits = _WORKER["limits"][name]
     out = []
@@ -347,7 +372,10 @@ def _audit_chunk(task: tuple) -> list[dict]:
         start = time.perf_counter()
         try:
             trajectory = generate(coefficients, length, width, region_map=None).trajectory
-            result = near_optimal_timing(trajectory, dynamics, limits)
+            if cells_path is None:
+                result = near_optimal_timing(trajectory, dynamics, limits)
+            else:
+                result = _from_cells(cells_path, trajectory, length, width)
         except TimingRefusedError as error:
             record.update(status="refused", reason=str(error), seconds=time.perf_counter() - start)
             out.append(record)
@@ -432,6 +460,21 @@ def _print_summary(summary: dict, elapsed_s: float, jobs: int) -> None:
           f"closed form vs RNEA: {s['rnea_error_max_n_m']:.1e} N m")  # fmt: skip
 
 
+def _write_cells(name: str, folder: str, jobs: int) -> str:
+    """Make the near-optimal cells of limit set ``name`` and write them into ``folder``; their path."""
+    from pipeline.certify.near_optimal_cells import cells_files, near_optimal_cells
+
+    started = time.perf_counter()
+    limits = _WORKER["limits"][name]
+    cells = near_optimal_cells(_WORKER["coefficients"], _WORKER["dynamics"], limits, executor=jobs)
+    header = Path(folder) / f"cells_{name}.json"
+    for file_name, data in cells_files(cells, header.name).items():
+        (Path(folder) / file_name).write_bytes(data)
+    print(f"  set {name}: near-optimal cells made, {int(cells.certified.sum())} of {cells.table.size} certified, "
+          f"{time.perf_counter() - started:.0f} s")  # fmt: skip
+    return str(header)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--coefficients", default="results/coefficients.json", help="coefficients file, or 'paper'")
@@ -447,6 +490,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="worker processes [count] (default: 1: in this process)")
     parser.add_argument("--chunk", type=int, default=25, help="obstacles per task [count] (default: 25)")
     parser.add_argument("--json", default=None, help="write the summaries, violations and refusals to this JSON file")
+    parser.add_argument(
+        "--from-map",
+        action="store_true",
+        help="audit the map's near-optimal timing instead: per limit set, the near-optimal cells made for it "
+        "(pipeline.certify.near_optimal_cells, every cell), each obstacle executing its cell's timing",
+    )
     args = parser.parse_args(argv)
     for flag, value, least in (("--n", args.n, 1), ("--samples", args.samples, 2), ("--top", args.top, 1),
                                ("--jobs", args.jobs, 1), ("--chunk", args.chunk, 1)):  # fmt: skip
@@ -481,10 +530,12 @@ def main(argv: list[str] | None = None) -> int:
         else None
     )
     summaries, violations, refusals = [], [], []
+    folder = tempfile.TemporaryDirectory() if args.from_map else None
     try:
         for name in sets:
+            cells_path = None if folder is None else _write_cells(name, folder.name, args.jobs)
             tasks = [
-                (name, obstacles[k : k + args.chunk], args.samples, args.top, args.seed)
+                (name, obstacles[k : k + args.chunk], args.samples, args.top, args.seed, cells_path)
                 for k in range(0, args.n, args.chunk)
             ]
             started = time.perf_counter()
@@ -512,6 +563,8 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if pool:
             pool.shutdown()
+        if folder is not None:
+            folder.cleanup()
     for v in violations[:20]:
         print(f"VIOLATION set {v['set']} obstacle {v['index']} (L = {v['L_m']!r} m, W = {v['W_m']!r} m): {v['kind']} "
               f"{v['quantity']} at t = {v['t_s']!r} s: {v['value']!r} vs {v['reference']!r}")  # fmt: skip
