@@ -12,7 +12,9 @@ table (a lookup); its timing is rebuilt from the stored profile when the motion 
 
 **The grid.** ``cells_per_axis`` equal cells per axis of the fitted box (any axes the
 coefficients vary), indexed in C order; a point on a shared face belongs to the cell above it,
-the fitted box's upper faces to the last cell. A cell whose timing is not certified within the
+the fitted box's upper faces to the last cell. Each cell is enclosed 1e-9 of its side wider than
+it is, so that a point the lookup's floating-point arithmetic assigns to it lies in the box
+enclosed. A cell whose timing is not certified within the
 attempts holds NaN: its queries are timed per query.
 
 **Stored.** ``near_optimal_cells.json`` (format :data:`FORMAT`: the sha256 link to the
@@ -69,6 +71,9 @@ DEFAULT_PIECES = 100
 #: How each cell's timing is built by default.
 CELL_SETTINGS = NearOptimalSettings(pieces=DEFAULT_PIECES)
 _CHUNK = 128
+#: Each cell's box is enclosed this much wider (relative) than its side: a point the lookup's
+#: rounded arithmetic puts in the cell lies within the box enclosed.
+_FACE_SLACK = 1e-9
 
 
 def _limits_json(limits: ArmLimits) -> dict:
@@ -279,7 +284,7 @@ def near_optimal_cells(
     index = np.stack(np.unravel_index(np.arange(grid_n**k), grid), axis=1)
     size = model.range_size / grid_n
     centres = model.range_lo + (index + 0.5) * size
-    halves = np.broadcast_to(size / 2.0, centres.shape).copy()
+    halves = np.broadcast_to(size / 2.0 * (1.0 + _FACE_SLACK), centres.shape).copy()
     wanted = np.arange(centres.shape[0]) if only is None else np.unique(np.asarray(only, dtype=np.int64))
     chunks = [(centres[wanted[i : i + _CHUNK]], halves[wanted[i : i + _CHUNK]]) for i in range(0, wanted.size, _CHUNK)]
     task = functools.partial(_cell_rows, model, dynamics, limits, settings)
