@@ -23,6 +23,7 @@ query executing ``T sigma`` evaluates ``w (T sigma)`` where the certificate encl
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,9 +78,17 @@ class PathBox:
     ) -> PathBox:
         """The box of parameters in [lower, upper] (w as w, not yet normalised) and durations in
         ``duration_s`` [s], with one path of it (its parameters and T [s]) as the centre."""
-        lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
+        try:
+            lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
+            duration_lo, duration_hi = (float(v) for v in duration_s)
+        except (TypeError, ValueError):
+            raise InvalidParameterError("lower, upper, duration_s", (lower, upper, duration_s), "numbers") from None
+        if lower.shape != (8,) or upper.shape != (8,) or not np.all(lower <= upper):
+            raise InvalidParameterError("lower", lower.tolist(), f"(8,) bounds at most upper = {upper.tolist()}")
+        if not (0.0 < duration_lo <= duration_hi < math.inf):
+            raise InvalidParameterError("duration_s", duration_s, "0 < lo <= hi < inf [s]")
         for k in _FREQUENCIES:
-            lower[k], upper[k] = (float(v) for v in widen(*mul(lower[k], upper[k], *duration_s)))
+            lower[k], upper[k] = (float(v) for v in widen(*mul(lower[k], upper[k], duration_lo, duration_hi)))
         centre = JointTrajectory(tuple(normalised_parameters(centre_parameters, centre_duration_s)), 1.0)
         return cls(lower, upper, centre)
 

@@ -87,8 +87,8 @@ def setting() -> Setting:
 
 
 def _cell(setting: Setting, index: tuple[int, int]) -> Cell:
-    """The cell ``index`` of the grid, its box (as the brief of the region map's cells builds it,
-    with the generator's answer at the centre as the centre path) and its box timing."""
+    """The cell ``index`` of the grid, its box (as :mod:`pipeline.certify.near_optimal_cells` builds
+    a cell's, with the generator's answer at the cell's centre as the centre path) and its timing."""
     model = setting.model
     size = model.range_size / CELLS_PER_AXIS
     centre = model.range_lo + (np.asarray(index) + 0.5) * size
@@ -413,7 +413,6 @@ def test_of_intervals_refuses_lower_above_upper(valid, slot) -> None:
         PathBox.of_intervals(lower, upper, (T - 1e-3, T + 1e-3), p, T)
 
 
-@pytest.mark.xfail(strict=True, reason="of_intervals multiplies w by T before any check: an inverted interval passes")
 @pytest.mark.parametrize("inverted", ["w", "T"])
 def test_of_intervals_refuses_an_inverted_frequency_or_duration(valid, inverted) -> None:
     _, _, _, (p, T) = valid
