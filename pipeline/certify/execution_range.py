@@ -51,6 +51,7 @@ own quadrature and rounding bounds.
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -63,7 +64,7 @@ from pipeline.model.limits import ArmLimits
 from pipeline.motion.execution_certificate import FLOAT_SLACK_ABSOLUTE, FLOAT_SLACK_RELATIVE
 from pipeline.motion.rest_to_rest import rest_to_rest_scales
 
-__all__ = ["TIME_PIECES", "execution_bounds", "kinematic_bounds", "leaf_parameters"]
+__all__ = ["TIME_PIECES", "LeafJets", "execution_bounds", "kinematic_bounds", "leaf_jets", "leaf_parameters"]
 
 #: Pieces of the path time [0, T] per leaf.
 TIME_PIECES = 64
@@ -79,7 +80,35 @@ def _widen(interval: Interval) -> Interval:
 def leaf_parameters(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray) -> tuple[list[Interval], Interval]:
     """Enclosures of the 8 sinusoid parameters and of T over each box of the axes (centres and
     half widths (n, k)): mean-value form at the centre intersected with the natural enclosure."""
-    n = centre_m.shape[0]
+    jets = leaf_jets(model, centre_m, half_m)
+    return jets.parameters, jets.duration
+
+
+@dataclass(frozen=True, eq=False)
+class LeafJets:
+    """The parameters of the boxes of :func:`leaf_jets`, each list entry one parameter, n boxes.
+
+    Attributes:
+        parameters: Enclosures over each box (mean-value form intersected with the natural one), (n,).
+        duration: T over each box [s], (n,).
+        gradients: The parameters' gradients over each box, (n, k) per parameter.
+        duration_gradient: T's gradient over each box [s/m], (n, k).
+        point: The parameters' enclosures at each box's centre, (n,).
+        point_duration: T at each box's centre [s], (n,).
+    """
+
+    parameters: list[Interval]
+    duration: Interval
+    gradients: list[Interval]
+    duration_gradient: Interval
+    point: list[Interval]
+    point_duration: Interval
+
+
+def leaf_jets(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray) -> LeafJets:
+    """The parameters' and T's enclosures and gradients over each box of the axes (centres and
+    half widths (n, k)), and their enclosures at the centres (:class:`LeafJets`)."""
+    n, k = centre_m.shape
     c3 = np.column_stack([centre_m, np.zeros(n)])
     r3 = np.column_stack([half_m, np.zeros(n)])
     zero = np.zeros_like(r3)
@@ -95,7 +124,14 @@ def leaf_parameters(model: RangeModel, centre_m: np.ndarray, half_m: np.ndarray)
             hi = np.minimum(p_point.value.hi + spread, p_box.value.hi)
         bad = ~(np.isfinite(lo) & np.isfinite(hi))
         out.append(Interval(np.where(bad, -np.inf, lo), np.where(bad, np.inf, hi)))
-    return out, T_box.value
+    return LeafJets(
+        parameters=out,
+        duration=T_box.value,
+        gradients=[Interval(p.grad.lo[..., :k], p.grad.hi[..., :k]) for p in box],
+        duration_gradient=Interval(T_box.grad.lo[..., :k], T_box.grad.hi[..., :k]),
+        point=[p.value for p in point],
+        point_duration=T_point.value,
+    )
 
 
 def kinematic_bounds(

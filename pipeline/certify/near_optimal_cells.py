@@ -39,7 +39,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from pipeline.certify.execution_range import leaf_parameters
+from pipeline.certify.execution_range import LeafJets, leaf_jets
 from pipeline.certify.range_model import RangeModel
 from pipeline.exceptions import DataFileError, InvalidParameterError, TimingRefusedError
 from pipeline.io.executor import Executor, map_tasks
@@ -48,7 +48,7 @@ from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.execution_certificate import ExecutionCertificate
 from pipeline.motion.near_optimal import NearOptimalSettings, near_optimal_box_timing, profile_timing
-from pipeline.motion.path_box import PathBox
+from pipeline.motion.path_box import PathBox, normalised_mean_value
 from pipeline.motion.smooth_timing import SmoothTiming
 from pipeline.offline.coefficients import Coefficients
 
@@ -67,7 +67,7 @@ CELLS_NAME = "near_optimal_cells.json"
 #: Cells per axis by the number of axes (the table's size grows as its power).
 DEFAULT_CELLS_PER_AXIS = MappingProxyType({2: 64, 3: 16, 4: 8})
 #: Pieces of each cell's profile.
-DEFAULT_PIECES = 100
+DEFAULT_PIECES = NearOptimalSettings().pieces
 #: How each cell's timing is built by default.
 CELL_SETTINGS = NearOptimalSettings(pieces=DEFAULT_PIECES)
 _CHUNK = 128
@@ -221,24 +221,42 @@ class NearOptimalCells:
         }
 
 
+def _cell_box(jets: LeafJets, n: int, half_m: np.ndarray) -> PathBox | None:
+    """Cell n's box of paths with its mean-value form, or None where its enclosures are not finite."""
+    lower = np.array([p.lo[n] for p in jets.parameters])
+    upper = np.array([p.hi[n] for p in jets.parameters])
+    point = (np.array([p.lo[n] for p in jets.point]), np.array([p.hi[n] for p in jets.point]))
+    duration = (float(jets.duration.lo[n]), float(jets.duration.hi[n]))
+    point_T = (float(jets.point_duration.lo[n]), float(jets.point_duration.hi[n]))
+    gradient = (np.array([g.lo[n] for g in jets.gradients]), np.array([g.hi[n] for g in jets.gradients]))
+    finite = [lower, upper, *point, *gradient, np.array([*duration, *point_T])]
+    if not all(np.all(np.isfinite(v)) for v in finite):
+        return None
+    form = normalised_mean_value(
+        point,
+        gradient,
+        (point_T, duration),
+        (jets.duration_gradient.lo[n], jets.duration_gradient.hi[n]),
+        (lower, upper),
+        half_m,
+    )
+    centre = 0.5 * (point[0] + point[1])
+    return PathBox.of_intervals(lower, upper, duration, centre, 0.5 * (point_T[0] + point_T[1]), form)
+
+
 def _cell_rows(
     model: RangeModel, dynamics: PlanarDynamics, limits: ArmLimits, settings: NearOptimalSettings, chunk
 ) -> np.ndarray:
     """The table rows of a chunk of cells (centres, half widths (n, k))."""
     centres, halves = chunk
-    box_params, box_T = leaf_parameters(model, centres, halves)
-    point_params, point_T = leaf_parameters(model, centres, np.zeros_like(halves))
+    jets = leaf_jets(model, centres, halves)
     rows = np.zeros(centres.shape[0], dtype=_dtype(settings.pieces))
     rows["duration_s"], rows["bounds"] = np.nan, np.nan
     for n in range(centres.shape[0]):
-        lower = np.array([p.lo[n] for p in box_params])
-        upper = np.array([p.hi[n] for p in box_params])
-        centre = np.array([0.5 * (p.lo[n] + p.hi[n]) for p in point_params])
-        T = (float(box_T.lo[n]), float(box_T.hi[n]))
-        if not (np.all(np.isfinite(lower) & np.isfinite(upper)) and all(math.isfinite(t) for t in T)):
-            continue
         try:
-            box = PathBox.of_intervals(lower, upper, T, centre, 0.5 * float(point_T.lo[n] + point_T.hi[n]))
+            box = _cell_box(jets, n, halves[n])
+            if box is None:
+                continue
             result = near_optimal_box_timing(box, dynamics, limits, settings)
         except (TimingRefusedError, InvalidParameterError):
             continue

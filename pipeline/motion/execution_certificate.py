@@ -105,7 +105,7 @@ def _joint_enclosures(timed, lo: np.ndarray, hi: np.ndarray):
     d1_cube = mul(*d1_sq, d1_lo, d1_hi)
     d1_d2 = mul(d1_lo, d1_hi, d2_lo, d2_hi)
     theta, speed, accel, jerk = [], [], [], []
-    for angle, v, a, j in sinusoid_ranges(*timed.parameter_bounds, s_lo, s_hi):
+    for angle, v, a, j in sinusoid_ranges(*timed.parameter_bounds, s_lo, s_hi, timed.mean_value):
         theta.append(widen(*angle))
         speed.append(widen(*mul(*v, d1_lo, d1_hi)))
         first, second = mul(*a, *d1_sq), mul(*v, d2_lo, d2_hi)

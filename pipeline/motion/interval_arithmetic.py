@@ -12,12 +12,14 @@ states the slack and why it covers the chain).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 __all__ = [
     "FLOAT_SLACK_ABSOLUTE",
     "FLOAT_SLACK_RELATIVE",
+    "MeanValueForm",
     "affine_trig",
     "magnitude",
     "mul",
@@ -87,7 +89,7 @@ def magnitude(interval) -> np.ndarray:
     return np.maximum(np.abs(interval[0]), np.abs(interval[1]))
 
 
-def sinusoid_ranges(lower, upper, s_lo, s_hi):
+def sinusoid_ranges(lower, upper, s_lo, s_hi, mean_value: MeanValueForm | None = None):
     """Per joint i, the intervals of theta_i = A sin(w s + phi) + gamma and of its first three
     derivatives in s, over s in [s_lo, s_hi] (arrays, s_lo <= s_hi) and every parameter vector
     between ``lower`` and ``upper`` (the eight (A, w, phi, gamma) of the two joints; equal for one path).
@@ -96,6 +98,11 @@ def sinusoid_ranges(lower, upper, s_lo, s_hi):
     coefficients A w, A w^2, A w^3 are interval products (w^3 is monotone). For one path (lower =
     upper) every operation gives the same floats as the scalar expressions (corner products of
     degenerate intervals are the products themselves).
+
+    With ``mean_value`` (a box of obstacles whose parameters are functions of its variables),
+    each enclosure is also taken in the mean-value form (:class:`MeanValueForm`) and the two are
+    intersected: the naive one loses the correlation between A, w and phi across the box, the
+    mean-value form keeps it to first order.
 
     Returns:
         ``[(theta, d1, d2, d3) for each joint]``, each an interval ``(lo, hi)``, not yet widened.
@@ -113,5 +120,67 @@ def sinusoid_ranges(lower, upper, s_lo, s_hi):
         aw3 = mul(a_lo, a_hi, w_lo**3, w_hi**3)
         theta = mul(a_lo, a_hi, *sin)
         d2, d3 = mul(*aw2, *sin), mul(*aw3, *cos)
-        out.append(((theta[0] + gamma_lo, theta[1] + gamma_hi), mul(*aw, *cos), (-d2[1], -d2[0]), (-d3[1], -d3[0])))
+        naive = ((theta[0] + gamma_lo, theta[1] + gamma_hi), mul(*aw, *cos), (-d2[1], -d2[0]), (-d3[1], -d3[0]))
+        if mean_value is not None:
+            form = _mean_value_joint(i, lower, upper, mean_value, s_lo, s_hi, sin, cos)
+            naive = tuple((np.maximum(n[0], f[0]), np.minimum(n[1], f[1])) for n, f in zip(naive, form, strict=True))
+        out.append(naive)
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class MeanValueForm:
+    """What the mean-value form of the sinusoids over a box of obstacles needs (:func:`sinusoid_ranges`).
+
+    The eight parameters p(v) are functions of the box's variables v in c +- r. For every v of the
+    box, ``f(s, p(v)) = f(s, p(c)) + sum_j df/dv_j (s, p(xi)) (v_j - c_j)`` for some xi of the box
+    (the mean value theorem on the segment from c to v), so f lies in
+    ``f(s, [p(c)]) + sum_j [df/dv_j] [-r_j, r_j]`` with ``df/dv_j`` enclosed over the box.
+
+    Attributes:
+        point_lower, point_upper: (8,) an enclosure of p(c), the parameters at the box's centre.
+        gradient_lower, gradient_upper: (8, k) enclosures of dp/dv_j over the box.
+        radius: (k,) the box's half widths r_j.
+    """
+
+    point_lower: np.ndarray
+    point_upper: np.ndarray
+    gradient_lower: np.ndarray
+    gradient_upper: np.ndarray
+    radius: np.ndarray
+
+
+def _mean_value_joint(i, box_lower, box_upper, form: MeanValueForm, s_lo, s_hi, sin, cos):
+    """Per derivative order 0..3 of joint i, the mean-value enclosure (module docstring of
+    :class:`MeanValueForm`): the centre's range plus the gradients' spread."""
+    a, w = (box_lower[4 * i], box_upper[4 * i]), (box_lower[4 * i + 1], box_upper[4 * i + 1])
+    centre = sinusoid_ranges(form.point_lower, form.point_upper, s_lo, s_hi)[i]
+    spread = [0.0, 0.0, 0.0, 0.0]
+    w2 = square(*w)
+    aw, aw2 = mul(*a, *w), mul(*mul(*a, *w), *w)
+    minus_sin = (-sin[1], -sin[0])
+    for j, r in enumerate(form.radius):
+        da, dw, dphi, dgamma = (
+            (form.gradient_lower[4 * i + q, j], form.gradient_upper[4 * i + q, j]) for q in range(4)
+        )
+        phase = mul(*dw, s_lo, s_hi)
+        phase = (phase[0] + dphi[0], phase[1] + dphi[1])
+        dk = (
+            da,
+            _add2(mul(*da, *w), mul(*a, *dw)),
+            _add2(mul(*da, *w2), scale(2.0, *mul(*aw, *dw))),
+            _add2(mul(*da, *mul(*w2, *w)), scale(3.0, *mul(*aw2, *dw))),
+        )
+        k = ((a[0], a[1]), aw, aw2, mul(*aw2, *w))
+        trig = (sin, cos, sin, cos)
+        dtrig = (cos, minus_sin, cos, minus_sin)
+        for m in range(4):
+            d = _add2(mul(*dk[m], *trig[m]), mul(*mul(*k[m], *dtrig[m]), *phase))
+            if m == 0:
+                d = _add2(d, dgamma)
+            spread[m] = spread[m] + magnitude(d) * r
+    return [(centre[m][0] - spread[m], centre[m][1] + spread[m]) for m in range(4)]
+
+
+def _add2(x, y):
+    return x[0] + y[0], x[1] + y[1]

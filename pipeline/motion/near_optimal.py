@@ -355,7 +355,7 @@ def near_optimal_box_timing(
     """
     _check_jerk(limits)
     edges = np.linspace(0.0, 1.0, settings.pieces + 1)
-    enclosures = enclose_path((box.lower, box.upper), edges, dynamics)
+    enclosures = enclose_path((box.lower, box.upper), edges, dynamics, box.mean_value)
     peaks = np.stack([magnitude(d) for d in (enclosures.d1, enclosures.d2, enclosures.d3)])
 
     def constraints(share: float, speed_share: float):

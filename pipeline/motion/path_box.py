@@ -29,12 +29,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
-from pipeline.motion.interval_arithmetic import mul, widen
+from pipeline.motion.interval_arithmetic import MeanValueForm, mul, widen
 from pipeline.motion.timed_trajectory import TimedTrajectory
 from pipeline.motion.timing import Timing
 from pipeline.motion.trajectory import JointTrajectory
 
-__all__ = ["PathBox", "TimedPathBox", "normalised_parameters"]
+__all__ = ["PathBox", "TimedPathBox", "normalised_mean_value", "normalised_parameters"]
 
 #: Positions of w in the eight parameters (A, w, phi, gamma per joint).
 _FREQUENCIES = (1, 5)
@@ -47,6 +47,39 @@ def normalised_parameters(parameters, duration_s: float) -> np.ndarray:
     return p
 
 
+def normalised_mean_value(
+    point: tuple[np.ndarray, np.ndarray],
+    gradient: tuple[np.ndarray, np.ndarray],
+    duration: tuple[tuple[float, float], tuple[float, float]],
+    duration_gradient: tuple[np.ndarray, np.ndarray],
+    parameters: tuple[np.ndarray, np.ndarray],
+    radius: np.ndarray,
+) -> MeanValueForm:
+    """The mean-value form of the normalised parameters (Omega = w T) from the parameters' own.
+
+    Args:
+        point: (lower, upper) (8,) enclosure of the parameters at the box's centre.
+        gradient: (lower, upper) (8, k) enclosures of their gradients over the box.
+        duration: ((lo, hi) of T at the centre, (lo, hi) of T over the box) [s].
+        duration_gradient: (lower, upper) (k,) enclosure of T's gradient over the box [s/m].
+        parameters: (lower, upper) (8,) enclosures of the parameters over the box.
+        radius: (k,) the box's half widths [m].
+
+    Omega's gradient is ``dw/dv T + w dT/dv`` over the box, its centre value ``w(c) T(c)``, both in
+    interval arithmetic and widened.
+    """
+    point_lo, point_hi = (np.array(v, dtype=float) for v in point)
+    grad_lo, grad_hi = (np.array(v, dtype=float) for v in gradient)
+    (t_c_lo, t_c_hi), (t_lo, t_hi) = duration
+    for k in _FREQUENCIES:
+        point_lo[k], point_hi[k] = (float(v) for v in widen(*mul(point_lo[k], point_hi[k], t_c_lo, t_c_hi)))
+        w_lo, w_hi = parameters[0][k], parameters[1][k]
+        first = mul(grad_lo[k], grad_hi[k], t_lo, t_hi)
+        second = mul(w_lo, w_hi, *duration_gradient)
+        grad_lo[k], grad_hi[k] = widen(first[0] + second[0], first[1] + second[1])
+    return MeanValueForm(point_lo, point_hi, grad_lo, grad_hi, np.asarray(radius, dtype=float))
+
+
 @dataclass(frozen=True, eq=False)
 class PathBox:
     """The paths of a box of obstacles in normalised path time (module docstring).
@@ -54,11 +87,15 @@ class PathBox:
     Attributes:
         lower, upper: (8,) bounds of (A, Omega, phi, gamma) per joint [rad, rad, rad, rad].
         centre: One path of the box, normalised (duration 1, its w the Omega = w T of its own T).
+        mean_value: The normalised parameters' mean-value form over the box (their enclosure at
+            the box's centre and their gradients' over the box), for tighter enclosures; None:
+            the intervals alone.
     """
 
     lower: np.ndarray
     upper: np.ndarray
     centre: JointTrajectory
+    mean_value: MeanValueForm | None = None
 
     def __post_init__(self) -> None:
         lower, upper = np.asarray(self.lower, dtype=float), np.asarray(self.upper, dtype=float)
@@ -74,10 +111,17 @@ class PathBox:
 
     @classmethod
     def of_intervals(
-        cls, lower, upper, duration_s: tuple[float, float], centre_parameters, centre_duration_s: float
+        cls,
+        lower,
+        upper,
+        duration_s: tuple[float, float],
+        centre_parameters,
+        centre_duration_s: float,
+        mean_value: MeanValueForm | None = None,
     ) -> PathBox:
         """The box of parameters in [lower, upper] (w as w, not yet normalised) and durations in
-        ``duration_s`` [s], with one path of it (its parameters and T [s]) as the centre."""
+        ``duration_s`` [s], with one path of it (its parameters and T [s]) as the centre, and
+        optionally the normalised parameters' mean-value form (:func:`normalised_mean_value`)."""
         try:
             lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
             duration_lo, duration_hi = (float(v) for v in duration_s)
@@ -90,7 +134,7 @@ class PathBox:
         for k in _FREQUENCIES:
             lower[k], upper[k] = (float(v) for v in widen(*mul(lower[k], upper[k], duration_lo, duration_hi)))
         centre = JointTrajectory(tuple(normalised_parameters(centre_parameters, centre_duration_s)), 1.0)
-        return cls(lower, upper, centre)
+        return cls(lower, upper, centre, mean_value)
 
     def timed(self, timing: Timing) -> TimedPathBox:
         """The box under ``timing`` (of [0, T'] onto the normalised path time [0, 1])."""
@@ -121,6 +165,11 @@ class TimedPathBox:
     def parameter_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The box's bounds of the normalised parameters, as the certificates read them."""
         return self.box.lower, self.box.upper
+
+    @property
+    def mean_value(self) -> MeanValueForm | None:
+        """The box's mean-value form, as the certificates read it."""
+        return self.box.mean_value
 
     def states(self, t_s, *, outside: str = "error") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """q, dq, ddq of the box's centre path at executed times ``t_s`` [s]."""

@@ -42,6 +42,7 @@ from pipeline.motion.compiled_intervals import scale as compiled_scale
 from pipeline.motion.compiled_intervals import sin_range as compiled_sin_range
 from pipeline.motion.compiled_intervals import widen as compiled_widen
 from pipeline.motion.interval_arithmetic import (
+    MeanValueForm,
     affine_trig,
     magnitude,
     mul,
@@ -103,7 +104,9 @@ def _add(*intervals):
     return sum(v[0] for v in intervals), sum(v[1] for v in intervals)
 
 
-def enclose_path(parameters, edges_s: np.ndarray, dynamics: PlanarDynamics) -> PathEnclosures:
+def enclose_path(
+    parameters, edges_s: np.ndarray, dynamics: PlanarDynamics, mean_value: MeanValueForm | None = None
+) -> PathEnclosures:
     """Enclose theta', theta'', theta''' and the torque coefficients over each piece of ``edges_s``.
 
     Args:
@@ -111,12 +114,14 @@ def enclose_path(parameters, edges_s: np.ndarray, dynamics: PlanarDynamics) -> P
             one path, or a pair (lower, upper) of them: every path of that box at once.
         edges_s: Increasing path times [s], (n + 1,).
         dynamics: The arm's closed-form dynamics.
+        mean_value: For a box, its mean-value form (tighter enclosures:
+            :func:`pipeline.motion.interval_arithmetic.sinusoid_ranges`).
     """
     if isinstance(parameters, tuple) and len(parameters) == 2:
         lower, upper = (np.asarray(p, dtype=float) for p in parameters)
     else:
         lower = upper = np.asarray(parameters, dtype=float)
-    joints = sinusoid_ranges(lower, upper, edges_s[:-1], edges_s[1:])
+    joints = sinusoid_ranges(lower, upper, edges_s[:-1], edges_s[1:], mean_value)
     pair = lambda k: (np.stack([j[k][0] for j in joints], 1), np.stack([j[k][1] for j in joints], 1))  # noqa: E731
     d1, d2, d3 = (widen(*pair(k)) for k in (1, 2, 3))
     q2 = widen(*joints[1][0])

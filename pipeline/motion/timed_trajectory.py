@@ -62,6 +62,11 @@ class TimedTrajectory:
         p = np.asarray(self.trajectory.parameters, dtype=float)
         return p, p
 
+    @property
+    def mean_value(self) -> None:
+        """One path has no mean-value form (the certificates read None)."""
+        return None
+
     def as_dict(self) -> dict[str, float]:
         """The parameters by name."""
         return self.trajectory.as_dict()
