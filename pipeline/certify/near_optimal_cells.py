@@ -144,7 +144,10 @@ class NearOptimalCells:
         # What the queries reuse, owned by these cells: the box as Python floats for the scalar
         # lookup, and each cell's timing rebuilt once, on first use.
         object.__setattr__(self, "_box", tuple(zip(self.range_lo_m.tolist(), self.range_size_m.tolist(), strict=True)))
+        object.__setattr__(self, "_durations", np.asarray(self.table["duration_s"]).tolist())
         object.__setattr__(self, "_rebuilt", {})
+        object.__setattr__(self, "_certificates", {})
+        object.__setattr__(self, "_made_for", {})
 
     @property
     def certified(self) -> np.ndarray:
@@ -160,6 +163,18 @@ class NearOptimalCells:
         index = np.minimum(np.floor(np.where(inside[:, None], scaled, 0.0) * grid).astype(np.int64), grid - 1)
         return np.where(inside, np.ravel_multi_index(tuple(index.T), tuple(grid)), -1)
 
+    def made_for(self, limits: ArmLimits, dynamics: PlanarDynamics) -> bool:
+        """Whether these cells' timings keep ``limits`` with the servo defaults filled in
+        (:meth:`ArmLimits.with_servo_defaults`, what the near-optimal timing keeps) for the arm of
+        ``dynamics``: they were made for exactly those."""
+        key = (limits, dynamics)
+        made = self._made_for.get(key)
+        if made is None:
+            made = self._made_for.setdefault(
+                key, limits.with_servo_defaults() == self.limits and dynamics == self.dynamics
+            )
+        return made
+
     def cell_of(self, *values_m: float) -> int | None:
         """The certified cell holding the point (its coordinates in the axes' order) [m], or None
         (the scalar twin of :meth:`cells_of`, in Python floats)."""
@@ -171,7 +186,7 @@ class NearOptimalCells:
             if not 0.0 <= scaled <= 1.0:
                 return None
             cell = cell * count + min(math.floor(scaled * count), count - 1)
-        return cell if math.isfinite(self.table["duration_s"][cell]) else None
+        return cell if math.isfinite(self._durations[cell]) else None
 
     def timing(self, cell: int, path_duration_s: float) -> SmoothTiming:
         """The cell's timing of a path of duration T = ``path_duration_s`` [s] (``T sigma``)."""
@@ -182,22 +197,27 @@ class NearOptimalCells:
         return normalised.scaled(float(path_duration_s))
 
     def certificate(self, cell: int) -> ExecutionCertificate:
-        """The cell's bounds as a certificate (source "range": proven for every obstacle of the cell)."""
-        row = self.table[cell]
-        b = row["bounds"]
-        return ExecutionCertificate(
+        """The cell's bounds as a certificate (source "range": proven for every obstacle of the
+        cell); one read-only certificate per cell, made on first use."""
+        found = self._certificates.get(cell)
+        if found is not None:
+            return found
+        b = np.array(self.table[cell]["bounds"])
+        b.flags.writeable = False
+        certificate = ExecutionCertificate(
             "near-optimal",
-            float(row["duration_s"]),
+            self._durations[cell],
             ((-float(b[2]), float(b[0])), (-float(b[3]), float(b[1]))),
-            b[4:6].copy(),
-            b[6:8].copy(),
-            b[8:10].copy(),
+            b[4:6],
+            b[6:8],
+            b[8:10],
             {},
             0,
             self.limits,
             "range",
-            b[10:12].copy(),
+            b[10:12],
         )
+        return self._certificates.setdefault(cell, certificate)
 
     def header_json(self, table_bytes: bytes, table_name: str) -> dict:
         """The JSON header describing the cells and naming their table."""

@@ -102,13 +102,13 @@ def measured_endpoint_errors(
     :meth:`pipeline.model.arm.PlanarArm.end_effector_planar`), in plain floats."""
     a1, w1, phi1, g1, a2, w2, phi2, g2 = trajectory.parameters
     l1, l2 = arm.link_lengths_m
-    points = generated.path.points_m
+    start, end = generated.end_points_m.tolist()
     errors = []
-    for t, (px, py) in ((0.0, points[0]), (trajectory.duration_s, points[-1])):
+    for t, (px, py) in ((0.0, start), (trajectory.duration_s, end)):
         q1 = a1 * math.sin(w1 * t + phi1) + g1
         q12 = q1 + a2 * math.sin(w2 * t + phi2) + g2 + arm.elbow_offset_rad
         x, y = l1 * math.cos(q1) + l2 * math.cos(q12), l1 * math.sin(q1) + l2 * math.sin(q12)
-        errors.append(math.hypot(x - float(px), y - float(py)))
+        errors.append(math.hypot(x - px, y - py))
     return errors[0], errors[1]
 
 
@@ -289,11 +289,11 @@ def _near_optimal_from_cells(
     obstacle of the cell; None where the cells do not decide it (none, another arm or limits, other
     settings or ``from_map=False`` asked for, a cell without a certified timing, a bound above a limit)."""
     cells = region_map.near_optimal_cells
-    used = limits.with_servo_defaults()
     if cells is None or not timing.from_map or timing.settings != NEAR_OPTIMAL.settings:
         return None
-    if cells.limits != used or cells.dynamics != dynamics_of(arm):
+    if not cells.made_for(limits, dynamics_of(arm)):
         return None
+    used = cells.limits
     error = generated.endpoint_error_bound_m
     if error > endpoint_tolerance_m or tuple(name for name, _ in generated.variables) != cells.axes[2:]:
         return None

@@ -60,7 +60,7 @@ from pipeline.model.kinematics import inverse_kinematics
 from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.motion.families import EndpointContext, TrajectoryFamily
-from pipeline.motion.path import QuarticPath, desired_path
+from pipeline.motion.path import QuarticPath, constraint_points, desired_path
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.online.kernel import FINITE, NO_TABLES, PARAMETERS, query_core
@@ -166,6 +166,12 @@ class GeneratedTrajectory:
         """The desired path around the obstacle; its ``duration_s`` is this answer's T (to rounding
         for an obstacle moved by x, whose path is the general quartic's)."""
         return desired_path(self.obstacle, self.scene, self.reach_m)
+
+    @cached_property
+    def end_points_m(self) -> np.ndarray:
+        """P1 and P5, where the path starts and ends [m], (2, 2): the path's first and last
+        constraint points, without building the path."""
+        return constraint_points(self.obstacle, self.scene)[[0, -1]]
 
     @property
     def duration_s(self) -> float:

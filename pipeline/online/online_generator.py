@@ -8,7 +8,8 @@ coefficients bound: ``g(L, W, x=..., d=...)`` is :func:`pipeline.online.generato
 ``g.batch`` :func:`pipeline.online.batch.generate_batch`, ``g.certified``
 :func:`pipeline.online.repair.generate_certified`, ``g.certify_batch``
 :func:`pipeline.online.batch_certify.certify_batch` and ``g.execution_batch``
-:func:`pipeline.online.batch_execution.execution_batch`; their keywords and errors are those
+:func:`pipeline.online.batch_execution.execution_batch`, ``g.near_optimal``
+:func:`pipeline.online.map_timing.near_optimal_from_map`; their keywords and errors are those
 functions'. The functions stay, and an object and a function given the same coefficients share one
 state and give the same answers.
 """
@@ -25,6 +26,7 @@ from pipeline.online.batch import GeneratedBatch, generate_batch
 from pipeline.online.batch_execution import ExecutionBatch, execution_batch
 from pipeline.online.generator import GeneratedTrajectory, generate
 from pipeline.online.loading import load_coefficients
+from pipeline.online.map_timing import MapTiming, near_optimal_from_map
 from pipeline.online.query_state import QueryState, state_of
 
 if TYPE_CHECKING:  # Pinocchio and Coal: loaded by the methods that certify, on first use
@@ -98,6 +100,11 @@ class OnlineGenerator:
         from pipeline.online.batch_certify import certify_batch
 
         return certify_batch(self.coefficients, batch, **options)
+
+    def near_optimal(self, length_m: float, width_m: float, **variables) -> MapTiming:
+        """The certified near-optimal answer read off the map, at lookup cost:
+        :func:`pipeline.online.map_timing.near_optimal_from_map`."""
+        return near_optimal_from_map(self.coefficients, length_m, width_m, **variables)
 
     def execution_batch(self, batch: GeneratedBatch, **options) -> ExecutionBatch:
         """The batch's execution bounds from the map: :func:`pipeline.online.batch_execution.execution_batch`."""
