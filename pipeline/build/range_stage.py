@@ -141,4 +141,5 @@ def certify_coefficients(
     cells = near_optimal_cells(coefficients, dynamics, limits.with_servo_defaults(), executor=map_config.run_on)
     seconds["near_optimal_cells"] = time.perf_counter() - started
     files = {**region_map_files(region_map), **cells_files(cells)}
+    region_map = replace(region_map, near_optimal_cells=cells)
     return CertifiedCoefficients(coefficients, text, region_map, files, report, timing)

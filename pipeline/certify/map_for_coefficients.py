@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+
 from pipeline.certify.execution_range import execution_bounds
 from pipeline.certify.range_certificate import DEFAULT_CELLS, DEFAULT_ENDPOINT_TOLERANCE_M, RangeCertificateConfig
 from pipeline.certify.range_model import RangeModel
@@ -76,20 +78,42 @@ def with_execution_bounds(
 
 def summary_lines(region_map: RegionMap) -> list[str]:
     """Two lines: area fraction per status, then bounds, cells and time; a third with the
-    execution bounds' fractions if the map has them."""
+    execution bounds' fractions if the map has them, a fourth with its near-optimal cells'."""
     summary = region_map.summary()
     fractions = summary["area_fraction"]
-    return [
-        "range certificate: "
-        + ", ".join(f"{name} {100 * fractions[name]:.2f} %" for name in STATUSES)
-        + f" of the area (margin {1e3 * region_map.margin_m:.2f} mm, endpoint tolerance "
-        f"{1e3 * region_map.endpoint_tolerance_m:.2f} mm)",
-        f"certified collision-free {100 * summary['certified_collision_free_fraction']:.2f} %; clearance bound min "
-        f"{1e3 * summary['clearance_bound_min_m']:.3f} mm; endpoint bound max "
-        f"{1e3 * summary['endpoint_bound_max_m']:.3f} mm, <= tolerance on "
-        f"{100 * summary['endpoint_within_tolerance_fraction']:.2f} %; "
-        f"{summary['cells']} cells in {region_map.seconds:.1f} s",
-    ] + _execution_lines(region_map)
+    return (
+        [
+            "range certificate: "
+            + ", ".join(f"{name} {100 * fractions[name]:.2f} %" for name in STATUSES)
+            + f" of the area (margin {1e3 * region_map.margin_m:.2f} mm, endpoint tolerance "
+            f"{1e3 * region_map.endpoint_tolerance_m:.2f} mm)",
+            f"certified collision-free {100 * summary['certified_collision_free_fraction']:.2f} %; clearance bound min "
+            f"{1e3 * summary['clearance_bound_min_m']:.3f} mm; endpoint bound max "
+            f"{1e3 * summary['endpoint_bound_max_m']:.3f} mm, <= tolerance on "
+            f"{100 * summary['endpoint_within_tolerance_fraction']:.2f} %; "
+            f"{summary['cells']} cells in {region_map.seconds:.1f} s",
+        ]
+        + _execution_lines(region_map)
+        + _cells_lines(region_map)
+    )
+
+
+def _cells_lines(region_map: RegionMap) -> list[str]:
+    cells = region_map.near_optimal_cells
+    if cells is None:
+        return []
+    durations = np.asarray(cells.table["duration_s"])
+    certified = np.isfinite(durations)
+    grid = " x ".join(str(n) for n in cells.cells_per_axis)
+    limits = cells.limits
+    line = (
+        f"near-optimal cells: {int(certified.sum())} of {durations.size} certified ({grid} over "
+        f"{', '.join(cells.axes)}; acceleration {limits.acceleration_rad_s2[0]:g}, {limits.acceleration_rad_s2[1]:g} "
+        f"rad/s^2, jerk {limits.jerk_rad_s3[0]:g}, {limits.jerk_rad_s3[1]:g} rad/s^3)"
+    )
+    if certified.any():
+        line += f", T' from {durations[certified].min():.3f} to {durations[certified].max():.3f} s"
+    return [line]
 
 
 def _execution_lines(region_map: RegionMap) -> list[str]:

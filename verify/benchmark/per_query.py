@@ -22,6 +22,7 @@ from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import PipelineError
 from pipeline.offline.coefficients import Coefficients
 from pipeline.online.generator import generate
+from pipeline.online.map_timing import near_optimal_from_map
 
 from .results import WARMUP_CALLS
 
@@ -34,6 +35,8 @@ class PerQueryRow:
         coefficients: Of the generator.
         cases: (n, 2) obstacles (L, W) [m], or (n, 3) (L, W, x) for coefficients that vary x.
         region_map: The map the answers' bounds come from (None: no bounds).
+        near_optimal: Time ``near_optimal_from_map`` (the certified near-optimal answer read off the
+            coefficients' attached map) instead of ``generate``.
         times_s: Every timed call [s], in order.
         answers: The answers of the last pass, None where the generator refused.
     """
@@ -41,6 +44,7 @@ class PerQueryRow:
     coefficients: Coefficients
     cases: np.ndarray
     region_map: RegionMap | None = None
+    near_optimal: bool = False
     times_s: list[float] = field(default_factory=list, init=False)
     answers: list[Any] = field(init=False)
 
@@ -61,7 +65,15 @@ class PerQueryRow:
     def _pass(self, record: bool) -> None:
         coefficients, region_map, answers = self.coefficients, self.region_map, self.answers
         times, clock = self.times_s if record else [], time.perf_counter
-        if np.shape(self.cases)[1] == 2:
+        if self.near_optimal:
+            for i, (length, width) in enumerate(self._rows):
+                started = clock()
+                try:
+                    answers[i] = near_optimal_from_map(coefficients, length, width)
+                except PipelineError:
+                    answers[i] = None
+                times.append(clock() - started)
+        elif np.shape(self.cases)[1] == 2:
             for i, (length, width) in enumerate(self._rows):
                 started = clock()
                 try:

@@ -227,6 +227,10 @@ def _time_per_query(
         "a_range": PerQueryRow(ctx.coefficients, ctx.cases, bench_map.region_map),
     }
     names = "(a), (a*)"
+    attached = ctx.coefficients.region_map
+    if attached is not None and attached.near_optimal_cells is not None:
+        rows[NEAR_LOOKUP_KEY] = PerQueryRow(ctx.coefficients, ctx.cases, near_optimal=True)
+        names += ", (n*g)"
     if coefficients_x is not None:
         cases_x = over_x.sample_cases_x(coefficients_x, settings.n, settings.seed)
         rows[over_x.KEY] = PerQueryRow(coefficients_x, cases_x, coefficients_x.region_map)
@@ -303,6 +307,30 @@ def _range_methods(
         **common,
     )
     return [per_query, batched]
+
+
+#: The row of ``g.near_optimal(L, W)``, timed side by side with (a) and (a*).
+NEAR_LOOKUP_KEY = "n_opt_lookup"
+
+
+def _near_lookup_method(ctx: _Context, timed: PerQueryRow) -> MethodResult:
+    """(n*g): the certified near-optimal answer read off the map (clearance, endpoints, T' and the
+    cell's bounds), per query, from its ``timed`` row."""
+    answered = [a for a in timed.answers if a is not None]
+    return MethodResult(
+        key=NEAR_LOOKUP_KEY,
+        label="(n*g) near-optimal certified, map lookup",
+        obstacles=len(ctx.cases),
+        times_s=tuple(timed.times_s),
+        queries=len(timed.answers),
+        answered=len(answered),
+        certified=len(answered),
+        keeps_margin=len(answered),
+        note="g.near_optimal(L, W) (pipeline.online.map_timing.near_optimal_from_map): the regression's answer "
+        "with the map's clearance and endpoint bounds and the near-optimal cell's T' and bounds (the motion built "
+        f"on first use); passes: {ctx.settings.repeats}, interleaved with (a)'s and (a*)'s; refused where the map "
+        f"does not decide: {len(timed.answers) - len(answered)} of {len(timed.answers)}",
+    )
 
 
 def _rest_to_rest_methods(ctx: _Context, bench_map: BenchRegionMap) -> list[MethodResult]:
@@ -739,6 +767,8 @@ def _measured_methods(
     methods, sweep_info, answers_a = _sweep_and_generator(ctx, rows["a"])
     methods.extend(_range_methods(ctx, bench_map, answers_a, rows["a_range"]))
     methods.extend(_rest_to_rest_methods(ctx, bench_map))
+    if NEAR_LOOKUP_KEY in rows:
+        methods.append(_near_lookup_method(ctx, rows[NEAR_LOOKUP_KEY]))
     methods.append(_certified_method(ctx))
     skipped: dict[str, str] = {}
     near_methods, near_summary = _near_optimal_methods(ctx, bench_map, skipped)
