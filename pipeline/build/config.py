@@ -70,6 +70,7 @@ OPTIONS: Mapping[str, str] = MappingProxyType(
         "acceleration_limits_rad_s2": "--acceleration-limit",
         "range_map": "--no-range-map",
         "clearance_rounds": "--clearance-rounds",
+        "near_optimal_cells": "--near-optimal-cells",
     }
 )
 #: Command-line option of each scene field that has one; the others are set by ``--scene FILE``.
@@ -151,6 +152,9 @@ class BuildConfig:
         acceleration_limits_rad_s2: The arm's joint acceleration limits [rad/s^2] (URDF carries
             none), recorded in the coefficients; later certificates hold answers to them. None: none.
         range_map: Certify the coefficients over their fitted range and write region_map.json.
+        near_optimal_cells: Cells per axis of the map's near-optimal timings
+            (:mod:`pipeline.certify.near_optimal_cells`); None: 64 over (L, W), 16 over three axes,
+            8 over four; 0: none.
         clearance_rounds: Rounds of the certifiable regression before the map (paper family
             with the endpoint constraint; 0: none).
     """
@@ -182,6 +186,7 @@ class BuildConfig:
     acceleration_limits_rad_s2: tuple[float, float] | None = None
     range_map: bool = True
     clearance_rounds: int = DEFAULT_CLEARANCE_ROUNDS
+    near_optimal_cells: int | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.out_folder, str | os.PathLike):
@@ -207,6 +212,9 @@ class BuildConfig:
             or self.clearance_rounds < 0
         ):
             raise InvalidParameterError(OPTIONS["clearance_rounds"], self.clearance_rounds, "an integer >= 0")
+        cells = self.near_optimal_cells
+        if cells is not None and (isinstance(cells, bool) or not isinstance(cells, int | np.integer) or cells < 0):
+            raise InvalidParameterError(OPTIONS["near_optimal_cells"], cells, "an integer >= 0 (0: none)")
         if isinstance(self.family, str):
             try:
                 object.__setattr__(self, "family", family_from_name(self.family))

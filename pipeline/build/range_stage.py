@@ -137,9 +137,13 @@ def certify_coefficients(
     dynamics = identify_dynamics(arm)
     region_map = with_execution_bounds(region_map, coefficients, dynamics, limits, map_config.run_on)
     seconds["execution_bounds"] = time.perf_counter() - started
-    started = time.perf_counter()
-    cells = near_optimal_cells(coefficients, dynamics, limits.with_servo_defaults(), executor=map_config.run_on)
-    seconds["near_optimal_cells"] = time.perf_counter() - started
-    files = {**region_map_files(region_map), **cells_files(cells)}
-    region_map = replace(region_map, near_optimal_cells=cells)
+    files = region_map_files(region_map)
+    if config.near_optimal_cells != 0:
+        started = time.perf_counter()
+        cells = near_optimal_cells(
+            coefficients, dynamics, limits.with_servo_defaults(), config.near_optimal_cells, executor=map_config.run_on
+        )
+        seconds["near_optimal_cells"] = time.perf_counter() - started
+        files = {**files, **cells_files(cells)}
+        region_map = replace(region_map, near_optimal_cells=cells)
     return CertifiedCoefficients(coefficients, text, region_map, files, report, timing)

@@ -71,6 +71,7 @@ STAGE_NAMES = MappingProxyType(
         "clearance_refit": "certifiable regression",
         "range_certificate": "range certificate",
         "execution_bounds": "execution bounds",
+        "near_optimal_cells": "near-optimal cells",
         "writing": "writing",
         "other": "other",
     }

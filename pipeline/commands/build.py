@@ -197,6 +197,14 @@ def _map_arguments(p: argparse.ArgumentParser) -> None:
         "beside them, linked by their sha256; see python -m pipeline.certify_range)",
     )
     p.add_argument(
+        "--near-optimal-cells",
+        type=count_argument,
+        default=None,
+        metavar="N",
+        help="cells per axis of the map's certified near-optimal timings (one timing per cell, read at lookup "
+        "cost); 0: none [count] (default: 64 over (L, W), 16 over three axes, 8 over four)",
+    )
+    p.add_argument(
         "--clearance-rounds",
         type=count_argument,
         default=DEFAULT_CLEARANCE_ROUNDS,
@@ -307,6 +315,7 @@ def config_from_args(args: argparse.Namespace) -> BuildConfig:
         acceleration_limits_rad_s2=args.acceleration_limit,
         range_map=not args.no_range_map,
         clearance_rounds=args.clearance_rounds,
+        near_optimal_cells=args.near_optimal_cells,
     )
 
 

@@ -13,6 +13,8 @@ from pipeline.model.arm import load_planar_arm
 
 #: A coarse range certificate for the tests: cells of 1/64, resolved to 1/32 where undecided.
 COARSE = {"min_cell": 1 / 64, "boundary_cell": 1 / 32, "strip_split": 0}
+#: Near-optimal cells per axis for the tests' builds (the default's 64 x 64 take about 40 s).
+COARSE_CELLS = 2
 
 
 @pytest.fixture(scope="session")
@@ -40,4 +42,12 @@ def replayed(doe_results: list, monkeypatch: pytest.MonkeyPatch) -> list:
     monkeypatch.setattr(
         range_stage, "default_config", lambda *args, **kwargs: replace(real_default_config(*args, **kwargs), **COARSE)
     )
+    real_cells = range_stage.near_optimal_cells
+
+    def coarse_cells(coefficients, dynamics, limits, cells_per_axis=None, **kwargs):
+        return real_cells(
+            coefficients, dynamics, limits, COARSE_CELLS if cells_per_axis is None else cells_per_axis, **kwargs
+        )
+
+    monkeypatch.setattr(range_stage, "near_optimal_cells", coarse_cells)
     return doe_results

@@ -18,6 +18,7 @@ from pipeline.offline.designs import BoxBehnken, CentralComposite, FullFactorial
 
 #: A PSO small enough for 27 runs in seconds (its optima miss the thresholds: --allow-unconverged).
 TINY = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--no-polish", "--quiet", "--no-progress"]
+TINY += ["--near-optimal-cells", "2"]
 
 BAD = [
     (["--vary", "xc", "-0.03", "0.03"], "did you mean 'x'?"),

@@ -22,7 +22,14 @@ from pipeline.exceptions import InvalidParameterError
 from pipeline.io import file_set
 from pipeline.offline import coefficients as coefficients_module
 
-SET = ("doe.json", "coefficients.json", "region_map.npy", "region_map.json")
+SET = (
+    "doe.json",
+    "coefficients.json",
+    "region_map.npy",
+    "region_map.json",
+    "near_optimal_cells.npy",
+    "near_optimal_cells.json",
+)
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
@@ -46,9 +53,12 @@ def test_library_and_command_line_write_the_same_bytes(replayed: list, tmp_path:
     timing = json.loads((library / "build_timing.json").read_text())
     assert timing == result.timing
     stages = ["checks", "doe", "regression", "clearance_refit", "range_certificate", "execution_bounds"]
+    stages += ["near_optimal_cells"]
     assert list(timing["stages_s"]) == [*stages, "writing", "other"]
-    # What a user then loads carries the map.
-    assert load_coefficients(library / "coefficients.json").region_map is not None
+    # What a user then loads carries the map and its near-optimal cells (2 x 2 in these tests).
+    loaded = load_coefficients(library / "coefficients.json").region_map
+    assert loaded is not None and loaded.near_optimal_cells is not None
+    assert loaded.near_optimal_cells.cells_per_axis == (2, 2) and loaded.near_optimal_cells.certified.all()
 
 
 def test_without_a_range_map_no_stale_map_stays(replayed: list, tmp_path: Path) -> None:

@@ -32,7 +32,7 @@ from pipeline.exceptions import (
 from pipeline.model.arm import DEFAULT_URDF
 from pipeline.offline.doe import Design, load_doe
 
-TINY = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--quiet"]
+TINY = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--quiet", "--near-optimal-cells", "2"]
 
 
 def files_under(folder: Path) -> set[Path]:

@@ -20,7 +20,7 @@ from pipeline.cli import EXIT_TERMINATED, Parser, run_cli
 ROOT = Path(__file__).resolve().parents[2]
 #: A build of seconds: a tiny PSO (the optima miss the thresholds: --allow-unconverged writes them).
 TINY = ["--swarm-size", "8", "--iterations", "5", "--restarts", "1", "--n-points", "15", "--plain"]
-TINY += ["--allow-unconverged", "--quiet", "--no-progress", "--jobs", "2"]
+TINY += ["--allow-unconverged", "--quiet", "--no-progress", "--jobs", "2", "--near-optimal-cells", "2"]
 #: A build of minutes, to be stopped midway.
 LONG = [*TINY, "--swarm-size", "40", "--iterations", "400"]
 PROG = "python -m pipeline.build"
