@@ -11,10 +11,14 @@ in one run on this machine, it times side by side:
   time and batched (:func:`pipeline.online.batch.generate_batch` with the map, per obstacle); the
   map is the one beside the coefficients, ``--region-map``'s, or certified in-process
   (:mod:`verify.benchmark.range_map`);
-* **(n*)** the generator with the near time-optimal timing, certified (``generate_certified(...,
-  timing=NEAR_OPTIMAL, region_map=m)``), per query, and **TOPP-RA** (the ``toppra`` library) on
-  its paths and limits, per query; with the ratio T'/T_TOPP-RA and each method's largest sampled
-  excess over a limit (:mod:`verify.benchmark.near_optimal`);
+* **(n*)** the generator with the near time-optimal timing built and certified per query
+  (``generate_certified(..., timing=NearOptimal(from_map=False), region_map=m)``), and **TOPP-RA**
+  (the ``toppra`` library) on its paths and limits, per query; with the ratio T'/T_TOPP-RA and each
+  method's largest sampled excess over a limit (:mod:`verify.benchmark.near_optimal`);
+* **(n*g)**, **(n*m)**, **(n*m')** the near-optimal timing from the map's near-optimal cells:
+  ``g.near_optimal(L, W)`` per query (timed side by side with (a) and (a*)), ``generate_certified(...,
+  timing=NEAR_OPTIMAL)`` per query, and ``execution_batch(..., NEAR_OPTIMAL)`` batched, with the
+  ratio of (n*m)'s T' to TOPP-RA's on the same paths;
 * **(b)** the generator with certification (:func:`pipeline.online.repair.generate_certified`:
   certify, repair if needed, or refuse);
 * **(c)** re-running the PSO online for that (L, W) (:func:`pipeline.offline.experiment.solve_experiment`,
@@ -37,7 +41,7 @@ and the sweep rate of :func:`verify.acceptance.run.run_cases` with and without t
 
 The figures are ratios measured in one run on one machine, never absolute claims: times use
 ``time.perf_counter``, every method is warmed up first, and the cheap methods are repeated many
-times so their medians are stable; the per-query rows (a), (a*) and (a*) over (L, W, x) in
+times so their medians are stable; the per-query rows (a), (a*), (n*g) and (a*) over (L, W, x) in
 interleaved passes, so that they sample the same stretches of a shared machine's time.
 """
 
@@ -444,8 +448,9 @@ def _near_optimal_methods(
             answered=len(answered),
             certified=certified,
             keeps_margin=keeps,
-            note="generate_certified(coefficients, L, W, timing=NEAR_OPTIMAL, region_map=m): clearance (map or "
-            "per query), endpoints, and the near time-optimal timing certified over [0, T'] against the limits "
+            note="generate_certified(coefficients, L, W, timing=NearOptimal(from_map=False), region_map=m): "
+            "clearance (map or per query), endpoints, and the near time-optimal timing built and certified per "
+            "query over [0, T'] against the limits "
             f"with the servo defaults; passes: {settings.slow_repeats}, interleaved with TOPP-RA's; refusals "
             f"(last pass): {sum(rows.refusals.values())} {rows.refusals or ''}".rstrip(),
             extra={
