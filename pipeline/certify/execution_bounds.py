@@ -28,7 +28,7 @@ from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.rest_to_rest import rest_to_rest_bounds
 
-__all__ = ["COLUMNS", "SIGNIFICANT_DIGITS", "ExecutionBounds", "outward"]
+__all__ = ["COLUMNS", "SIGNIFICANT_DIGITS", "ExecutionBounds", "dynamics_json", "limits_json", "outward"]
 
 #: Decimal digits the columns keep (rounded outward: :func:`outward`).
 SIGNIFICANT_DIGITS = 7
@@ -59,7 +59,8 @@ _NULL_MEANS = MappingProxyType(
 )
 
 
-def _dynamics_json(dynamics: PlanarDynamics) -> dict:
+def dynamics_json(dynamics: PlanarDynamics) -> dict:
+    """The inertias as JSON (the map's headers)."""
     return {
         "m0": [list(r) for r in dynamics.m0],
         "mc": [list(r) for r in dynamics.mc],
@@ -67,7 +68,8 @@ def _dynamics_json(dynamics: PlanarDynamics) -> dict:
     }
 
 
-def _limits_json(limits: ArmLimits) -> dict:
+def limits_json(limits: ArmLimits) -> dict:
+    """The position, speed, acceleration and effort limits as JSON (the map's headers; no jerk)."""
     return {
         "position_rad": [list(p) for p in limits.position_rad],
         "velocity_rad_s": list(limits.velocity_rad_s),
@@ -201,16 +203,16 @@ class ExecutionBounds:
             RegionMapLimitsError: ``limits`` or ``dynamics`` differ from the map's (the first
                 difference is named).
         """
-        mine, theirs = _limits_json(self.limits), _limits_json(limits)
+        mine, theirs = limits_json(self.limits), limits_json(limits)
         for key in mine:
             if mine[key] != theirs[key]:
                 raise RegionMapLimitsError(key, mine[key], theirs[key])
         if dynamics != self.dynamics:
-            raise RegionMapLimitsError("inertia (mass matrix)", _dynamics_json(self.dynamics), _dynamics_json(dynamics))
+            raise RegionMapLimitsError("inertia (mass matrix)", dynamics_json(self.dynamics), dynamics_json(dynamics))
 
     def header_json(self) -> dict:
         """The limits and dynamics the bounds are of, as plain JSON (without the columns)."""
-        return {"limits": _limits_json(self.limits), "dynamics": _dynamics_json(self.dynamics)}
+        return {"limits": limits_json(self.limits), "dynamics": dynamics_json(self.dynamics)}
 
     def to_json(self) -> dict:
         """Plain JSON (non-finite values are written as null by the map's writer)."""

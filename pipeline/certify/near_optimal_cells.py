@@ -39,6 +39,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from pipeline.certify.execution_bounds import dynamics_json, limits_json
 from pipeline.certify.execution_range import LeafJets, leaf_jets
 from pipeline.certify.range_model import RangeModel
 from pipeline.exceptions import DataFileError, InvalidParameterError, TimingRefusedError
@@ -77,13 +78,7 @@ _FACE_SLACK = 1e-9
 
 
 def _limits_json(limits: ArmLimits) -> dict:
-    return {
-        "position_rad": [list(p) for p in limits.position_rad],
-        "velocity_rad_s": list(limits.velocity_rad_s),
-        "acceleration_rad_s2": list(limits.acceleration_rad_s2),
-        "effort_n_m": list(limits.effort_n_m),
-        "jerk_rad_s3": list(limits.jerk_rad_s3),
-    }
+    return {**limits_json(limits), "jerk_rad_s3": list(limits.jerk_rad_s3)}
 
 
 def _limits_of(document: dict) -> ArmLimits:
@@ -229,7 +224,7 @@ class NearOptimalCells:
             "range_size_m": self.range_size_m.tolist(),
             "cells_per_axis": list(self.cells_per_axis),
             "limits": _limits_json(self.limits),
-            "dynamics": {k: [list(r) for r in getattr(self.dynamics, k)] for k in ("m0", "mc", "ms")},
+            "dynamics": dynamics_json(self.dynamics),
             "settings": {"pieces": self.settings.pieces, "tries": self.settings.tries},
             "certified_cells": int(self.certified.sum()),
             "table": {

@@ -61,8 +61,8 @@ def scale(k, lo, hi):
 
 def mul(a_lo, a_hi, b_lo, b_hi):
     """[a] [b]: the extremes of the four corner products."""
-    corners = np.stack(np.broadcast_arrays(a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi))
-    return corners.min(0), corners.max(0)
+    p1, p2, p3, p4 = a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi
+    return np.minimum(np.minimum(p1, p2), np.minimum(p3, p4)), np.maximum(np.maximum(p1, p2), np.maximum(p3, p4))
 
 
 def square(lo, hi):
