@@ -65,6 +65,7 @@ from pipeline.io.progress import ProgressCallback
 from pipeline.io.provenance import PACKAGES, package_versions
 from pipeline.model.arm import PlanarArm
 from pipeline.motion.near_optimal import NEAR_OPTIMAL
+from pipeline.motion.rest_to_rest import REST_TO_REST
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.experiment import SolverConfig
@@ -337,16 +338,38 @@ def _near_lookup_method(ctx: _Context, timed: PerQueryRow) -> MethodResult:
     )
 
 
+def _per_query_from_map(ctx: _Context, region_map, timing) -> tuple[list[float], list[Any], list[Any], int]:
+    """``generate_certified(..., timing=timing)`` per query with the map: (times [s], answers with
+    None for a refusal, the answered ones, how many took their limit bounds from the map)."""
+    times, answers = bench_rest_to_rest(
+        ctx.coefficients, ctx.cases, ctx.arm, region_map, ctx.settings.slow_repeats, timing
+    )
+    answered = [a for a in answers if a is not None]
+    return times, answers, answered, sum(a.execution_source == "range" for a in answered)
+
+
+def _batched_from_map(ctx: _Context, region_map, timing) -> tuple[list[float], int, np.ndarray, np.ndarray]:
+    """``generate_batch`` + ``execution_batch(..., timing)``: (times per obstacle [s], the batch
+    size, per bench obstacle whether its bounds keep the limits, and whether it is certified in
+    full: the limits, the margin and the endpoint tolerance, all from the map)."""
+    batch_cases = _batch_cases(ctx.cases, ctx.settings.batch_size)
+    times, batch, result = bench_rest_to_rest_batched(
+        ctx.coefficients, batch_cases, region_map, ctx.settings.batch_repeats, timing
+    )
+    n = len(ctx.cases)
+    within = result.within_limits[:n]
+    tolerance = endpoint_tolerance_of(ctx.coefficients)
+    full = within & (batch.certified_clearance_m[:n] >= ctx.margin_m) & (batch.endpoint_error_bound_m[:n] <= tolerance)
+    return times, len(batch_cases), within, full
+
+
 def _rest_to_rest_methods(ctx: _Context, bench_map: BenchRegionMap) -> list[MethodResult]:
     """(r*) per query and (r*') batched: certified to execute with the rest-to-rest timing, from the map."""
     region_map, settings, cases = bench_map.region_map, ctx.settings, ctx.cases
     if region_map.execution is None:
         return []
     ctx.log("timing (r*) certified rest-to-rest answers from the map, one query at a time ...")
-    times, answers = bench_rest_to_rest(ctx.coefficients, cases, ctx.arm, region_map, settings.slow_repeats)
-    answered = [a for a in answers if a is not None]
-    from_map = sum(a.execution_source == "range" for a in answered)
-    keeps = sum(a.certified_clearance_m >= ctx.margin_m for a in answered)
+    times, answers, answered, from_map = _per_query_from_map(ctx, region_map, REST_TO_REST)
     per_query = MethodResult(
         key="r_range",
         label="(r*) certified rest-to-rest, from the map",
@@ -355,32 +378,25 @@ def _rest_to_rest_methods(ctx: _Context, bench_map: BenchRegionMap) -> list[Meth
         queries=len(answers),
         answered=len(answered),
         certified=sum(a.certified_clearance_m > 0.0 for a in answered),
-        keeps_margin=keeps,
+        keeps_margin=sum(a.certified_clearance_m >= ctx.margin_m for a in answered),
         note="generate_certified(coefficients, L, W, timing=REST_TO_REST, region_map=m): clearance, endpoints, "
         f"angles, |dq|, |ddq|, |tau| over [0, T']; limit bounds from the map's leaf for {from_map} of "
         f"{len(answered)} answers (per query for the rest); passes: {settings.slow_repeats}",
         extra={"execution_from_map": from_map},
     )
     ctx.log("timing (r*') certified rest-to-rest from the map, batched ...")
-    batch_cases = _batch_cases(cases, settings.batch_size)
-    times_batch, batch, result = bench_rest_to_rest_batched(
-        ctx.coefficients, batch_cases, region_map, settings.batch_repeats
-    )
+    times_batch, size, within, full = _batched_from_map(ctx, region_map, REST_TO_REST)
     n = len(cases)
-    within = result.within_limits[:n]
-    clearance = batch.certified_clearance_m[:n]
-    tolerance = endpoint_tolerance_of(ctx.coefficients)
-    full = within & (clearance >= ctx.margin_m) & (batch.endpoint_error_bound_m[:n] <= tolerance)
     batched = MethodResult(
         key="r_range_batch",
-        label=f"(r*') certified rest-to-rest, batched ({len(batch_cases)} per call)",
-        obstacles=len(cases),
+        label=f"(r*') certified rest-to-rest, batched ({size} per call)",
+        obstacles=n,
         times_s=tuple(times_batch),
         queries=n,
         answered=int(np.sum(full)),
         certified=int(np.sum(full)),
         keeps_margin=int(np.sum(full)),
-        note=f"generate_batch + execution_batch(coefficients, batch, REST_TO_REST) / {len(batch_cases)}: T', the "
+        note=f"generate_batch + execution_batch(coefficients, batch, REST_TO_REST) / {size}: T', the "
         f"rest-to-rest timing and its bounds from the map's leaf; {int(np.sum(within))} of {n} obstacles within "
         f"the arm's limits, {int(np.sum(full))} also with the margin and the endpoint tolerance from the map "
         "(answered: these, certified in full without a per-query certificate)",
@@ -502,11 +518,7 @@ def _near_optimal_map_methods(
     if region_map.near_optimal_cells is None:
         return [], {}
     ctx.log("timing (n*m) near-optimal from the map's cells, one query at a time ...")
-    times, answers = bench_rest_to_rest(
-        ctx.coefficients, cases, ctx.arm, region_map, settings.slow_repeats, NEAR_OPTIMAL
-    )
-    answered = [a for a in answers if a is not None]
-    from_map = sum(a.execution_source == "range" for a in answered)
+    times, answers, answered, from_map = _per_query_from_map(ctx, region_map, NEAR_OPTIMAL)
     per_query = MethodResult(
         key="n_opt_map",
         label="(n*m) near-optimal certified, from the map",
@@ -522,26 +534,20 @@ def _near_optimal_map_methods(
         extra={"execution_from_map": from_map},
     )
     ctx.log("timing (n*m') near-optimal from the map's cells, batched ...")
-    batch_cases = _batch_cases(cases, settings.batch_size)
-    times_batch, batch, result = bench_rest_to_rest_batched(
-        ctx.coefficients, batch_cases, region_map, settings.batch_repeats, NEAR_OPTIMAL
-    )
+    times_batch, size, within, full = _batched_from_map(ctx, region_map, NEAR_OPTIMAL)
     n = len(cases)
-    within = result.within_limits[:n]
-    tolerance = endpoint_tolerance_of(ctx.coefficients)
-    full = within & (batch.certified_clearance_m[:n] >= ctx.margin_m) & (batch.endpoint_error_bound_m[:n] <= tolerance)
     batched = MethodResult(
         key="n_opt_map_batch",
-        label=f"(n*m') near-optimal certified, batched ({len(batch_cases)} per call)",
-        obstacles=len(cases),
+        label=f"(n*m') near-optimal certified, batched ({size} per call)",
+        obstacles=n,
         times_s=tuple(times_batch),
         queries=n,
         answered=int(np.sum(full)),
         certified=int(np.sum(full)),
         keeps_margin=int(np.sum(full)),
-        note=f"generate_batch + execution_batch(coefficients, batch, NEAR_OPTIMAL) / {len(batch_cases)}: T' and "
-        f"the bounds of each obstacle's near-optimal cell; {int(np.sum(within))} of {n} obstacles within the "
-        f"limits, {int(np.sum(full))} also with the margin and the endpoint tolerance from the map",
+        note=f"generate_batch + execution_batch(coefficients, batch, NEAR_OPTIMAL) / {size}: T' and the bounds of "
+        f"each obstacle's near-optimal cell; {int(np.sum(within))} of {n} obstacles within the limits, "
+        f"{int(np.sum(full))} also with the margin and the endpoint tolerance from the map",
         extra={"within_limits": int(np.sum(within)), "certified_in_full": int(np.sum(full))},
     )
     ratios = [
