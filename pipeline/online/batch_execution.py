@@ -73,7 +73,7 @@ def _checked_inputs(coefficients: Coefficients, batch, timing, region_map):
     if region_map is None:
         raise InvalidParameterError("region_map", None, "a region map (python -m pipeline.build writes one)")
     check_region_map(region_map, coefficients)
-    if region_map.execution is None:
+    if region_map.execution is None and not isinstance(timing, NearOptimal):
         raise InvalidParameterError(
             "region_map", "without execution bounds", "a map with them (python -m pipeline.certify_range adds them)"
         )

@@ -239,11 +239,13 @@ def execution_from_map(
     in it, another arm's limits or inertias, the obstacle outside the fitted range, an endpoint
     bound above the tolerance, a leaf bound above a limit, or, for the near-optimal timing, no
     certified cell for this arm and limits."""
-    if region_map is None or region_map.execution is None or generated.endpoint_error_bound_m is None:
+    if region_map is None or generated.endpoint_error_bound_m is None:
         return None
     if isinstance(timing, NearOptimal):
         return _near_optimal_from_cells(generated, region_map, arm, limits, endpoint_tolerance_m, timing)
     bounds = region_map.execution
+    if bounds is None:
+        return None
     if bounds.limits != limits or bounds.dynamics != dynamics_of(arm):
         return None
     error = generated.endpoint_error_bound_m

@@ -21,6 +21,7 @@ import pytest
 from pipeline import load_coefficients
 from pipeline.certify.map_files import load_region_map, save_region_map
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, default_config
+from pipeline.certify.near_optimal_cells import cells_files, near_optimal_cells
 from pipeline.certify.range_certificate import RangeCertificateConfig
 from pipeline.cli import EXIT_OK, EXIT_USAGE, HelpFormatter
 from pipeline.exceptions import (
@@ -32,6 +33,7 @@ from pipeline.exceptions import (
 from pipeline.io.jsonio import write_json_atomic
 from pipeline.offline.coefficients import Coefficients, save_coefficients
 from pipeline.online.generator import RANGE_SOURCE, generate
+from pipeline.online.query_state import state_of
 from verify.acceptance.cases import SweepRange, sample_cases
 from verify.bench import build_parser, main
 from verify.benchmark import methods as bench_methods
@@ -60,6 +62,10 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
     coefficients = load_coefficients(path)
     region_map = bench_range_map.certify_range(coefficients, coarse_config(coefficients))
     save_region_map(region_map, folder / DEFAULT_MAP_NAME)
+    state = state_of(coefficients)  # near-optimal cells for the recorded arm, 2 x 2, as the build writes them
+    cells = near_optimal_cells(coefficients, state.dynamics, state.limits.with_servo_defaults(), cells_per_axis=2)
+    for name, data in cells_files(cells).items():
+        (folder / name).write_bytes(data)
     return path
 
 
@@ -186,8 +192,9 @@ def test_tiny_run_prints_the_table_and_writes_the_json_schema(tiny_run: tuple[in
     assert data["command"].startswith("python -m verify.bench --coefficients ")
     assert len(data["cases"]) == 3
     keys = [m["key"] for m in data["methods"]]
-    expected = ["a", "a_batch", "a_range", "a_range_batch", "b", "n_opt"]
+    expected = ["a", "a_batch", "a_range", "a_range_batch", "n_opt_lookup", "b", "n_opt"]
     expected += ["toppra"] if toppra_peer.toppra_available() else []
+    expected += ["n_opt_map", "n_opt_map_batch"]
     assert keys == [*expected, "c"] + (["d", "d_cert"] if planner.ompl_available() else [])
     for method in data["methods"]:
         for key in METHOD_KEYS:
@@ -246,6 +253,29 @@ def test_near_optimal_rows_time_n_star_and_toppra_on_the_same_paths(tiny_run: tu
     assert math.isclose(data["ratios"]["n_opt_over_toppra"], n_star["median_s"] / toppra["median_s"], rel_tol=1e-12)
     assert "(tp) toppra (100 grid points) per query" in out and "(n*) / (tp) = " in out
     assert f"T'/T_TOPP-RA median {summary['duration_ratio_median']:.4f}" in out
+
+
+def test_near_optimal_rows_from_the_map_read_the_cells(tiny_run: tuple[int, str, dict]) -> None:
+    """(n*g), (n*m), (n*m'): the near-optimal answers from the map's cells beside the coefficients:
+    every (n*m) answer's timing and bounds from the map, the lookup and the batch answering the
+    same queries, and T'/T_TOPP-RA of the map's timing reported beside (n*)'s."""
+    _, out, data = tiny_run
+    methods = {m["key"]: m for m in data["methods"]}
+    lookup, full, batched = methods["n_opt_lookup"], methods["n_opt_map"], methods["n_opt_map_batch"]
+    assert lookup["timed_runs"] == 3 * 3 and full["timed_runs"] == 3 and batched["timed_runs"] == 2
+    # The lookup and the batch answer what the map proves in full (clearance, endpoints, limits); the
+    # full call also certifies (or repairs) per query the clearance the map leaves open, and reads the
+    # cell's timing for every answer it did not repair.
+    from_map = full["extra"]["execution_from_map"]
+    assert 0 < lookup["answered"] == batched["answered"] <= from_map <= full["answered"]
+    for label in ("(n*g) near-optimal certified, map lookup", "(n*m) near-optimal certified, from the map"):
+        assert label in out
+    if toppra_peer.toppra_available():
+        median, largest = data["near_optimal"]["map_over_toppra"]
+        assert 1.0 < median <= largest
+        assert (
+            f"(n*m) near-optimal from the map vs (tp), same paths and limits: T'/T_TOPP-RA median {median:.4f}" in out
+        )
 
 
 def test_a_range_row_certifies_every_in_range_query_of_a_clean_map(tiny_run: tuple[int, str, dict]) -> None:
