@@ -200,3 +200,36 @@ def test_the_online_routes_read_the_cell(paper, arm, limits, cells, cell_map) ->
     assert result.duration_s[0] == answer.duration_s and np.isnan(result.duration_s[2])
     assert result.within_limits.tolist() == [True, True, False]
     np.testing.assert_array_equal(result.jerk_bound_rad_s3[1], cells.table["bounds"][cells.cell_of(0.21, 0.11), 10:])
+
+
+@pytest.mark.parametrize("axes", ["x", "xd"])
+def test_cells_over_more_axes_hold_for_moved_obstacles(paper, arm, limits, over_x, over_xd, axes) -> None:
+    """Over (L, W, x) and (L, W, x, d) the grid takes every axis the coefficients vary; each cell's
+    bounds hold for random obstacles of the cell, moved and (for d) raised, dense samples against
+    the cell's bounds (this file's own chain rule)."""
+    coefficients = over_x(paper) if axes == "x" else over_xd(paper)
+    dynamics = identify_dynamics(arm)
+    cells = near_optimal_cells(coefficients, dynamics, limits, cells_per_axis=2, settings=SETTINGS)
+    assert cells.axes == ("L", "W", *axes) and cells.table.size == 2 ** len(cells.axes)
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(12):
+        point = cells.range_lo_m + rng.random(len(cells.axes)) * cells.range_size_m
+        cell = cells.cell_of(*point)
+        if cell is None:
+            continue
+        values = dict(zip(cells.axes[2:], (float(v) for v in point[2:]), strict=True))
+        trajectory = generate(coefficients, float(point[0]), float(point[1]), **values).trajectory
+        timing = cells.timing(cell, trajectory.duration_s)
+        t = np.concatenate([np.linspace(0.0, timing.duration_s, SAMPLES), timing.breakpoints_s])
+        _, dq, ddq, jerk, tau = _motion(trajectory.parameters, trajectory.duration_s, timing, t, dynamics)
+        certificate = cells.certificate(cell)
+        for values_, bound in (
+            (dq, certificate.speed_bound_rad_s),
+            (ddq, certificate.acceleration_bound_rad_s2),
+            (jerk, certificate.jerk_bound_rad_s3),
+            (tau, certificate.torque_bound_n_m),
+        ):
+            assert np.all(np.abs(values_).max(0) <= np.asarray(bound) * (1 + 1e-9)), (point, bound)
+        checked += 1
+    assert checked >= 6
