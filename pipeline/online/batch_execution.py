@@ -80,7 +80,7 @@ def _checked_inputs(coefficients: Coefficients, batch, timing, region_map):
     if not isinstance(batch, GeneratedBatch) or batch.leaf is None:
         raise InvalidParameterError("batch", type(batch).__name__, "a GeneratedBatch made with the region map")
     if isinstance(timing, NearOptimal):
-        if region_map.near_optimal_cells is None or timing.settings != NEAR_OPTIMAL.settings:
+        if region_map.near_optimal_cells is None or timing != NEAR_OPTIMAL:
             raise InvalidParameterError(
                 "timing",
                 timing.name,

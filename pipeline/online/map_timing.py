@@ -87,8 +87,9 @@ def near_optimal_from_map(coefficients: Coefficients, length_m: float, width_m: 
     generated = generate(coefficients, length_m, width_m, **variables)
     reason = _undecided(coefficients, generated)
     cell = None
-    if reason is None:
-        cell = cells.cell_of(length_m, width_m, *variables.values())
+    if reason is None:  # the answer's variables in the coefficients' order, whatever the keywords' order
+        values = dict(generated.variables)
+        cell = cells.cell_of(length_m, width_m, *(values[name] for name in cells.axes[2:] if name in values))
         reason = "no certified near-optimal cell holds it" if cell is None else None
     if reason is not None:
         raise ExecutionRefusedError(length_m, width_m, "near-optimal", (f"{reason}; {_PER_QUERY}",), variables)
