@@ -3,10 +3,13 @@
 The near time-optimal timing (:mod:`pipeline.motion.near_optimal`) of one path costs about a
 millisecond. Over a small box of obstacles the regression's paths differ little, and in the
 normalised path time u = s / T they share one timing (:mod:`pipeline.motion.path_box`): the
-box's parameters are enclosed like a region map leaf's
-(:func:`pipeline.certify.execution_range.leaf_parameters`, mean-value form intersected with the
-natural enclosure), the profile is built on the box's worst-case constraints, and the execution
-certificate proves its bounds for every path of the box over all of [0, T'] in continuous time.
+box's parameters and T are enclosed like a region map leaf's, with their gradients over the box
+and their values at its centre (:func:`pipeline.certify.execution_range.leaf_jets`), so that the
+path's derivatives are enclosed both in intervals and in the mean-value form; the profile is
+built on the box's worst-case constraints, and the execution certificate proves its bounds for
+every path of the box over all of [0, T'] in continuous time. The regression's answer and its T,
+as the online core computes them, lie in those enclosures (they carry their rounding bounds:
+:mod:`pipeline.certify.execution_range`).
 A query of the cell then executes ``T sigma``: its T' and its bounds are the cell's, read off a
 table (a lookup); its timing is rebuilt from the stored profile when the motion is asked for.
 
@@ -14,8 +17,8 @@ table (a lookup); its timing is rebuilt from the stored profile when the motion 
 coefficients vary), indexed in C order; a point on a shared face belongs to the cell above it,
 the fitted box's upper faces to the last cell. Each cell is enclosed 1e-9 of its side wider than
 it is, so that a point the lookup's floating-point arithmetic assigns to it lies in the box
-enclosed. A cell whose timing is not certified within the
-attempts holds NaN: its queries are timed per query.
+enclosed. A cell whose timing is not certified within the attempts holds NaN: its queries are
+timed per query.
 
 **Stored.** ``near_optimal_cells.json`` (format :data:`FORMAT`: the sha256 link to the
 coefficients, the axes, the fitted box, the grid, the limits and inertias the timings were made
