@@ -151,8 +151,9 @@ class MeanValueForm:
 
 
 def _mean_value_joint(i, box_lower, box_upper, form: MeanValueForm, s_lo, s_hi, sin, cos):
-    """Per derivative order 0..3 of joint i, the mean-value enclosure (module docstring of
-    :class:`MeanValueForm`): the centre's range plus the gradients' spread."""
+    """Per derivative order 0..3 of joint i, the mean-value enclosure (:class:`MeanValueForm`): the
+    centre's range plus the gradients' spread (its rounding, a few ulps of terms of the result's
+    size, is covered by the slack the callers widen every enclosure by)."""
     a, w = (box_lower[4 * i], box_upper[4 * i]), (box_lower[4 * i + 1], box_upper[4 * i + 1])
     centre = sinusoid_ranges(form.point_lower, form.point_upper, s_lo, s_hi)[i]
     spread = [0.0, 0.0, 0.0, 0.0]
