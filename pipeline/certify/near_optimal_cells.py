@@ -110,6 +110,13 @@ def _dtype(pieces: int) -> np.dtype:
     )
 
 
+def _uncertified(rows: int, pieces: int) -> np.ndarray:
+    """``rows`` table rows holding no certified timing (T' and the bounds NaN)."""
+    table = np.zeros(rows, dtype=_dtype(pieces))
+    table["duration_s"], table["bounds"] = np.nan, np.nan
+    return table
+
+
 @dataclass(frozen=True, eq=False)
 class NearOptimalCells:
     """Certified near-optimal timings per cell of a grid over the fitted range (module docstring).
@@ -268,8 +275,7 @@ def _cell_rows(
     """The table rows of a chunk of cells (centres, half widths (n, k))."""
     centres, halves = chunk
     jets = leaf_jets(model, centres, halves)
-    rows = np.zeros(centres.shape[0], dtype=_dtype(settings.pieces))
-    rows["duration_s"], rows["bounds"] = np.nan, np.nan
+    rows = _uncertified(centres.shape[0], settings.pieces)
     for n in range(centres.shape[0]):
         try:
             box = _cell_box(jets, n, halves[n])
@@ -324,8 +330,7 @@ def near_optimal_cells(
     wanted = np.arange(centres.shape[0]) if only is None else np.unique(np.asarray(only, dtype=np.int64))
     chunks = [(centres[wanted[i : i + _CHUNK]], halves[wanted[i : i + _CHUNK]]) for i in range(0, wanted.size, _CHUNK)]
     task = functools.partial(_cell_rows, model, dynamics, limits, settings)
-    table = np.zeros(centres.shape[0], dtype=_dtype(settings.pieces))
-    table["duration_s"], table["bounds"] = np.nan, np.nan
+    table = _uncertified(centres.shape[0], settings.pieces)
     if chunks:
         table[wanted] = np.concatenate(map_tasks(executor, task, chunks, chunk_size=1))
     return NearOptimalCells(

@@ -212,14 +212,19 @@ def _clustered(times, steps, gain, rounds):
     return windows
 
 
-def _ramps(edges, peaks, x, u, limits, jerk_share, widen) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The step times, steps and ramp widths of step 3 of the module docstring, (n + 1,) each,
-    the ramps widened by ``widen``."""
-    ds = edges[1] - edges[0]
+def _steps(x: np.ndarray, u: np.ndarray, ds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A profile's piece durations (n,) [s], the times its path acceleration steps (n + 1,) [s]
+    and the steps themselves (n + 1,) [1/s], from x (n + 1,) and u (n,) on pieces of length ds."""
     rates = np.sqrt(x)
     durations = 2.0 * ds / (rates[:-1] + rates[1:])
     times = np.concatenate([[0.0], np.cumsum(durations)])
-    steps = np.diff(np.concatenate([[0.0], u, [0.0]]))
+    return durations, times, np.diff(np.concatenate([[0.0], u, [0.0]]))
+
+
+def _ramps(edges, peaks, x, u, limits, jerk_share, widen) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The step times, steps and ramp widths of step 3 of the module docstring, (n + 1,) each,
+    the ramps widened by ``widen``."""
+    durations, times, steps = _steps(x, u, edges[1] - edges[0])
     windows = widen * _windows(peaks, x, u, times, steps, limits, jerk_share)
     # Ramps at least as wide as the pieces beside them: the small steps between pieces then blend
     # into one another (sigma'' close to linear between the pieces' midpoints) instead of short bursts of jerk.
@@ -243,9 +248,7 @@ def profile_timing(x: np.ndarray, windows_s: np.ndarray) -> SmoothTiming:
     certified is the timing rebuilt from them, float for float."""
     x, windows_s = np.asarray(x, dtype=float), np.asarray(windows_s, dtype=float)
     ds = 1.0 / (x.size - 1)
-    rates = np.sqrt(x)
-    times = np.concatenate([[0.0], np.cumsum(2.0 * ds / (rates[:-1] + rates[1:]))])
-    steps = np.diff(np.concatenate([[0.0], np.diff(x) / (2.0 * ds), [0.0]]))
+    _, times, steps = _steps(x, np.diff(x) / (2.0 * ds), ds)
     keep = np.abs(steps) > 0.0
     timing, _ = smoothed(times[keep], steps[keep], windows_s[keep], 1.0)
     return timing
