@@ -28,7 +28,7 @@ __all__ = ["config_at", "scene_for_arm", "window_for_build", "window_note"]
 
 def _x_range(config: BuildConfig) -> tuple[float, float] | None:
     """The range of the obstacle's centre x the build varies [m], or None."""
-    ranges = config.design().ranges_m
+    ranges = config.design.scaled_design().ranges_m
     return tuple(ranges["x"]) if "x" in ranges else None
 
 
@@ -59,8 +59,8 @@ def window_for_build(
     return scene_window(
         arm,
         config.scene,
-        config.length_range_m,
-        config.width_range_m,
+        config.design.length_range_m,
+        config.design.width_range_m,
         _x_range(config),
         fitness=config.solver().fitness,
         family=config.family,
@@ -70,8 +70,7 @@ def window_for_build(
 
 def config_at(config: BuildConfig, window: SceneWindow) -> BuildConfig:
     """``config`` with the window's recommended d and the (L, W) range it holds over."""
-    return replace(
-        config,
+    return config.with_settings(
         scene=replace(config.scene, top_y_m=window.recommended_m),
         length_range_m=window.length_range_m,
         width_range_m=window.width_range_m,

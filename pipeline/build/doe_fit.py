@@ -114,7 +114,7 @@ def _run_problem(arm: PlanarArm, config: BuildConfig, values: dict[str, float]) 
 
 def _unreachable_range(config: BuildConfig, why: str) -> InvalidParameterError:
     """The one-line error of ``--vary`` ranges the arm cannot reach."""
-    ranges = " ".join(f"{f.name} {f.range_m[0]} {f.range_m[1]}" for f in config.vary)
+    ranges = " ".join(f"{f.name} {f.range_m[0]} {f.range_m[1]}" for f in config.design.vary)
     return InvalidParameterError(OPTIONS["vary"], ranges, f"a range the arm reaches ({why})")
 
 
@@ -122,7 +122,7 @@ def _grid_groups(config: BuildConfig, arm: PlanarArm) -> list[_GridGroup]:
     """The (L, W) grid over the range in the scene of every combination of the extra variables'
     :data:`EXTRA_GRID_POINTS` levels (one group, the base scene, for (L, W))."""
     solver, variables = config.solver(), config.variables
-    ranges = config.design().ranges_m
+    ranges = config.design.scaled_design().ranges_m
     axes = [np.linspace(*ranges[name], EXTRA_GRID_POINTS) for name in variables.extra]
     groups = []
     for combination in itertools.product(*axes):
@@ -130,7 +130,7 @@ def _grid_groups(config: BuildConfig, arm: PlanarArm) -> list[_GridGroup]:
         scene = variables.scene_for(config.scene, values)
         try:
             problems = grid_problems(
-                arm, scene, solver.fitness, solver.family, config.length_range_m, config.width_range_m
+                arm, scene, solver.fitness, solver.family, config.design.length_range_m, config.design.width_range_m
             )
         except UnreachableObstacleError as exc:
             if not values:
@@ -145,7 +145,7 @@ def _check_before_work(config: BuildConfig, arm: PlanarArm) -> list[_GridGroup]:
     """Every run's path and IK, and those of a grid over the range (where no end pose may
     collide), before any PSO; returns the grid for the check after the regression. Over more
     variables than (L, W), the regression's endpoint grid too."""
-    design = config.design()
+    design = config.design.scaled_design()
     for values in design.runs():
         _run_problem(arm, config, values)
     groups = _grid_groups(config, arm)
@@ -175,7 +175,7 @@ def _paper_rows(arm: PlanarArm, config: BuildConfig) -> list[dict] | None:
     if not config.scene.is_close(Scene()) or not config.variables.is_size_only:
         return None
     paper = load_doe(paper_data_path("paper_table2_doe.json"))
-    points = config.design().points()
+    points = config.design.scaled_design().points()
     if len(points) != len(paper.lengths_m) or not np.allclose(points, np.c_[paper.lengths_m, paper.widths_m]):
         return None
     rows = []
@@ -197,7 +197,7 @@ def _provenance(config: BuildConfig, arm: PlanarArm, solver: SolverConfig) -> di
     arm's acceleration limits, when given, are recorded there too."""
     provenance = {
         "seed": int(config.seed),
-        "levels": config.levels,
+        "levels": config.design.levels,
         "family": solver.family.name,
         "urdf": arm_file_name(arm),
         "urdf_sha256": sha256_file(arm.urdf_path),
@@ -206,7 +206,7 @@ def _provenance(config: BuildConfig, arm: PlanarArm, solver: SolverConfig) -> di
         "polish": solver.polish,
         "versions": package_versions(),
     }
-    design = config.design()
+    design = config.design.scaled_design()
     if not (design.variables.is_size_only and design.kind == "full-factorial"):  # the paper's: no key
         provenance["design"] = design.kind
         provenance["variables"] = list(design.variables.names)
@@ -253,7 +253,7 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
     started = time.perf_counter()
     grid = _check_before_work(config, arm)
     checks_s = time.perf_counter() - started
-    solver, design = config.solver(), config.design()
+    solver, design = config.solver(), config.design.scaled_design()
     total, done = len(design.points()), []
     report = None
     if progress is not None:
@@ -264,7 +264,7 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
             progress(DOE_STAGE, len(done), total)
 
     started = time.perf_counter()
-    results = run_doe(arm, design, config.scene, solver, int(config.seed), config.executor, progress=report)
+    results = run_doe(arm, design, config.scene, solver, int(config.seed), config.execution.executor, progress=report)
     doe_s = time.perf_counter() - started
     started = time.perf_counter()
     problems = _experiment_problems(results, design, arm, config)
@@ -303,9 +303,9 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
         coefficients = coefficients.marked_unconverged(problems)
     checks_s += time.perf_counter() - started
     stages = {"checks": checks_s, "doe": doe_s, "regression": regression_s}
-    timing = {"stages_s": stages, **_timing_document(results, config.workers, design)}
-    if config.scheduler is not None:
-        timing["scheduler"] = config.scheduler
+    timing = {"stages_s": stages, **_timing_document(results, config.execution.workers, design)}
+    if config.execution.scheduler is not None:
+        timing["scheduler"] = config.execution.scheduler
     return DoeFit(tuple(results), document, doe_text, doe, paper_rows, coefficients, tuple(problems), timing)
 
 
@@ -313,7 +313,7 @@ def _experiment_problems(
     results: list[ExperimentResult], design: ScaledDesign, arm: PlanarArm, config: BuildConfig
 ) -> list[ConvergenceProblem]:
     """:func:`pipeline.offline.convergence.experiment_problems`, each run checked in its own scene."""
-    solver, criteria = config.solver(), config.criteria()
+    solver, criteria = config.solver(), config.regression.criteria()
     if design.variables.is_size_only:
         return experiment_problems(results, arm, config.scene, solver.fitness, criteria)
     problems = []

@@ -95,11 +95,12 @@ def certify_coefficients(
             the last round's certificate is the final map) or of the map.
     """
     pinned = coefficients.family.pins_endpoints
+    tolerance_m = config.regression.endpoint_tolerance_m
     map_config = default_config(
         coefficients,
-        endpoint_tolerance_m=None if config.endpoint_tolerance_m is None or pinned else config.endpoint_tolerance_m,
-        jobs=config.workers,
-        executor=config.executor,
+        endpoint_tolerance_m=None if tolerance_m is None or pinned else tolerance_m,
+        jobs=config.execution.workers,
+        executor=config.execution.executor,
     )
     seconds: dict[str, float] = {}
     timing: dict = {"stages_s": seconds}
@@ -113,10 +114,10 @@ def certify_coefficients(
                 strip_split=0,
             ),
             final_certificate=map_config,
-            endpoint=EndpointConstraint(
-                tolerance_m=config.endpoint_tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM
-            ).for_variables(coefficients.variables),
-            max_rounds=config.clearance_rounds,
+            endpoint=EndpointConstraint(tolerance_m=tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM).for_variables(
+                coefficients.variables
+            ),
+            max_rounds=config.regression.clearance_rounds,
         )
         started = time.perf_counter()
         stages = (
@@ -138,10 +139,14 @@ def certify_coefficients(
     region_map = with_execution_bounds(region_map, coefficients, dynamics, limits, map_config.run_on)
     seconds["execution_bounds"] = time.perf_counter() - started
     files = region_map_files(region_map)
-    if config.near_optimal_cells != 0:
+    if config.range_map.near_optimal_cells != 0:
         started = time.perf_counter()
         cells = near_optimal_cells(
-            coefficients, dynamics, limits.with_servo_defaults(), config.near_optimal_cells, executor=map_config.run_on
+            coefficients,
+            dynamics,
+            limits.with_servo_defaults(),
+            config.range_map.near_optimal_cells,
+            executor=map_config.run_on,
         )
         seconds["near_optimal_cells"] = time.perf_counter() - started
         files = {**files, **cells_files(cells)}

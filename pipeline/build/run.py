@@ -121,7 +121,7 @@ class BuildResult:
     @property
     def range_map_skipped(self) -> str | None:
         """Why the build wrote no region map though ``range_map`` asked for one, or None."""
-        if not self.config.range_map or self.region_map is not None:
+        if not self.config.range_map.enabled or self.region_map is not None:
             return None
         refusal = axes_refusal(self.config.variables, self.config.scene)
         if refusal is not None:
@@ -166,17 +166,17 @@ def run_build(config: BuildConfig, progress: ProgressCallback | None = None) -> 
 
 def _locked_build(config: BuildConfig, progress: ProgressCallback | None, started: float) -> BuildResult:
     """:func:`run_build` once the output folder is locked; ``started``: its start [s, perf_counter]."""
-    check_executor(config.executor)
+    check_executor(config.execution.executor)
     arm = load_planar_arm(config.urdf_path)
     fit = fit_doe(config, arm, progress)
     timing = {"total_s": 0.0, **fit.timing, "stages_s": dict(fit.timing["stages_s"])}
-    if fit.problems and not config.allow_unconverged:
+    if fit.problems and not config.regression.allow_unconverged:
         _close_timing(timing, started)
         raise BuildNotConvergedError(fit.problems, _unwritten(config, fit, timing))
 
     coefficients, text = as_written(fit.coefficients, str(config.out_folder / COEFFICIENTS_NAME))
     certified = None
-    if config.range_map and not fit.problems and config.certifiable_axes:
+    if config.range_map.enabled and not fit.problems and config.certifiable_axes:
         certified = certify_coefficients(config, fit.doe, coefficients, text, arm, progress)
         coefficients, text = certified.coefficients, certified.text
         timing["stages_s"].update(certified.timing["stages_s"])

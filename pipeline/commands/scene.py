@@ -35,7 +35,7 @@ _SCENE_FLAGS = MappingProxyType(
 
 def parser() -> Parser:
     """The command line's options (ranges and scene as ``python -m pipeline.build``'s)."""
-    d, scene = BuildConfig(), Scene()
+    d, scene = BuildConfig().design, Scene()
     p = Parser(
         prog=PROG,
         description="Find the window of d, the y of the obstacle's far edge (--top-y of python -m pipeline.build), "
@@ -115,14 +115,14 @@ def build_command(args: argparse.Namespace, config: BuildConfig) -> str:
     """The ``python -m pipeline.build`` line for ``config`` (the chosen d and range) and the
     scene options given here."""
     words = ["python", "-m", "pipeline.build", "--urdf", str(args.urdf), "--top-y", f"{config.scene.top_y_m:.3f}"]
-    default = BuildConfig()
+    default = BuildConfig().design
     for flag, value, default_value in (
-        ("--L-range", config.length_range_m, default.length_range_m),
-        ("--W-range", config.width_range_m, default.width_range_m),
+        ("--L-range", config.design.length_range_m, default.length_range_m),
+        ("--W-range", config.design.width_range_m, default.width_range_m),
     ):
         if tuple(value) != tuple(default_value):
             words += [flag, *(f"{v:g}" for v in value)]
-    for factor in config.vary:
+    for factor in config.design.vary:
         words += ["--vary", factor.name, *(f"{v:g}" for v in factor.range_m)]
     if args.scene is not None:
         words += ["--scene", str(args.scene)]
@@ -140,7 +140,7 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
     """
     out = sys.stdout if out is None else out
     scene = scene_from_options(args.scene, **{name: getattr(args, name) for name in _SCENE_FLAGS})
-    config = BuildConfig(
+    config = BuildConfig.from_settings(
         length_range_m=tuple(args.L_range),
         width_range_m=tuple(args.W_range),
         vary=_vary(args.vary),

@@ -18,13 +18,13 @@ from pipeline.model.scene import Scene
 def test_the_chosen_config_passes_the_pre_check_the_given_one_fails(tmp_path: Path, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.40, 0.30)
     arm = load_planar_arm(urdf)
-    given = BuildConfig(urdf_path=urdf, jobs=1)
+    given = BuildConfig.from_settings(urdf_path=urdf, jobs=1)
     with pytest.raises(InfeasibleSceneError):  # the paper's d = 0.56 m: the pose at P5 collides
         check_before_work(given, arm)
     chosen, note = scene_for_arm(arm, given)
     assert chosen.scene.top_y_m == pytest.approx(0.635, abs=1e-12)
     assert chosen.scene == Scene(top_y_m=chosen.scene.top_y_m)  # nothing else changed
-    assert (chosen.length_range_m, chosen.width_range_m) == (given.length_range_m, given.width_range_m)
+    assert chosen.design == given.design
     assert chosen.urdf_path == given.urdf_path and chosen.seed == given.seed
     check_before_work(chosen, arm)
     assert note.startswith("--top-y 0.635 chosen for this arm") and "\n" not in note and "shrunk" not in note
@@ -33,13 +33,13 @@ def test_the_chosen_config_passes_the_pre_check_the_given_one_fails(tmp_path: Pa
 def test_a_shrunk_range_is_put_into_the_config_and_said(tmp_path: Path, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.30, 0.28)
     arm = load_planar_arm(urdf)
-    chosen, note = scene_for_arm(arm, BuildConfig(urdf_path=urdf, jobs=1))
-    assert chosen.length_range_m != BuildConfig().length_range_m
-    low, high = chosen.length_range_m
+    chosen, note = scene_for_arm(arm, BuildConfig.from_settings(urdf_path=urdf, jobs=1))
+    assert chosen.design.length_range_m != BuildConfig().design.length_range_m
+    low, high = chosen.design.length_range_m
     assert f"its window is narrower, so the range is shrunk to L {low:.3f} {high:.3f}" in note
     check_before_work(chosen, arm)
-    narrow, note = scene_for_arm(arm, BuildConfig(urdf_path=urdf, jobs=1), shrink=False)
-    assert narrow.length_range_m == BuildConfig().length_range_m
+    narrow, note = scene_for_arm(arm, BuildConfig.from_settings(urdf_path=urdf, jobs=1), shrink=False)
+    assert narrow.design.length_range_m == BuildConfig().design.length_range_m
     assert "caution: the window is only 5.1 mm wide" in note
     check_before_work(narrow, arm)
 
@@ -47,12 +47,12 @@ def test_a_shrunk_range_is_put_into_the_config_and_said(tmp_path: Path, urdf_wit
 def test_an_arm_too_short_is_refused(tmp_path: Path, urdf_with_links) -> None:
     urdf = urdf_with_links(tmp_path, 0.10, 0.10)
     with pytest.raises(NoSceneWindowError, match="P1"):
-        scene_for_arm(load_planar_arm(urdf), BuildConfig(urdf_path=urdf, jobs=1))
+        scene_for_arm(load_planar_arm(urdf), BuildConfig.from_settings(urdf_path=urdf, jobs=1))
 
 
 def test_a_build_that_varies_d_has_no_single_d_to_choose(arm) -> None:
     with pytest.raises(InvalidParameterError, match="--vary"):
-        window_for_build(arm, BuildConfig(vary=(("d", 0.55, 0.57),), jobs=1))
+        window_for_build(arm, BuildConfig.from_settings(vary=(("d", 0.55, 0.57),), jobs=1))
 
 
 def test_the_build_command_chooses_d_for_its_own_arm_and_keeps_a_given_one(

@@ -1,4 +1,4 @@
-"""The build on a Dask cluster (``BuildConfig(scheduler=...)``, ``--scheduler``): the same bytes as
+"""The build on a Dask cluster (``BuildConfig.from_settings(scheduler=...)``, ``--scheduler``): the same bytes as
 on the local pool, and an unreachable scheduler refused in one line before any work."""
 
 from __future__ import annotations
@@ -54,8 +54,10 @@ def test_the_range_stage_on_a_cluster_writes_the_local_pools_bytes(replayed: lis
     (without the certifiable regression's rounds: they run the same map's tasks, after a refit in
     this process that takes most of a build's time)."""
     local, dask = tmp_path / "local", tmp_path / "dask"
-    run_build(BuildConfig(out_folder=local, jobs=2, clearance_rounds=0))
-    result = run_build(BuildConfig(out_folder=dask, scheduler=cluster.scheduler_address, clearance_rounds=0))
+    run_build(BuildConfig.from_settings(out_folder=local, jobs=2, clearance_rounds=0))
+    result = run_build(
+        BuildConfig.from_settings(out_folder=dask, scheduler=cluster.scheduler_address, clearance_rounds=0)
+    )
     assert result.region_map is not None
     assert sorted(files(dask)) == [
         "build_timing.json",
@@ -73,19 +75,19 @@ def test_the_doe_on_a_cluster_gives_the_local_pools_optima(tmp_path: Path, clust
     """A real (rough) DOE, each experiment on a worker of the cluster: the same doe.json and
     coefficients.json as two local processes."""
     local, dask = tmp_path / "local", tmp_path / "dask"
-    run_build(BuildConfig(out_folder=local, jobs=2, **TINY))
-    run_build(BuildConfig(out_folder=dask, scheduler=cluster.scheduler_address, **TINY))
+    run_build(BuildConfig.from_settings(out_folder=local, jobs=2, **TINY))
+    run_build(BuildConfig.from_settings(out_folder=dask, scheduler=cluster.scheduler_address, **TINY))
     assert sorted(files(dask)) == ["build_timing.json", "coefficients.json", "doe.json"]
     assert_same_files(local, dask)
 
 
 def test_the_scheduler_chooses_the_executor_and_is_checked_on_construction() -> None:
-    assert BuildConfig(jobs=3).executor == LocalPool(3)
-    config = BuildConfig(jobs=3, scheduler="tcp://10.0.0.5:8786")
-    assert config.executor == DaskScheduler("tcp://10.0.0.5:8786")
+    assert BuildConfig.from_settings(jobs=3).execution.executor == LocalPool(3)
+    config = BuildConfig.from_settings(jobs=3, scheduler="tcp://10.0.0.5:8786")
+    assert config.execution.executor == DaskScheduler("tcp://10.0.0.5:8786")
     for bad in ("", "10.0.0.5", "tcp://10.0.0.5", 8786):
         with pytest.raises(InvalidParameterError, match="--scheduler"):
-            BuildConfig(scheduler=bad)
+            BuildConfig.from_settings(scheduler=bad)
 
 
 def test_run_build_refuses_an_unreachable_scheduler_before_any_work(
@@ -96,7 +98,7 @@ def test_run_build_refuses_an_unreachable_scheduler_before_any_work(
     monkeypatch.setattr(doe_fit, "run_doe", lambda *args, **kwargs: pytest.fail("the DOE started"))
     out = tmp_path / "results"
     with pytest.raises(SchedulerUnreachableError, match=re.escape(UNREACHABLE)):
-        run_build(BuildConfig(out_folder=out, scheduler=UNREACHABLE))
+        run_build(BuildConfig.from_settings(out_folder=out, scheduler=UNREACHABLE))
     assert not out.exists()
 
 

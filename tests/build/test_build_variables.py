@@ -55,24 +55,31 @@ def test_bad_variables_are_refused_in_one_line_before_any_work(
 
 
 def test_build_config_takes_factors_and_design_classes() -> None:
-    config = BuildConfig(vary=(("x", -0.03, 0.03),), design_kind="box-behnken")
-    assert config.design_kind is BoxBehnken and config.variables.names == ("L", "W", "x")
-    assert len(config.design().points()) == 13
-    assert len(BuildConfig(vary=config.vary, design_kind=CentralComposite).design().points()) == 15
-    assert len(BuildConfig(vary=config.vary).design().points()) == 27
+    config = BuildConfig.from_settings(vary=(("x", -0.03, 0.03),), design_kind="box-behnken")
+    assert config.design.kind is BoxBehnken and config.variables.names == ("L", "W", "x")
+    assert len(config.design.scaled_design().points()) == 13
+    assert (
+        len(
+            BuildConfig.from_settings(vary=config.design.vary, design_kind=CentralComposite)
+            .design.scaled_design()
+            .points()
+        )
+        == 15
+    )
+    assert len(BuildConfig.from_settings(vary=config.design.vary).design.scaled_design().points()) == 27
     assert config.certifiable_refit  # the range certificate covers x
-    assert not BuildConfig(vary=(("d", 0.55, 0.57),)).certifiable_refit
+    assert not BuildConfig.from_settings(vary=(("d", 0.55, 0.57),)).certifiable_refit
     with pytest.raises(InvalidParameterError, match="--design"):
-        BuildConfig(design_kind="latin-square")
+        BuildConfig.from_settings(design_kind="latin-square")
     with pytest.raises(PipelineError, match="a range the arm reaches"):
         from pipeline.model.arm import load_planar_arm
 
-        doe_fit.fit_doe(BuildConfig(vary=(("x", 0.0, 0.08),)), load_planar_arm())
+        doe_fit.fit_doe(BuildConfig.from_settings(vary=(("x", 0.0, 0.08),)), load_planar_arm())
 
 
 def test_paper_build_has_none_of_the_new_keys() -> None:
     """The (L, W) design writes the old doe.json block (the byte checks of tests/build cover the rest)."""
-    design = BuildConfig().design()
+    design = BuildConfig().design.scaled_design()
     assert isinstance(design, FullFactorial) and design.variables.is_size_only
     assert design.to_json() == {
         "levels": 3,
@@ -103,7 +110,10 @@ def test_tiny_build_over_L_W_x(tmp_path: Path, capsys: pytest.CaptureFixture) ->
     doe = json.loads((out / "doe.json").read_text())
     assert doe["variables"] == ["L", "W", "x"] and doe["design"]["kind"] == "full-factorial"
     runs = [(e["L"], e["W"], e["x"]) for e in doe["experiments"]]
-    assert runs == FullFactorial(BuildConfig(vary=(("x", -0.03, 0.03),)).design().factors).points()
+    assert (
+        runs
+        == FullFactorial(BuildConfig.from_settings(vary=(("x", -0.03, 0.03),)).design.scaled_design().factors).points()
+    )
     assert len(runs) == 27 and {x for _, _, x in runs} == {-0.03, 0.0, 0.03}
 
     document = json.loads((out / "coefficients.json").read_text())

@@ -38,7 +38,7 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 
 def test_library_and_command_line_write_the_same_bytes(replayed: list, tmp_path: Path) -> None:
     library, command = tmp_path / "library", tmp_path / "command"
-    result = run_build(BuildConfig(out_folder=library, jobs=1))
+    result = run_build(BuildConfig.from_settings(out_folder=library, jobs=1))
     assert build_command.main(["--out", str(command), "--quiet", "--no-progress"]) == 0
     for name in SET:
         assert (library / name).read_bytes() == (command / name).read_bytes(), name
@@ -62,9 +62,9 @@ def test_library_and_command_line_write_the_same_bytes(replayed: list, tmp_path:
 
 
 def test_without_a_range_map_no_stale_map_stays(replayed: list, tmp_path: Path) -> None:
-    run_build(BuildConfig(out_folder=tmp_path, jobs=1, clearance_rounds=0))
+    run_build(BuildConfig.from_settings(out_folder=tmp_path, jobs=1, clearance_rounds=0))
     assert (tmp_path / "region_map.json").is_file()
-    result = run_build(BuildConfig(out_folder=tmp_path, jobs=1, range_map=False, seed=1))
+    result = run_build(BuildConfig.from_settings(out_folder=tmp_path, jobs=1, range_map=False, seed=1))
     assert result.region_map is None and not (tmp_path / "region_map.json").exists()
     assert not (tmp_path / "region_map.npy").exists()
     assert load_coefficients(tmp_path / "coefficients.json").region_map is None
@@ -91,7 +91,7 @@ def test_a_build_stopped_in_any_phase_leaves_its_folder_as_it_was(
     out = tmp_path / "results"
     # The refit only where it is the phase stopped (with a refit round the final map is the refit's).
     rounds = 1 if phase == "certifiable regression" else 0
-    run_build(BuildConfig(out_folder=out, jobs=1, clearance_rounds=rounds))
+    run_build(BuildConfig.from_settings(out_folder=out, jobs=1, clearance_rounds=rounds))
     (out / "notes.txt").write_text("a file of the user's", encoding="utf-8")
     before = snapshot(out)
     if phase in PHASES:
@@ -108,7 +108,7 @@ def test_a_build_stopped_in_any_phase_leaves_its_folder_as_it_was(
 
         monkeypatch.setattr(file_set.os, "replace", replace)
     with pytest.raises(KeyboardInterrupt):
-        run_build(BuildConfig(out_folder=out, jobs=1, seed=1, clearance_rounds=rounds))
+        run_build(BuildConfig.from_settings(out_folder=out, jobs=1, seed=1, clearance_rounds=rounds))
     monkeypatch.undo()
     assert snapshot(out) == before  # no new file beside the old ones, no temporary file, nothing lost
 
@@ -116,7 +116,7 @@ def test_a_build_stopped_in_any_phase_leaves_its_folder_as_it_was(
 def test_a_new_folder_is_not_left_behind(replayed: list, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(range_stage, "certify_range", _interrupt)
     with pytest.raises(KeyboardInterrupt):
-        run_build(BuildConfig(out_folder=tmp_path / "results", jobs=1, clearance_rounds=0))
+        run_build(BuildConfig.from_settings(out_folder=tmp_path / "results", jobs=1, clearance_rounds=0))
     assert list(tmp_path.iterdir()) == []  # neither the folder nor its lock
 
 
@@ -124,14 +124,14 @@ def test_a_folder_whose_parent_is_missing_is_refused_before_any_work(tmp_path: P
     monkeypatch.setattr(doe_fit, "run_doe", lambda *args, **kwargs: pytest.fail("the DOE ran"))
     out = tmp_path / "a" / "missing" / "deep" / "folder"
     with pytest.raises(InvalidParameterError) as caught:
-        run_build(BuildConfig(out_folder=out, jobs=1))
+        run_build(BuildConfig.from_settings(out_folder=out, jobs=1))
     assert caught.value.name == "--out" and f"({out.parent} does not exist)" in str(caught.value)
     assert list(tmp_path.iterdir()) == []
 
 
 def test_the_timing_file_gives_the_wall_time_and_stages_that_add_up_to_it(replayed: list, tmp_path: Path) -> None:
     started = time.perf_counter()
-    result = run_build(BuildConfig(out_folder=tmp_path, jobs=1, clearance_rounds=1))
+    result = run_build(BuildConfig.from_settings(out_folder=tmp_path, jobs=1, clearance_rounds=1))
     wall = time.perf_counter() - started
     timing = json.loads((tmp_path / "build_timing.json").read_text())
     stages = timing["stages_s"]
@@ -161,7 +161,7 @@ def test_another_arm_travels_with_the_coefficients(replayed: list, tmp_path: Pat
     urdf = tmp_path / "my_arm.urdf"  # the same geometry, other bytes: another arm as far as the files go
     urdf.write_text(DEFAULT_URDF.read_text(encoding="utf-8") + "<!-- my arm -->\n", encoding="utf-8")
     out = tmp_path / "results"
-    run_build(BuildConfig(out_folder=out, jobs=1, urdf_path=urdf, clearance_rounds=0))
+    run_build(BuildConfig.from_settings(out_folder=out, jobs=1, urdf_path=urdf, clearance_rounds=0))
     assert (out / "arm.urdf").read_bytes() == urdf.read_bytes()
     urdf.unlink()  # the arm now lives beside the coefficients only
     moved = tmp_path / "moved"
@@ -178,7 +178,11 @@ def test_another_arm_travels_with_the_coefficients(replayed: list, tmp_path: Pat
 def test_acceleration_limits_given_to_the_build_travel_with_the_coefficients(replayed: list, tmp_path: Path) -> None:
     from pipeline import REST_TO_REST, generate_certified
 
-    run_build(BuildConfig(out_folder=tmp_path, jobs=1, clearance_rounds=0, acceleration_limits_rad_s2=(0.5, 0.5)))
+    run_build(
+        BuildConfig.from_settings(
+            out_folder=tmp_path, jobs=1, clearance_rounds=0, acceleration_limits_rad_s2=(0.5, 0.5)
+        )
+    )
     coefficients = load_coefficients(tmp_path / "coefficients.json")
     assert coefficients.provenance["acceleration_limits_rad_s2"] == [0.5, 0.5]
     answer = generate_certified(coefficients, 0.25, 0.10, timing=REST_TO_REST)

@@ -93,9 +93,9 @@ def test_d_is_refused_where_the_start_height_is_fixed(eq9_xd: Coefficients) -> N
     with pytest.raises(InvalidParameterError, match="y1 = d"):
         RangeModel.from_coefficients(fixed)
     vary = (("x", -0.03, 0.03), ("d", *D_RANGE))
-    assert BuildConfig(vary=vary).certifiable_axes
-    assert not BuildConfig(vary=vary).certifiable_refit  # the refit's points move the obstacle by x only
-    assert not BuildConfig(vary=vary, scene=Scene(start_y_m=0.56)).certifiable_axes
+    assert BuildConfig.from_settings(vary=vary).certifiable_axes
+    assert not BuildConfig.from_settings(vary=vary).certifiable_refit  # the refit's points move the obstacle by x only
+    assert not BuildConfig.from_settings(vary=vary, scene=Scene(start_y_m=0.56)).certifiable_axes
 
 
 def test_the_path_moves_with_d_and_keeps_its_duration(eq9_xd: Coefficients) -> None:

@@ -148,12 +148,12 @@ def _api_cases(tmp: Path) -> list[tuple[str, object, str]]:
         ("load_planar_arm text", lambda: pipeline.load_planar_arm(tmp / "text.urdf"), "text.urdf"),
         ("load_doe broken", lambda: load_doe(tmp / "broken.json"), "broken.json"),
         ("Design levels", lambda: Design(levels=2), "levels"),
-        ("BuildConfig seed", lambda: BuildConfig(seed=-1), "--seed"),
-        ("BuildConfig family", lambda: BuildConfig(family="spline"), "spline"),
+        ("BuildConfig seed", lambda: BuildConfig.from_settings(seed=-1), "--seed"),
+        ("BuildConfig family", lambda: BuildConfig.from_settings(family="spline"), "spline"),
         ("scene misspelt", lambda: scene_from_options(tmp / "misspelt.toml"), "top_y"),
         ("scene option", lambda: scene_from_options(speed_m_s=-1.0), "--speed"),
-        ("run_build out", lambda: run_build(BuildConfig(out_folder=tmp / "a_file")), "--out"),
-        ("BuildConfig jobs", lambda: BuildConfig(jobs=-1), "--jobs"),
+        ("run_build out", lambda: run_build(BuildConfig.from_settings(out_folder=tmp / "a_file")), "--out"),
+        ("BuildConfig jobs", lambda: BuildConfig.from_settings(jobs=-1), "--jobs"),
         ("load_coefficients 42", lambda: pipeline.load_coefficients(42), "coefficients"),
         ("load_coefficients region_map", lambda: pipeline.load_coefficients("paper", region_map=3), "region_map"),
         ("generate None", lambda: pipeline.generate(None, 0.27, 0.09), "load_coefficients"),
@@ -178,7 +178,7 @@ def _paper():
 
 
 def test_jobs_0_means_every_cpu() -> None:
-    assert BuildConfig(jobs=0).workers == (os.cpu_count() or 1)
+    assert BuildConfig.from_settings(jobs=0).execution.workers == (os.cpu_count() or 1)
 
 
 @pytest.mark.parametrize("index", range(len(_api_cases(Path(".")))))

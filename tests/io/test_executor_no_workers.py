@@ -101,9 +101,12 @@ def test_the_clis_wait_worker_timeout_then_exit_2_with_one_line(
 
 
 def test_the_build_config_passes_its_worker_timeout_and_checks_it() -> None:
-    config = build_config.BuildConfig(scheduler="tcp://127.0.0.1:8786", worker_timeout_s=2.5)
-    assert config.executor == DaskScheduler("tcp://127.0.0.1:8786", worker_timeout_s=2.5)
-    assert build_config.BuildConfig(scheduler="tcp://127.0.0.1:8786").executor.worker_timeout_s == 30.0
+    config = build_config.BuildConfig.from_settings(scheduler="tcp://127.0.0.1:8786", worker_timeout_s=2.5)
+    assert config.execution.executor == DaskScheduler("tcp://127.0.0.1:8786", worker_timeout_s=2.5)
+    assert (
+        build_config.BuildConfig.from_settings(scheduler="tcp://127.0.0.1:8786").execution.executor.worker_timeout_s
+        == 30.0
+    )
     for bad in (0.0, -1.0, float("nan"), float("inf"), True, "5"):
         with pytest.raises(InvalidParameterError, match=r"^--worker-timeout = "):
-            build_config.BuildConfig(worker_timeout_s=bad)
+            build_config.BuildConfig.from_settings(worker_timeout_s=bad)

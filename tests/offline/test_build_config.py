@@ -51,7 +51,7 @@ def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict:
     """One tiny build (it does not converge: optima this rough miss P1/P5 by centimetres)."""
     out = tmp_path_factory.mktemp("tiny") / "out"
     with pytest.raises(BuildNotConvergedError) as info:
-        run_build(BuildConfig(out_folder=out, **TINY))
+        run_build(BuildConfig.from_settings(out_folder=out, **TINY))
     return {"out": out, "error": info.value, "result": info.value.result}
 
 
@@ -63,10 +63,10 @@ def test_defaults_are_the_command_lines() -> None:
     """The command line's defaults are the library's: both use every CPU (the files do not depend
     on it), the library by ``jobs=0``, the command by resolving ``--jobs 0``; both certify the range."""
     args = build.parser().parse_args([])
-    assert build.config_from_args(args) == dataclasses.replace(BuildConfig(), jobs=os.cpu_count() or 1)
-    assert BuildConfig().jobs == 0 and BuildConfig().workers == (os.cpu_count() or 1)
-    assert BuildConfig(jobs=3).workers == 3
-    assert BuildConfig().range_map and BuildConfig().certifiable_refit
+    assert build.config_from_args(args) == BuildConfig().with_settings(jobs=os.cpu_count() or 1)
+    assert BuildConfig().execution.jobs == 0 and BuildConfig().execution.workers == (os.cpu_count() or 1)
+    assert BuildConfig.from_settings(jobs=3).execution.workers == 3
+    assert BuildConfig().range_map.enabled and BuildConfig().certifiable_refit
 
 
 @pytest.mark.parametrize(
@@ -98,19 +98,21 @@ def test_defaults_are_the_command_lines() -> None:
 )
 def test_bad_values_are_refused_naming_the_option(changes: dict, option: str) -> None:
     with pytest.raises(InvalidParameterError) as info:
-        BuildConfig(**changes)
+        BuildConfig.from_settings(**changes)
     assert info.value.name == option
     assert str(info.value).startswith(f"{option} = ")
     assert "\n" not in str(info.value)
 
 
 def test_family_by_name_and_paths_as_strings() -> None:
-    config = BuildConfig(family="exact-endpoints", out_folder="somewhere", urdf_path=str(BuildConfig().urdf_path))
+    config = BuildConfig.from_settings(
+        family="exact-endpoints", out_folder="somewhere", urdf_path=str(BuildConfig().urdf_path)
+    )
     assert config.family is EXACT_ENDPOINTS and config.out_folder == Path("somewhere")
     assert config.endpoint_constraint() is None  # exact by construction: nothing to constrain
     assert BuildConfig().endpoint_constraint().tolerance_m == 0.002
-    assert BuildConfig(endpoint_tolerance_m=None).endpoint_constraint() is None
-    assert BuildConfig(urdf_path=None) == BuildConfig()
+    assert BuildConfig.from_settings(endpoint_tolerance_m=None).endpoint_constraint() is None
+    assert BuildConfig.from_settings(urdf_path=None) == BuildConfig()
 
 
 # --------------------------------------------------------------------------------------------
@@ -194,7 +196,7 @@ def test_an_unconverged_build_writes_nothing_and_names_the_experiments(tiny: dic
 
 def test_allow_unconverged_writes_marked_files_that_warn(tiny: dict, tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: list(tiny["result"].experiments))
-    result = run_build(BuildConfig(out_folder=tmp_path, allow_unconverged=True, **TINY))
+    result = run_build(BuildConfig.from_settings(out_folder=tmp_path, allow_unconverged=True, **TINY))
     assert [written.path.name for written in result.written] == ["doe.json", "coefficients.json", "build_timing.json"]
     document = json.loads((tmp_path / "coefficients.json").read_text())
     reasons = [str(p) for p in tiny["error"].problems]
@@ -222,7 +224,7 @@ def test_a_converged_build_carries_no_mark(tiny: dict, tmp_path: Path, monkeypat
         for r, row in zip(tiny["result"].experiments, table2, strict=True)
     ]
     monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: good)
-    result = run_build(BuildConfig(out_folder=tmp_path, range_map=False, **TINY))  # the mark, not the map
+    result = run_build(BuildConfig.from_settings(out_folder=tmp_path, range_map=False, **TINY))  # the mark, not the map
     assert result.converged
     document = json.loads((tmp_path / "coefficients.json").read_text())
     assert "converged" not in document and "unconverged_reasons" not in document
@@ -232,7 +234,7 @@ def test_a_converged_build_carries_no_mark(tiny: dict, tmp_path: Path, monkeypat
     # The same optima, one of them 1 um short of the margin: not converged.
     good[4] = dataclasses.replace(good[4], clearance_m=0.01 - 2e-6)
     with pytest.raises(BuildNotConvergedError, match=r"Test 5 \(L = 0.250 m, W = 0.100 m\): clearance 10.00 mm"):
-        run_build(BuildConfig(out_folder=tmp_path / "second", **TINY))
+        run_build(BuildConfig.from_settings(out_folder=tmp_path / "second", **TINY))
 
 
 def test_regressed_trajectories_that_collide_are_a_problem(arm) -> None:
@@ -259,10 +261,15 @@ def test_a_range_whose_end_pose_collides_is_refused_before_any_work(arm) -> None
 def test_progress_starts_after_the_checks(tiny: dict, tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: list(tiny["result"].experiments))
     calls = []
-    run_build(BuildConfig(out_folder=tmp_path, allow_unconverged=True, **TINY), progress=lambda *a: calls.append(a))
+    run_build(
+        BuildConfig.from_settings(out_folder=tmp_path, allow_unconverged=True, **TINY),
+        progress=lambda *a: calls.append(a),
+    )
     assert calls == [("DOE", 0, 9)]  # run_doe is replayed here, so only the start is reported
     with pytest.raises(InvalidParameterError):
-        run_build(BuildConfig(out_folder=tmp_path / "doe.json", **TINY), progress=lambda *a: calls.append(a))
+        run_build(
+            BuildConfig.from_settings(out_folder=tmp_path / "doe.json", **TINY), progress=lambda *a: calls.append(a)
+        )
     assert calls == [("DOE", 0, 9)]
 
 
@@ -320,7 +327,7 @@ def test_a_crash_while_writing_removes_the_folders_the_build_created(
 
     monkeypatch.setattr(file_set, "_stage", crash)
     with pytest.raises(OSError, match="disk full"):
-        run_build(BuildConfig(out_folder=tmp_path / "out", allow_unconverged=True, **TINY))
+        run_build(BuildConfig.from_settings(out_folder=tmp_path / "out", allow_unconverged=True, **TINY))
     assert list(tmp_path.iterdir()) == []  # neither out/ nor its lock is left (its parent must exist)
 
 

@@ -35,7 +35,7 @@ from pipeline.offline.scene_window import (
 )
 
 DEFAULT = BuildConfig()
-RANGES = (DEFAULT.length_range_m, DEFAULT.width_range_m)
+RANGES = (DEFAULT.design.length_range_m, DEFAULT.design.width_range_m)
 #: Rounding slack of the analytic edges [m] (the bisection's own bracket is 1e-4 m).
 EDGE_TOLERANCE_M = 2e-4
 
@@ -62,7 +62,7 @@ def window_040_no_collision(arm_040: PlanarArm) -> SceneWindow:
 
 
 def config_for(arm: PlanarArm, d_m: float, **options) -> BuildConfig:
-    return BuildConfig(urdf_path=arm.urdf_path, scene=Scene(top_y_m=d_m), jobs=1, **options)
+    return BuildConfig.from_settings(urdf_path=arm.urdf_path, scene=Scene(top_y_m=d_m), jobs=1, **options)
 
 
 def least_end_pose_clearance_m(arm: PlanarArm, d_m: float, length_range_m=RANGES[0], width_range_m=RANGES[1]) -> float:

@@ -17,7 +17,15 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.build import BuildConfig, run_build
+from pipeline.build import (
+    BuildConfig,
+    DesignSettings,
+    ExecutionSettings,
+    OptimiserSettings,
+    RangeMapSettings,
+    RegressionSettings,
+    run_build,
+)
 from pipeline.certify.region_map import RegionMap
 from pipeline.exceptions import DataFileError, ExecutionRefusedError, NoCertifiedTrajectoryError, PipelineError
 from pipeline.geometry.polyline_certificate import certify_path
@@ -485,23 +493,27 @@ def run_reduced_build(
             BuildConfig(
                 out_folder=Path(folder),
                 seed=seed,
-                levels=levels,
-                length_range_m=tuple(coefficients.fitted_range_m["L"]),
-                width_range_m=tuple(coefficients.fitted_range_m["W"]),
                 family=config.family,
                 urdf_path=urdf,
                 scene=coefficients.scene,
-                swarm_size=config.pso.swarm_size,
-                iterations=config.pso.iterations,
-                restarts=config.pso.restarts,
-                polish=config.polish,
-                n_points=fitness.n_points,
-                endpoint_weight=fitness.endpoint_weight,
-                penalty_weight=fitness.penalty_weight,
-                margin_buffer_m=fitness.margin_buffer_m,
-                allow_unconverged=True,
-                jobs=1,  # the DOE's cost in one process, as the per-query methods
-                range_map=False,  # the DOE and regression are timed here, not the map
+                design=DesignSettings(
+                    levels=levels,
+                    length_range_m=tuple(coefficients.fitted_range_m["L"]),
+                    width_range_m=tuple(coefficients.fitted_range_m["W"]),
+                ),
+                optimiser=OptimiserSettings(
+                    swarm_size=config.pso.swarm_size,
+                    iterations=config.pso.iterations,
+                    restarts=config.pso.restarts,
+                    polish=config.polish,
+                    n_points=fitness.n_points,
+                    endpoint_weight=fitness.endpoint_weight,
+                    penalty_weight=fitness.penalty_weight,
+                    margin_buffer_m=fitness.margin_buffer_m,
+                ),
+                regression=RegressionSettings(allow_unconverged=True),
+                range_map=RangeMapSettings(enabled=False),  # the DOE and regression are timed here, not the map
+                execution=ExecutionSettings(jobs=1),  # the DOE's cost in one process, as the per-query methods
             )
         )
         summary = read_build_timing(Path(folder) / "build_timing.json")
