@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     table: dict[str, float] = defaultdict(float)
     for leaf in np.flatnonzero(region_map.status != STATUSES.index("margin")):
         cell = region_map.cell(int(leaf))
-        (l_lo, l_hi), (w_lo, w_hi) = cell.length_range_m, cell.width_range_m
+        (l_lo, l_hi), (w_lo, w_hi) = cell.range_of("L"), cell.range_of("W")
         value = max(
             best_end_pose_clearance_m(
                 l_lo + u * (l_hi - l_lo), w_lo + v * (w_hi - w_lo), disc, arm, scene, coefficients.elbow

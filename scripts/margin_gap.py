@@ -121,11 +121,11 @@ def main(argv: list[str] | None = None) -> int:
             f" (regression's sampled clearance below the margin {100 * row['regression_below_margin']:.3f} %,"
             f" at it, only the bound below {100 * row['regression_at_margin_bound_below']:.3f} %)"
         )
-    lengths = np.linspace(*region_map.length_range_m, 201)
-    widths = np.linspace(args.strip_from, region_map.width_range_m[1], 81)
+    lengths = np.linspace(*region_map.range_of("L"), 201)
+    widths = np.linspace(args.strip_from, region_map.range_of("W")[1], 81)
     grid_l, grid_w = np.meshgrid(lengths, widths, indexing="ij")
     band_room = end_pose_room_m(coefficients, grid_l.ravel(), grid_w.ravel(), tolerance) - margin
-    w_lo, w_hi = region_map.width_range_m
+    w_lo, w_hi = region_map.range_of("W")
     strip_fraction = (w_hi - args.strip_from) / (w_hi - w_lo)
     bands = {}
     for delta in BANDS_M:
@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"d room / d W within 0.3 mm of the margin: median {median_slope:.3f} (m per m)")
     infeasible = float(np.mean(band_room < 0.0) * strip_fraction)
     print(f"room below the margin (sampled infeasible): {100 * infeasible:.3f} % of the range")
-    l_lo, l_hi = region_map.length_range_m
+    l_lo, l_hi = region_map.range_of("L")
     per_l = l_lo + (np.arange(400) + 0.5) * (l_hi - l_lo) / 400
     w_reg = _crossing(lambda L, W: _leaf_minimum(coefficients, L, W), per_l, args.strip_from, w_hi, margin)
     w_room = _crossing(

@@ -85,12 +85,16 @@ class BoxBounds:
         center_m: Analytic clearance (both links) at each box centre [m], (N,): a value the
             clearance takes, so no bound over the box can exceed it.
         split_s: True where the box's gap is dominated by its extent in s (bisect s first).
+        axis_gap_m: Each axis's first-order share of the gap [m], (N, k): how far the tip moves
+            and the obstacle's core moves over the box's extent along that axis alone; the axis
+            to cut where the axes dominate (:mod:`pipeline.certify.search`).
     """
 
     lower_m: np.ndarray
     link_lower_m: np.ndarray
     center_m: np.ndarray
     split_s: np.ndarray
+    axis_gap_m: np.ndarray
 
 
 def obstacle_motion_m(
@@ -221,6 +225,7 @@ def box_clearance_bounds(
         link_lower_m=lower,
         center_m=np.min(centre_values, axis=1),
         split_s=_split_s(model, box, radius, hausdorff),
+        axis_gap_m=_axis_gaps(model, box, radius),
     )
 
 
@@ -288,6 +293,18 @@ def _link_motion_m(model: RangeModel, point: dict, box: dict, k: int, radius: np
         return l1 * d_theta1
     d_phi2 = np.sum(box["theta"][1].grad.mag() * radius, axis=1) + point["theta"][1].value.rad
     return l1 * d_theta1 + l2 * d_phi2
+
+
+def _axis_gaps(model: RangeModel, box: dict, radius: np.ndarray) -> np.ndarray:
+    """Per box and axis, the tip's motion over the box's extent along that axis plus the
+    obstacle's core's (module docstring, bound (c): r_L / 2, r_W, r_x, r_d) [m], (N, k)."""
+    l1, l2 = model.link_lengths_m
+    k = model.k
+    g1, g2 = box["theta"][0].grad.mag()[:, :k], box["theta"][1].grad.mag()[:, :k]
+    gaps = (l1 * g1 + l2 * g2) * radius[:, :k]
+    gaps[:, 0] += radius[:, 0] / 2
+    gaps[:, 1:] += radius[:, 1:k]  # W, and x and d where they are axes: the core moves by their whole extent
+    return gaps
 
 
 def _split_s(model: RangeModel, box: dict, radius: np.ndarray, hausdorff: np.ndarray) -> np.ndarray:

@@ -1,14 +1,15 @@
 """A region map on disk: a small JSON header and its leaves as one NumPy ``.npy`` table.
 
-``region_map.json`` (format ``twolink-region-map/4``) holds what describes the map: the sha256
+``region_map.json`` (format ``twolink-region-map/5``) holds what describes the map: the sha256
 link to its coefficients, the axes and fitted range, margin and tolerance, the statuses, the
 summary, the settings, the execution bounds' limits and dynamics, and ``leaves``: the file name
-of the table beside it (``region_map.npy``), its sha256, its row count and its fields. The table
-is one record of columns (a 0-d structured array whose fields each hold a column of one value per
-leaf, stored one after the other: a column read from the memory-mapped file is contiguous),
-little-endian, with the leaf's node (``depth``, an
-``index_<axis>`` per axis, ``split_W``), its ``status`` (index into the header's statuses), its
-three bounds and, with execution bounds, their columns
+of the table beside it (``region_map.npy``), its sha256, its row count (leaves) and its fields.
+The table is one record of columns (a 0-d structured array whose fields each hold a column,
+stored one after the other: a column read from the memory-mapped file is contiguous),
+little-endian: the subpaving's tree (:mod:`pipeline.certify.subpaving`: ``cut_axis``,
+``cut_level`` and ``children``, one row per internal node, n - 1 rows), then per leaf its
+``status`` (index into the header's statuses), its three bounds and, with execution bounds,
+their columns
 (:data:`pipeline.certify.execution_bounds.COLUMNS`), every number as the map holds it: a float
 column as float64, or, where every value of it is a short decimal (the execution bounds, rounded
 outward to 7 digits), as an int32 mantissa and an int8 exponent (fields ``<name>.mantissa``,
@@ -18,9 +19,12 @@ same bytes.
 
 Reading checks, before anything is built from them: the header's format, the table's sha256
 (a table truncated or edited after it was written is refused), and its fields and row count
-against the header; the table is read with ``numpy.load(mmap_mode="r")``. The JSON formats /1 to
-/3 (the leaves as JSON columns) are read too (:meth:`RegionMap.from_json`); ``python -m
-pipeline.certify_range --convert OLD`` rewrites such a map in this format, keeping every number.
+against the header, and that the tree is one (each leaf and node reached once); the table is
+read with ``numpy.load(mmap_mode="r")``. Maps of the earlier formats are read too, keeping every
+number: the JSON formats /1 to /3 (:meth:`RegionMap.from_json`) and /4, whose table held a
+2^k-tree's nodes (``depth``, an ``index_<axis>`` per axis, the halvings ``split_<axis>`` of the
+second) in place of the tree; ``python -m pipeline.certify_range --convert OLD`` rewrites such a
+map in this format.
 
 Writing puts the table first and the header last, each atomically, so a header on disk always
 names a complete table; an interrupted write leaves the previous header, whose sha256 then
@@ -38,11 +42,20 @@ import numpy as np
 
 from pipeline.certify.execution_bounds import COLUMNS as EXECUTION_COLUMNS
 from pipeline.certify.execution_bounds import ExecutionBounds
-from pipeline.certify.region_map import DEFAULT_MAP_NAME, READABLE_FORMATS, STATUSES, RegionMap, header_fields
+from pipeline.certify.region_map import (
+    BOUND_COLUMNS,
+    DEFAULT_MAP_NAME,
+    READABLE_FORMATS,
+    STATUSES,
+    RegionMap,
+    head_ranges,
+    header_fields,
+    tree_leaves,
+)
+from pipeline.certify.subpaving import Subpaving
 from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.io.decimal_columns import decimal_parts, from_decimal_parts
 from pipeline.io.jsonio import dumps, read_json, write_bytes_atomic
-from pipeline.offline.variables import SIZE
 
 __all__ = [
     "FORMAT_ARRAYS",
@@ -54,12 +67,14 @@ __all__ = [
     "table_name",
 ]
 
-#: Format of a map stored as a JSON header and a ``.npy`` table of leaves.
-FORMAT_ARRAYS = "twolink-region-map/4"
+#: Format of a map stored as a JSON header and a ``.npy`` table of its tree and leaves.
+FORMAT_ARRAYS = "twolink-region-map/5"
+#: The earlier format of a JSON header and a table, whose table held a 2^k-tree's nodes.
+FORMAT_NODES = "twolink-region-map/4"
+#: The tree's fields, one row per internal node (n - 1 rows).
+TREE_FIELDS = ("cut_axis", "cut_level", "children")
 #: Suffix of the leaf table beside the header (``region_map.json`` -> ``region_map.npy``).
 LEAVES_SUFFIX = ".npy"
-#: The bound columns of every map, in the table's order.
-_BOUNDS = ("clearance_bound_m", "endpoint_bound_m", "endpoint_clearance_upper_m")
 #: Suffixes of the two fields of a float column stored as short decimals.
 _MANTISSA, _EXPONENT = ".mantissa", ".exponent"
 
@@ -70,18 +85,17 @@ def table_name(header_name: str) -> str:
 
 
 def _columns(region_map: RegionMap) -> dict[str, np.ndarray]:
-    """The map's leaf columns in the table's order, by field name: the node, the status, then the
+    """The map's columns in the table's order, by field name: the tree, the status, then the
     float columns, each as short decimals where that keeps every bit (``<name>.mantissa``,
     ``<name>.exponent``: :mod:`pipeline.io.decimal_columns`), else as float64."""
-    indices = (
-        region_map.index_l,
-        region_map.index_w,
-        *(() if region_map.extra_index is None else region_map.extra_index.T),
-    )
-    columns = {"depth": region_map.depth.astype("<i1")}
-    columns |= {f"index_{axis}": index.astype("<i4") for axis, index in zip(region_map.axes, indices, strict=True)}
-    columns |= {"split_W": region_map.split_w.astype("<i1"), "status": region_map.status.astype("<i1")}
-    floats = {name: getattr(region_map, name) for name in _BOUNDS}
+    tree = region_map.subpaving
+    columns = {
+        "cut_axis": tree.cut_axis.astype("<i1"),
+        "cut_level": tree.cut_level.astype("<i1"),
+        "children": tree.children.astype("<i4"),
+        "status": region_map.status.astype("<i1"),
+    }
+    floats = {name: getattr(region_map, name) for name in BOUND_COLUMNS}
     if region_map.execution is not None:
         floats |= {name: region_map.execution.columns[name] for name in EXECUTION_COLUMNS}
     for name, values in floats.items():
@@ -98,8 +112,7 @@ def _table(region_map: RegionMap) -> np.ndarray:
     every field is one column of n values, stored one after the other, so that a column read from
     the memory-mapped file is contiguous."""
     columns = _columns(region_map)
-    n = region_map.depth.size
-    table = np.zeros((), dtype=np.dtype([(name, c.dtype.str, (n,)) for name, c in columns.items()]))
+    table = np.zeros((), dtype=np.dtype([(name, c.dtype.str, c.shape) for name, c in columns.items()]))
     for name, column in columns.items():
         table[name] = column
     return table
@@ -133,7 +146,7 @@ def region_map_files(region_map: RegionMap, header_name: str = DEFAULT_MAP_NAME)
     np.save(buffer, table, allow_pickle=False)
     table_bytes = buffer.getvalue()
     name = table_name(header_name)
-    header = _header(region_map, table_bytes, name, region_map.depth.size, table.dtype.names)
+    header = _header(region_map, table_bytes, name, region_map.size, table.dtype.names)
     return {name: table_bytes, header_name: dumps(header).encode("utf-8")}
 
 
@@ -175,8 +188,8 @@ def region_map_of(document: dict, path: Path) -> RegionMap:
         raise DataFileError(path, f"holds a {type(document).__name__}, expected a region map object")
     if document.get("format") in READABLE_FORMATS:
         return RegionMap.from_json(document, path)
-    if document.get("format") != FORMAT_ARRAYS:
-        expected = ", ".join(repr(f) for f in (*READABLE_FORMATS, FORMAT_ARRAYS))
+    if document.get("format") not in (FORMAT_ARRAYS, FORMAT_NODES):
+        expected = ", ".join(repr(f) for f in (*READABLE_FORMATS, FORMAT_NODES, FORMAT_ARRAYS))
         raise DataFileError(path, f"format is {document.get('format')!r}, expected one of {expected}")
     try:
         table = _checked_table(path, document["leaves"])
@@ -200,8 +213,13 @@ def _checked_table(path: Path, leaves: dict) -> np.ndarray:
         )
     table = np.load(table_path, mmap_mode="r", allow_pickle=False)
     names, fields = table.dtype.names or (), tuple(leaves["fields"])
-    # A record of columns (each field n values), or a table of rows (each field one value).
-    rows = sorted({table.dtype[name].shape[0] if table.dtype[name].shape else table.size for name in names})
+    # A record of columns (each field n values, the tree's n - 1), or a table of rows (each field one value).
+    rows = sorted(
+        {
+            (table.dtype[name].shape[0] + (name in TREE_FIELDS)) if table.dtype[name].shape else table.size
+            for name in names
+        }
+    )
     if table.ndim > 1 or names != fields or rows != [int(leaves["rows"])]:
         missing = sorted(set(fields) - set(names)) or sorted(set(names) - set(fields))
         raise DataFileError(
@@ -213,31 +231,23 @@ def _checked_table(path: Path, leaves: dict) -> np.ndarray:
 
 
 def _from_table(document: dict, table: np.ndarray, source: Path) -> RegionMap:
-    """The map of a checked header and table."""
-    fitted = document["fitted_range"]
-    axes = tuple(document["axes"])
+    """The map of a checked header and table (format /5, or /4's nodes turned into the tree)."""
     statuses = tuple(document["statuses"])
     if statuses != STATUSES:
         raise DataFileError(source, f"statuses are {list(statuses)}, expected {list(STATUSES)}")
-    extra = axes[2:]
     execution = document.get("execution")
-    return RegionMap(
-        **header_fields(document),
-        depth=table["depth"],
-        index_l=table["index_L"],
-        index_w=table["index_W"],
-        clearance_bound_m=_float_column(table, "clearance_bound_m"),
-        endpoint_bound_m=_float_column(table, "endpoint_bound_m"),
-        endpoint_clearance_upper_m=_float_column(table, "endpoint_clearance_upper_m"),
-        status=table["status"],
-        seconds=math.nan,
-        split_w=table["split_W"],
-        execution=None
+    fields = header_fields(document) | {
+        **{name: _float_column(table, name) for name in BOUND_COLUMNS},
+        "status": table["status"],
+        "seconds": math.nan,
+        "execution": None
         if execution is None
         else ExecutionBounds.from_json(
             {**execution, "columns": {name: _float_column(table, name) for name in EXECUTION_COLUMNS}}, source
         ),
-        axes=axes if axes != SIZE else SIZE,
-        extra_ranges_m=tuple((float(fitted[name][0]), float(fitted[name][1])) for name in extra),
-        extra_index=np.column_stack([table[f"index_{name}"] for name in extra]) if extra else None,
-    )
+    }
+    ranges = head_ranges(document)
+    if document["format"] == FORMAT_NODES:
+        return RegionMap.of_leaves(ranges, *tree_leaves(document, table), **fields)
+    tree = Subpaving(ranges, table["cut_axis"], table["cut_level"], table["children"])
+    return RegionMap(subpaving=tree, **fields)

@@ -46,7 +46,7 @@ from pipeline.certify.endpoints import (
 )
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
-from pipeline.certify.search import ClosedBoxes, SearchSettings, child_offsets, initial_roots, node_boxes, search
+from pipeline.certify.search import SearchLeaves, SearchSettings, cell_boxes, initial_roots, node_boxes, search
 from pipeline.certify.strip_split import strip_bounds
 from pipeline.exceptions import InvalidParameterError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool, as_executor, map_tasks
@@ -82,7 +82,6 @@ _INFEASIBILITY_REFINE_M = 1e-3
 #: gap above it, still exceeds the tolerance: no cut brings them within it) are cut only while
 #: the bound is more than this above the centre's error [m] (the clearance search's resolution).
 _ENDPOINT_RESOLUTION_M = 5e-4
-_KEY_BITS = 21
 #: Leaves per task of the infeasibility certificate's sub-cells (fixed, so that the map does not
 #: depend on the worker count).
 _SUB_CELL_CHUNK = 128
@@ -226,7 +225,7 @@ def _counted(
 
 def run_search(
     model: RangeModel, settings: SearchSettings, jobs: int | Executor, progress: ProgressCallback | None = None
-) -> ClosedBoxes:
+) -> SearchLeaves:
     """The branch and bound from the initial grid, in :data:`_SEARCH_GROUPS` tasks spread over
     ``jobs`` (processes, or an executor); ``progress`` gets "range map: search" over the tasks.
 
@@ -241,75 +240,27 @@ def run_search(
     groups = [roots[stripe == k] for k in range(_SEARCH_GROUPS) if np.any(stripe == k)]
     on_done = _counted(progress, PROGRESS_STAGES[0], [1] * len(groups))
     parts = _run_tasks(search, [(model, settings, group) for group in groups], jobs, on_done)
-    fields = ("depth_lw", "index", "depth_s", "index_s", "bound_m", "center_clearance_m")
+    fields = ("levels", "index", "bound_m", "center_clearance_m")
     merged = {f: np.concatenate([getattr(p, f) for p in parts]) for f in fields}
-    return ClosedBoxes(**merged, evaluations=sum(p.evaluations for p in parts))
-
-
-def _key_bits(k: int) -> int:
-    """Bits per axis of a node's key (depth above them): 21 for (L, W), fewer for more axes."""
-    return min(_KEY_BITS, 58 // k)
-
-
-def _keys(depth: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """One int64 per node (depth, index (n, k)), ordered as (depth, i_1, ..., i_k)."""
-    k = index.shape[1]
-    bits = _key_bits(k)
-    key = depth.astype(np.int64) << (k * bits)
-    for a in range(k):
-        key |= index[:, a].astype(np.int64) << ((k - 1 - a) * bits)
-    return key
-
-
-def _unkey(keys: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """(depth, index (n, k)) of node keys."""
-    bits = _key_bits(k)
-    mask = (1 << bits) - 1
-    index = np.stack([(keys >> ((k - 1 - a) * bits)) & mask for a in range(k)], -1)
-    return keys >> (k * bits), index
-
-
-def leaves_from_boxes(boxes: ClosedBoxes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Leaves (depth, index (n, k)) of the closed boxes' 2^k-tree, each with the minimum clearance
-    bound and the minimum centre clearance over the boxes of the leaf and of its ancestors."""
-    k = boxes.index.shape[1]
-    keys = _keys(boxes.depth_lw, boxes.index)
-    order = np.argsort(keys, kind="stable")
-    sorted_keys = keys[order]
-    unique, starts = np.unique(sorted_keys, return_index=True)
-    node_bound = np.minimum.reduceat(boxes.bound_m[order], starts)
-    node_centre = np.minimum.reduceat(boxes.center_clearance_m[order], starts)
-    depth, index = _unkey(unique, k)
-    ancestors = []
-    for up in range(1, int(depth.max()) + 1):
-        ok = depth >= up
-        ancestors.append(_keys(depth[ok] - up, index[ok] >> up))
-    is_parent = np.isin(unique, np.concatenate(ancestors)) if ancestors else np.zeros(unique.size, dtype=bool)
-    leaf = ~is_parent
-    d, ix = depth[leaf], index[leaf]
-    bound, centre = node_bound[leaf].copy(), node_centre[leaf].copy()
-    for up in range(1, int(d.max()) + 1):
-        ok = d >= up
-        key = _keys(d[ok] - up, ix[ok] >> up)
-        pos = np.clip(np.searchsorted(unique, key), 0, unique.size - 1)
-        present = unique[pos] == key
-        rows = np.flatnonzero(ok)[present]
-        bound[rows] = np.minimum(bound[rows], node_bound[pos[present]])
-        centre[rows] = np.minimum(centre[rows], node_centre[pos[present]])
-    return d, ix, bound, centre
+    return SearchLeaves(
+        **merged,
+        evaluations=sum(p.evaluations for p in parts),
+        boxes_closed=sum(p.boxes_closed for p in parts),
+    )
 
 
 def _split(arrays: list[np.ndarray], rows: np.ndarray) -> list[np.ndarray]:
-    """Replace the leaves ``rows`` (mask) by their 2^k children; other columns are inherited."""
-    depth, index, *rest = arrays
-    k = index.shape[1]
-    offsets = child_offsets(k)
-    fan = offsets.shape[0]
-    kids = (
-        np.repeat(depth[rows] + 1, fan),
-        (2 * index[rows][:, None, :] + offsets[None]).reshape(-1, k),
-        *(np.repeat(column[rows], fan) for column in rest),
-    )
+    """Replace the leaves ``rows`` (mask) by their two halves along their widest axis (the lowest
+    level; none of them at ``max_depth`` there); other columns are inherited."""
+    levels, index, *rest = arrays
+    cut = np.flatnonzero(rows)
+    axis = np.repeat(np.argmin(levels[cut], axis=1), 2)
+    kids_level = np.repeat(levels[cut], 2, axis=0)
+    kids_index = np.repeat(index[cut], 2, axis=0)
+    at = np.arange(kids_level.shape[0])
+    kids_level[at, axis] += 1
+    kids_index[at, axis] = 2 * kids_index[at, axis] + at % 2
+    kids = (kids_level, kids_index, *(np.repeat(column[cut], 2) for column in rest))
     return [np.concatenate([column[~rows], kid]) for column, kid in zip(arrays, kids, strict=True)]
 
 
@@ -389,22 +340,21 @@ def refine_leaves(
     progress: ProgressCallback | None = None,
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Endpoint bounds and infeasibility upper bounds per leaf, cutting leaves as the module
-    docstring says. ``leaves`` = [depth, index (n, k), clearance bound, *further columns the
+    docstring says. ``leaves`` = [levels (n, k), index (n, k), clearance bound, *further columns the
     children inherit]; returns the final leaves (the same columns),
     their endpoint bounds (n,) and their endpoint clearance upper bounds (n,) (inf where not needed).
     The bounds run on ``jobs`` (processes, or an executor) over fixed chunks of leaves (the result
     does not depend on it). ``progress`` gets "range map: refine" in leaves bounded, whose total grows by
     the children of each round's cuts, then "range map: sub-cells"."""
     bounded = 0  # leaves whose bounds are computed, over the rounds
-    endpoint = np.full(leaves[0].size, np.nan)
-    centre_error = np.full(leaves[0].size, np.nan)
-    upper = np.full(leaves[0].size, np.nan)
+    n = leaves[0].shape[0]
+    endpoint, centre_error, upper = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     arrays = [*leaves, endpoint, centre_error, upper]
     while True:
-        (depth, index, bound), (endpoint, centre_error, upper) = arrays[:3], arrays[-3:]
+        (levels, index, bound), (endpoint, centre_error, upper) = arrays[:3], arrays[-3:]
         todo = np.isnan(endpoint)
         if np.any(todo):
-            c, r = node_boxes(model, depth[todo], index[todo])
+            c, r = cell_boxes(model, levels[todo], index[todo])
             need = bound[todo] < margin_m
             parts = _in_chunks(
                 _leaf_bounds,
@@ -420,7 +370,7 @@ def refine_leaves(
             )
             endpoint[todo], centre_error[todo], upper[todo] = np.concatenate(parts).T
             bounded += int(np.count_nonzero(todo))
-        deep = depth < max_depth
+        deep = np.min(levels, axis=1) < max_depth
         close = (bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M)
         # A family that pins the endpoints has errors of rounding size: its bound is reported, not
         # refined. A leaf whose error at the centre minus the bound's gap above it exceeds the
@@ -432,13 +382,13 @@ def refine_leaves(
         rows = deep & (loose | close)
         if not np.any(rows):
             if np.any(close):  # smallest cells still close: try sub-cells (pipeline.certify.endpoints)
-                c, r = node_boxes(model, depth[close], index[close])
+                c, r = cell_boxes(model, levels[close], index[close])
                 sub = sub_cell_bounds(model, c, r, tolerance_m, margin_m, jobs, progress)
                 upper[close] = np.minimum(upper[close], sub)
             return arrays[:-3], endpoint, upper
         arrays = _split(arrays, rows)
         for column in arrays[-3:]:  # children get their own endpoint bounds
-            column[-(2**model.k) * np.count_nonzero(rows) :] = np.nan
+            column[-2 * np.count_nonzero(rows) :] = np.nan
 
 
 def split_strips(
@@ -453,17 +403,18 @@ def split_strips(
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
     """Replace the smallest cells certified collision-free that miss the margin without being
     proven infeasible, and lie near a contour, by their 2^``config.strip_split`` strips along W
-    (module docstring; (L, W) maps only). ``leaves`` = [depth, index (n, k), clearance bound,
-    lowest clearance at a box centre]; returns the leaves [depth, index, clearance bound], their
-    ``split_W``, endpoint and infeasibility bounds. ``progress`` gets "range map: strips" in strips."""
-    depth, index, bound, centre = leaves
+    (module docstring; (L, W) maps only). ``leaves`` = [levels (n, k), index (n, k), clearance
+    bound, lowest clearance at a box centre]; returns the leaves [levels, index, clearance bound]
+    and their endpoint and infeasibility bounds. ``progress`` gets "range map: strips" in strips."""
+    levels, index, bound, centre = leaves
     leaves = leaves[:3]
-    split = np.zeros(depth.size, dtype=np.int64)
     e = config.strip_split if model.k == 2 else 0
     # Collision-free cells only: a cell not certified collision-free stays "undecided" whole.
-    rows = (depth == config.max_depth_lw) & (bound > 0.0) & (bound < margin_m) & (upper >= margin_m)
+    smallest = np.all(levels == config.max_depth_lw, axis=1)
+    rows = smallest & (bound > 0.0) & (bound < margin_m) & (upper >= margin_m)
     if e == 0 or not np.any(rows):
-        return leaves, split, endpoint, upper
+        return leaves, endpoint, upper
+    depth = levels[:, 0]
     i_l, i_w = index[:, 0], index[:, 1]
     rows &= _near_a_contour(i_l, i_w, bound, centre, rows, margin_m)
     k = 2**e
@@ -494,19 +445,18 @@ def split_strips(
     joined = [
         np.concatenate([a[keep], b])
         for a, b in zip(
-            (depth, index, bound, split, endpoint, upper),
+            (levels, index, bound, endpoint, upper),
             (
-                s_depth,
+                np.column_stack([s_depth, s_depth + e]),
                 np.column_stack([s_l, s_w]),
                 s_bound,
-                np.full(s_depth.size, e, dtype=np.int64),
                 s_endpoint,
                 s_upper,
             ),
             strict=True,
         )
     ]
-    return joined[:3], joined[3], joined[4], joined[5]
+    return joined[:3], joined[3], joined[4]
 
 
 def _near_a_contour(
@@ -558,50 +508,39 @@ def certify_range(
     start = time.perf_counter()
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     model = RangeModel.from_coefficients(coefficients)
-    if config.max_depth_lw > _key_bits(model.k):
-        raise InvalidParameterError(
-            "min_cell",
-            config.min_cell,
-            f">= 2^-{_key_bits(model.k)} for {model.k} axes ({', '.join(model.axes.names)})",
-        )
     settings = config.search_settings(margin)
-    boxes = run_search(model, settings, config.run_on, progress)
+    found = run_search(model, settings, config.run_on, progress)
     leaves, endpoint, upper = refine_leaves(
         model,
-        list(leaves_from_boxes(boxes)),
+        [found.levels, found.index, found.bound_m, found.center_clearance_m],
         margin,
         config.endpoint_tolerance_m,
         config.max_depth_lw,
         config.run_on,
         progress,
     )
-    (d, index, bound), split, endpoint, upper = split_strips(
+    (levels, index, bound), endpoint, upper = split_strips(
         model, leaves, endpoint, upper, margin, config.endpoint_tolerance_m, config, progress
     )
     seconds = time.perf_counter() - start
-    return RegionMap(
+    return RegionMap.of_leaves(
+        model.ranges_m,
+        levels,
+        index,
         family=coefficients.family.name,
         coefficients_source=source_name(coefficients.source),
         coefficients_sha256=coefficients.source_sha256,
-        length_range_m=tuple(coefficients.fitted_range_m["L"]),
-        width_range_m=tuple(coefficients.fitted_range_m["W"]),
+        axes=model.axes.names,
         margin_m=float(margin),
         endpoint_tolerance_m=float(config.endpoint_tolerance_m),
-        depth=d,
-        index_l=index[:, 0],
-        index_w=index[:, 1],
-        axes=model.axes.names,
-        extra_ranges_m=model.extra_ranges_m,
-        extra_index=index[:, 2:] if model.k > 2 else None,
         clearance_bound_m=bound,
         endpoint_bound_m=endpoint,
         endpoint_clearance_upper_m=upper,
         status=statuses(bound, upper, margin),
-        split_w=split,
         seconds=seconds,
         details={  # the map does not depend on where it ran: neither recorded, nor times
             "config": {k: v for k, v in asdict(config).items() if k not in ("jobs", "executor")},
-            "boxes_evaluated": boxes.evaluations,
-            "boxes_closed": int(boxes.bound_m.size),
+            "boxes_evaluated": found.evaluations,
+            "boxes_closed": found.boxes_closed,
         },
     )

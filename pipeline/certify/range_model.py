@@ -180,6 +180,11 @@ class RangeModel:
         return self.axes.k
 
     @property
+    def ranges_m(self) -> tuple[tuple[float, float], ...]:
+        """The fitted range (lo, hi) of every axis, in ``axes`` order [m]."""
+        return (tuple(self.length_range_m), tuple(self.width_range_m), *self.extra_ranges_m)
+
+    @property
     def range_lo(self) -> np.ndarray:
         """Lower corner of the fitted box, one entry per axis [m]."""
         return np.array([self.length_range_m[0], self.width_range_m[0], *(lo for lo, _ in self.extra_ranges_m)])

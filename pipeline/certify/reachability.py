@@ -296,8 +296,7 @@ def witnesses_for_map(
     )
     if candidates.size == 0:
         return []
-    cells = [region_map.cell(int(k)) for k in candidates]
-    centres = np.array([[sum(c.length_range_m) / 2, sum(c.width_range_m) / 2] for c in cells])
+    centres = region_map.leaf_centres_m()[candidates, :2]
     order = np.lexsort((centres[:, 1], centres[:, 0]))
     picks = order[np.unique(np.linspace(0, order.size - 1, min(count, order.size)).round().astype(int))]
     return [

@@ -1,34 +1,40 @@
-"""Branch and bound over dyadic boxes of the coefficients' axes x s for the clearance range certificate.
+"""Branch and bound over a subpaving of the coefficients' axes x s for the clearance range certificate.
 
-The fitted box of the k axes ((L, W), or (L, W, x): ``RangeModel.axes``) is the root of a
-2^k-tree (node = (depth, i_1..i_k), side 1 / 2^depth of the range on every axis; a quadtree for
-(L, W)); s in [0, 1] is cut dyadically as well (depth_s, j).
-A box is one node times one s interval. Each round bounds every open box
-(:func:`pipeline.certify.clearance_bound.box_clearance_bounds`) and closes it when
+The fitted box of the k axes ((L, W), or (L, W, x): ``RangeModel.axes``) is cut into nodes, each
+a box with its own level and index along every axis (:mod:`pipeline.certify.subpaving`); the
+search starts from the uniform grid of ``initial_depth_lw`` cuts of every axis. s in [0, 1] is
+cut dyadically as well (depth_s, j). A box is one node times one s interval. Each round bounds
+every open box (:func:`pipeline.certify.clearance_bound.box_clearance_bounds`) and closes it when
 
 * its bound reaches the margin; or
 * the margin is out of reach in its node (the clearance at the box centre, a value the
   clearance takes there, is below the margin), its bound is positive and within
-  ``resolution_m`` of that centre value, or the centre itself is in collision, its node is
-  at the boundary depth (so the region map resolves where the margin or the clearance is
-  lost), and the centre lies below the margin by more than the bound's gap below the centre
-  (2 centre - bound < margin: the clearance rises above its centre value by about as much as
-  it falls below it, so the node most likely holds no point at the margin); a node closer to
-  the margin is cut on, to the smallest cell, so the map resolves the margin's contour at the
-  smallest cell from both sides (measured on the default build: with nodes closed at the
-  boundary depth wherever their centre missed the margin, the leaves beside the contour
-  inherited bounds 0.23 mm (median) below their own clearance); or
-* it cannot be cut further (both depths at their limits) or the box budget is spent.
+  ``resolution_m`` of that centre value, or the centre itself is in collision, its node is as
+  small as a cell of the boundary depth (its levels sum to k times it), and the centre lies
+  below the margin by more than the bound's gap below the centre (2 centre - bound < margin:
+  the clearance rises above its centre value by about as much as it falls below it, so the
+  node most likely holds no point at the margin); a node closer to the margin is cut on, to
+  the smallest cell, so the map resolves the margin's contour at the smallest cell from both
+  sides (measured on the default build: with nodes closed at the boundary depth wherever their
+  centre missed the margin, the leaves beside the contour inherited bounds 0.23 mm (median)
+  below their own clearance); or
+* it cannot be cut further (s at its deepest and no axis of its node below ``max_depth_lw``)
+  or the box budget is spent.
 
-Otherwise it is cut in two along s or in 2^k along the axes, whichever dominates its gap
-(``BoxBounds.split_s``), and closed if that one is at its depth limit. Boxes of a node's
-children always come in complete sets of 2^k, so the nodes of the closed boxes form a
-2^k-tree whose leaves tile the box, and every point (v, s) lies in exactly one closed box.
+Otherwise it is cut in two along s, or sent to its node's two halves along one axis, whichever
+dominates its gap (``BoxBounds.split_s``), and closed if that one cannot be cut. **A node is cut
+once, along one axis**, when its first boxes ask: among its axes below the deepest level, the one
+whose share of the gap (``BoxBounds.axis_gap_m``: how far the tip and the obstacle move along
+that axis alone), summed over the node's boxes asking in that round, is largest. A cell's gap
+is usually dominated by one axis, so cutting that one alone shrinks it at half the cells a cut
+of every axis would make (interval subpavings, SIVIA, bisect one direction the same way). Every
+later box of the node that asks goes to the same two halves. So the nodes form a binary tree
+from each root, and every point (v, s) lies in a closed box of its leaf or of one of the leaf's
+ancestors (an s interval of a node is closed there, cut along s, or handed to both halves).
 """
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,10 +53,11 @@ class SearchSettings:
 
     Attributes:
         margin_m: Clearance the certificate tries to prove [m].
-        max_depth_lw: Deepest (L, W) node (cells of 1 / 2^depth of the range per side).
-        boundary_depth_lw: Depth to which regions below the margin are resolved.
+        max_depth_lw: Deepest level along any axis (cells of 1 / 2^depth of its range).
+        boundary_depth_lw: Depth to which regions below the margin are resolved (a node as
+            small as a cell of this depth along every axis: its levels sum to k times it).
         max_depth_s: Deepest s interval (1 / 2^depth).
-        initial_depth_lw: Depth of the starting grid in (L, W).
+        initial_depth_lw: Depth of the starting grid along every axis.
         initial_depth_s: Depth of the starting grid in s.
         max_boxes: Budget of box evaluations (the search stops with valid, looser bounds).
         resolution_m: Where the margin is out of reach, boxes are cut until their bound is within
@@ -84,52 +91,95 @@ class SearchSettings:
 
 
 @dataclass(frozen=True, eq=False)
-class ClosedBoxes:
-    """The closed boxes of one search, as arrays of length n.
+class SearchLeaves:
+    """The leaves of one search's nodes, as arrays of length n.
 
     Attributes:
-        depth_lw: Depth of the node of each box (the same on every axis).
-        index: Node index of each box along each axis, (n, k) (columns in the axes' order).
-        depth_s, index_s: s interval of each box.
-        bound_m: Lower bound on the clearance over the box [m].
-        center_clearance_m: Clearance at the box centre [m].
+        levels: Each leaf's level along every axis, (n, k).
+        index: Each leaf's index along every axis, (n, k).
+        bound_m: The least clearance bound of the closed boxes of the leaf and its ancestors [m].
+        center_clearance_m: The least clearance at those boxes' centres [m].
         evaluations: Boxes evaluated in all.
+        boxes_closed: Boxes closed in all.
     """
 
-    depth_lw: np.ndarray
+    levels: np.ndarray
     index: np.ndarray
-    depth_s: np.ndarray
-    index_s: np.ndarray
     bound_m: np.ndarray
     center_clearance_m: np.ndarray
     evaluations: int
+    boxes_closed: int
 
 
-def child_offsets(k: int) -> np.ndarray:
-    """The 2^k children of a node as index offsets (2^k, k), in lexicographic order (for (L, W):
-    (0, 0), (0, 1), (1, 0), (1, 1))."""
-    return np.array(list(itertools.product((0, 1), repeat=k)), dtype=np.int64).reshape(2**k, k)
+class _Nodes:
+    """The nodes of one search, grown as they are cut: level and index (N, k), parent, the round
+    each was made in, the axis it is cut along (-1: not cut) and its lower half (the upper is next)."""
+
+    def __init__(self, levels: np.ndarray, index: np.ndarray) -> None:
+        n = levels.shape[0]
+        self.level, self.index = levels.astype(np.int64), index.astype(np.int64)
+        self.parent, self.made = np.full(n, -1, dtype=np.int64), np.zeros(n, dtype=np.int64)
+        self.axis, self.child = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
+
+    def cut(self, nodes: np.ndarray, axes: np.ndarray, round_: int) -> None:
+        """Cut ``nodes`` (not yet cut) in two along ``axes``: their halves are appended."""
+        first = self.level.shape[0] + 2 * np.arange(nodes.size)
+        self.axis[nodes], self.child[nodes] = axes, first
+        level = np.repeat(self.level[nodes], 2, axis=0)
+        index = np.repeat(self.index[nodes], 2, axis=0)
+        rows = np.arange(level.shape[0])
+        along = np.repeat(axes, 2)
+        level[rows, along] += 1
+        index[rows, along] = 2 * index[rows, along] + (rows % 2)
+        self.level, self.index = np.vstack([self.level, level]), np.vstack([self.index, index])
+        self.parent = np.concatenate([self.parent, np.repeat(nodes, 2)])
+        self.made = np.concatenate([self.made, np.full(level.shape[0], round_)])
+        self.axis = np.concatenate([self.axis, np.full(level.shape[0], -1)])
+        self.child = np.concatenate([self.child, np.full(level.shape[0], -1)])
+
+    def leaves(self, bound: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The uncut nodes' levels, indices and the least of the per-node ``bound`` and ``centre``
+        over each and its ancestors (handed down round by round: a parent is older than its halves)."""
+        bound, centre = bound.copy(), centre.copy()
+        for round_ in range(1, int(self.made.max()) + 1):
+            rows = np.flatnonzero(self.made == round_)
+            bound[rows] = np.minimum(bound[rows], bound[self.parent[rows]])
+            centre[rows] = np.minimum(centre[rows], centre[self.parent[rows]])
+        leaf = self.axis < 0
+        return self.level[leaf], self.index[leaf], bound[leaf], centre[leaf]
+
+
+def cell_boxes(model: RangeModel, levels: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centres and half widths (n, k) [m] of cells of the given levels and indices (n, k)."""
+    levels = np.asarray(levels, dtype=float).reshape(-1, model.k)
+    index = np.asarray(index).reshape(levels.shape)
+    size = model.range_size / 2.0**levels
+    return model.range_lo + (index + 0.5) * size, size / 2
 
 
 def node_boxes(
     model: RangeModel, depth: np.ndarray, index: np.ndarray, split_w: int = 0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Centres and half widths (n, k) [m] of nodes (depth, index (n, k)); with ``split_w`` = e, of
-    their strips along W (1 / 2^(depth + e) of the range in W, index[:, 1] counting the latter:
-    ``pipeline.certify.strip_split``)."""
-    depth = np.asarray(depth, dtype=float)
-    index = np.asarray(index).reshape(depth.size, model.k)
-    depths = np.repeat(depth[:, None], model.k, axis=1)
-    depths[:, 1] += split_w
-    size = model.range_size / 2.0**depths
-    center = model.range_lo + (index + 0.5) * size
-    return center, size / 2
+    """Centres and half widths (n, k) [m] of nodes of one depth along every axis (depth (n,),
+    index (n, k)); with ``split_w`` = e, of their strips along W (1 / 2^(depth + e) of the range
+    in W, index[:, 1] counting the latter: ``pipeline.certify.strip_split``)."""
+    depth = np.asarray(depth, dtype=np.int64).reshape(-1)
+    levels = np.repeat(depth[:, None], model.k, axis=1)
+    levels[:, 1] += split_w
+    return cell_boxes(model, levels, index)
 
 
-def _boxes(model: RangeModel, dl, index, ds, js) -> tuple[np.ndarray, np.ndarray]:
-    c, r = node_boxes(model, dl, index)
-    hs = 0.5 / 2.0 ** ds.astype(float)
-    return np.column_stack([c, (js + 0.5) * 2 * hs]), np.column_stack([r, hs])
+def _bounds(model: RangeModel, nodes: _Nodes, node: np.ndarray, ds: np.ndarray, js: np.ndarray) -> tuple:
+    """The bound, centre clearance, split_s and axis gaps of the boxes (node, s interval), in chunks."""
+    bound, centre = np.empty(node.size), np.empty(node.size)
+    split_s, gaps = np.empty(node.size, dtype=bool), np.empty((node.size, model.k))
+    for start in range(0, node.size, _CHUNK):
+        part = slice(start, start + _CHUNK)
+        c, r = cell_boxes(model, nodes.level[node[part]], nodes.index[node[part]])
+        hs = 0.5 / 2.0 ** ds[part].astype(float)
+        b = box_clearance_bounds(model, np.column_stack([c, (js[part] + 0.5) * 2 * hs]), np.column_stack([r, hs]))
+        bound[part], centre[part], split_s[part], gaps[part] = b.lower_m, b.center_m, b.split_s, b.axis_gap_m
+    return bound, centre, split_s, gaps
 
 
 def initial_roots(k: int, depth: int) -> np.ndarray:
@@ -139,65 +189,83 @@ def initial_roots(k: int, depth: int) -> np.ndarray:
     return np.column_stack([np.full(grid.shape[0], depth), grid]).astype(np.int64)
 
 
-def search(model: RangeModel, settings: SearchSettings, roots: np.ndarray | None = None) -> ClosedBoxes:
+def _cut_along(nodes: _Nodes, rows_node: np.ndarray, gaps: np.ndarray, deepest: int, round_: int) -> None:
+    """Cut the nodes of ``rows_node`` not yet cut, each along its axis below ``deepest`` with the
+    largest summed share of the gap of its rows (``gaps``) (module docstring)."""
+    fresh = nodes.axis[rows_node] < 0
+    if not np.any(fresh):
+        return
+    unique, owner = np.unique(rows_node[fresh], return_inverse=True)
+    score = np.zeros((unique.size, nodes.level.shape[1]))
+    np.add.at(score, owner, gaps[fresh])
+    score[nodes.level[unique] >= deepest] = -np.inf
+    nodes.cut(unique, np.argmax(score, axis=1), round_)
+
+
+def search(model: RangeModel, settings: SearchSettings, roots: np.ndarray | None = None) -> SearchLeaves:
     """Run the branch and bound from the given nodes (rows depth, i_1..i_k), default the whole
     initial grid, each with the initial s grid."""
     k = model.k
     if roots is None:
         roots = initial_roots(k, settings.initial_depth_lw)
     roots = np.asarray(roots, dtype=np.int64).reshape(-1, k + 1)
+    nodes = _Nodes(np.repeat(roots[:, :1], k, axis=1), roots[:, 1:])
     m = 2**settings.initial_depth_s
-    dl = np.repeat(roots[:, 0], m)
-    ix = np.repeat(roots[:, 1:], m, axis=0)
-    ds = np.full(dl.size, settings.initial_depth_s, dtype=np.int64)
+    node = np.repeat(np.arange(roots.shape[0]), m)
+    ds = np.full(node.size, settings.initial_depth_s, dtype=np.int64)
     js = np.tile(np.arange(m, dtype=np.int64), roots.shape[0])
-    offsets = child_offsets(k)
-    fan = offsets.shape[0]
     closed: list[tuple[np.ndarray, ...]] = []
-    evaluations = 0
-    while dl.size:
-        bound = np.empty(dl.size)
-        centre = np.empty(dl.size)
-        split_s = np.empty(dl.size, dtype=bool)
-        for start in range(0, dl.size, _CHUNK):
-            part = slice(start, start + _CHUNK)
-            c, r = _boxes(model, dl[part], ix[part], ds[part], js[part])
-            b = box_clearance_bounds(model, c, r)
-            bound[part], centre[part], split_s[part] = b.lower_m, b.center_m, b.split_s
-        evaluations += dl.size
-        out_of_reach = centre < settings.margin_m
-        done = bound >= settings.margin_m
-        # Certified free to within the resolution of the clearance seen, or a collision seen at the centre.
-        resolved = ((bound > 0.0) & (centre - bound <= settings.resolution_m)) | (centre <= 0.0)
-        far = 2.0 * centre - bound < settings.margin_m  # not near the margin's contour (module docstring)
-        done |= out_of_reach & resolved & far & (dl >= settings.boundary_depth_lw)
-        can_s, can_lw = ds < settings.max_depth_s, dl < settings.max_depth_lw
-        # Resolve the boundary of the margin over the axes before anything else.
-        want_s = np.where(out_of_reach & resolved, False, split_s)
-        # A box whose gap is dominated by the axes at the deepest node is closed: cutting s cannot help.
-        cut_s = ~done & want_s & can_s
-        cut_lw = ~done & ~want_s & can_lw
-        cut_lw |= ~done & want_s & ~can_s & can_lw
-        done |= ~(cut_s | cut_lw)
-        if evaluations + 2 * np.count_nonzero(cut_s) + fan * np.count_nonzero(cut_lw) > settings.max_boxes:
+    evaluations, round_ = 0, 0
+    while node.size:
+        bound, centre, split_s, gaps = _bounds(model, nodes, node, ds, js)
+        evaluations += node.size
+        done, cut_s, cut_lw = _decide(settings, nodes, node, ds, bound, centre, split_s)
+        if evaluations + 2 * np.count_nonzero(cut_s | cut_lw) > settings.max_boxes:
             done[:] = True
             cut_s[:] = cut_lw[:] = False
-        closed.append((dl[done], ix[done], ds[done], js[done], bound[done], centre[done]))
-        # Children along s.
-        s_rows = np.flatnonzero(cut_s)
-        s_children = (
-            np.repeat(dl[s_rows], 2),
-            np.repeat(ix[s_rows], 2, axis=0),
-            np.repeat(ds[s_rows] + 1, 2),
-            (2 * js[s_rows][:, None] + np.array([0, 1])).ravel(),
-        )
+        closed.append((node[done], bound[done], centre[done]))
+        round_ += 1
         lw_rows = np.flatnonzero(cut_lw)
-        lw_children = (
-            np.repeat(dl[lw_rows] + 1, fan),
-            (2 * ix[lw_rows][:, None, :] + offsets[None]).reshape(-1, k),
-            np.repeat(ds[lw_rows], fan),
-            np.repeat(js[lw_rows], fan),
+        _cut_along(nodes, node[lw_rows], gaps[lw_rows], settings.max_depth_lw, round_)
+        s_rows = np.flatnonzero(cut_s)
+        first = nodes.child[node[lw_rows]]
+        node, ds, js = (
+            np.concatenate([np.repeat(node[s_rows], 2), np.column_stack([first, first + 1]).ravel()]),
+            np.concatenate([np.repeat(ds[s_rows] + 1, 2), np.repeat(ds[lw_rows], 2)]),
+            np.concatenate([(2 * js[s_rows][:, None] + np.array([0, 1])).ravel(), np.repeat(js[lw_rows], 2)]),
         )
-        dl, ix, ds, js = (np.concatenate([a, b]) for a, b in zip(s_children, lw_children, strict=True))
-    parts = [np.concatenate(column) for column in zip(*closed, strict=True)]
-    return ClosedBoxes(*parts, evaluations=evaluations)
+    owner, low, mid = (np.concatenate(column) for column in zip(*closed, strict=True))
+    own_bound, own_centre = np.full(nodes.axis.size, np.inf), np.full(nodes.axis.size, np.inf)
+    np.minimum.at(own_bound, owner, low)
+    np.minimum.at(own_centre, owner, mid)
+    return SearchLeaves(*nodes.leaves(own_bound, own_centre), evaluations=evaluations, boxes_closed=owner.size)
+
+
+def _decide(
+    settings: SearchSettings,
+    nodes: _Nodes,
+    node: np.ndarray,
+    ds: np.ndarray,
+    bound: np.ndarray,
+    centre: np.ndarray,
+    split_s: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per open box: closed, cut along s, or handed to its node's halves (module docstring)."""
+    level = nodes.level[node]
+    out_of_reach = centre < settings.margin_m
+    done = bound >= settings.margin_m
+    # Certified free to within the resolution of the clearance seen, or a collision seen at the centre.
+    resolved = ((bound > 0.0) & (centre - bound <= settings.resolution_m)) | (centre <= 0.0)
+    far = 2.0 * centre - bound < settings.margin_m  # not near the margin's contour (module docstring)
+    small = level.sum(axis=1) >= level.shape[1] * settings.boundary_depth_lw
+    done |= out_of_reach & resolved & far & small
+    can_s = ds < settings.max_depth_s
+    can_lw = np.any(level < settings.max_depth_lw, axis=1) | (nodes.axis[node] >= 0)
+    # Resolve the boundary of the margin over the axes before anything else.
+    want_s = np.where(out_of_reach & resolved, False, split_s)
+    # A box whose gap is dominated by the axes at the deepest node is closed: cutting s cannot help.
+    cut_s = ~done & want_s & can_s
+    cut_lw = ~done & ~want_s & can_lw
+    cut_lw |= ~done & want_s & ~can_s & can_lw
+    done |= ~(cut_s | cut_lw)
+    return done, cut_s, cut_lw

@@ -152,7 +152,7 @@ def _convert(source: Path, output: Path | None) -> int:
     output = source if output is None else output
     digest = save_region_map(region_map, output)
     print(
-        f"wrote {output} and {table_name(output.name)} ({region_map.depth.size} leaves; sha256 {digest[:12]}, "
+        f"wrote {output} and {table_name(output.name)} ({region_map.size} leaves; sha256 {digest[:12]}, "
         f"for coefficients sha256 {region_map.coefficients_sha256[:12]})"
     )
     return EXIT_OK

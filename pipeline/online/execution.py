@@ -251,13 +251,10 @@ def execution_from_map(
     error = generated.endpoint_error_bound_m
     if error > endpoint_tolerance_m:
         return None
-    if generated.variables or region_map.extra_index is not None:  # a map over (L, W, x, ...)
-        names = tuple(name for name, _ in generated.variables)
-        if names != region_map.axes[2:]:
-            return None
-        leaf = region_map.leaf_at(generated.length_m, generated.width_m, *(v for _, v in generated.variables))
-    else:
-        leaf = region_map.leaf_at(generated.length_m, generated.width_m)
+    names = tuple(name for name, _ in generated.variables)
+    if names != region_map.axes[2:]:
+        return None
+    leaf = region_map.leaf_at(generated.length_m, generated.width_m, *(v for _, v in generated.variables))
     if leaf is None:
         return None
     speed_scale, ramp, angles, rest, paper = bounds.leaf(leaf)

@@ -316,7 +316,8 @@ def generate(
     if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
         _checked_bottom(plan, L, W, top)
     tables = NO_TABLES if region_map is None or region_map.axes != plan.variables.names else region_map.lookup_tables
-    result = query_core(L, W, c, top, y1, *plan.core, *tables)
+    beyond = (*values, math.nan, math.nan)  # the regression's variables past the obstacle's size
+    result = query_core(L, W, c, top, y1, beyond[0], beyond[1], *plan.core, *tables)
     unreachable, radius, duration, inside, leaf, clearance, endpoint, status = result[: PARAMETERS.start]
     if unreachable >= 0:  # P4 and P5 mirror P2 and P1: the first of P1..P3 to fail is named
         raise _unreachable(plan, unreachable, radius, (L, W), values)

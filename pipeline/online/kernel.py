@@ -43,17 +43,16 @@ A sin(w t + phi) + gamma moves by at most |dA| + |A| (|dw| t + w |dt| + |dphi|) 
 the links' points by at most (l1 + l2) times the angles' change: with every d below 1e-12 and
 |A|, w, T of order 1 to 10, that is below 1e-10 m, under the slack.
 
-**Its arguments.** Five numbers of the query, a bit set naming the regression's variables
-beyond L and W, and three flat arrays: the plan of the coefficients (:func:`plan_numbers`) and
-the map's two lookup arrays (:class:`pipeline.certify.lookup.LookupTables`; :data:`NO_TABLES`
-without a map). The cost of a Numba call grows with the number of arrays it is given, so they
-are few and packed; the core allocates nothing, so its time is its arithmetic. It is compiled for
-its one signature when this module is imported, and Numba caches the machine code on disk
-(``cache=True``): importing it loads the cache (or, the first time, compiles, a few seconds), so
-no query compiles. The first query with a coefficients object and its map builds their arrays
-once. Every array is C-contiguous and writable (Numba's dispatch of a read-only array costs
-twice as much).
-"""
+**Its arguments.** Five numbers of the obstacle's pose, the values of the regression's variables
+past its first two (the obstacle's size), their count, and three flat arrays: the plan of the
+coefficients (:func:`plan_numbers`) and the map's two lookup arrays
+(:class:`pipeline.certify.lookup.LookupTables`; :data:`NO_TABLES` without a map). The cost of a
+Numba call grows with the number of arrays it is given, so they are few and packed; the core
+allocates nothing, so its time is its arithmetic. It is compiled for its one signature when this
+module is imported, and Numba caches the machine code on disk (``cache=True``): importing it
+loads the cache (or, the first time, compiles, a few seconds), so no query compiles. The first
+query with a coefficients object and its map builds their arrays once. Every array is
+C-contiguous and writable (Numba's dispatch of a read-only array costs twice as much)."""
 
 from __future__ import annotations
 
@@ -64,11 +63,7 @@ import numpy as np
 
 from pipeline.certify.lookup import NO_TABLES, bounds_of, leaf_of
 
-__all__ = ["FINITE", "NO_TABLES", "PARAMETERS", "VARIES_D", "VARIES_X", "plan_numbers", "query_core"]
-
-#: Bits of ``varies``: the regression's variables beyond L and W (x before d, the canonical order).
-VARIES_X = 1
-VARIES_D = 2
+__all__ = ["FINITE", "NO_TABLES", "PARAMETERS", "plan_numbers", "query_core"]
 
 #: Where the plan's numbers start (:func:`plan_numbers`): the scene's and the reach's seven, then
 #: the fitted range's (lo, hi) of each of the k variables, then the regression, then the rule.
@@ -87,7 +82,7 @@ def plan_numbers(
     Args:
         scene_numbers: start_dx, approach_dx, approach_dy, apex_dy [m], speed [m/s], and the reach
             annulus' inner and outer radii [m].
-        ranges: (k, 2): the fitted range of every variable, L, W, then x and d where varied [m].
+        ranges: (k, 2): the fitted range of every variable of the regression, in its order [m].
         matrix: (1 + k + k(k+1)/2, 8): the regression, basis -> parameters, columns past the
             family's free parameters zero.
         rule: (5, m): the arc-length rule: rows 1, u^2, u^4, u^6 at its nodes, then its weights.
@@ -97,15 +92,15 @@ def plan_numbers(
 
 
 @numba.njit(cache=True, nogil=True)
-def _value(a: int, length_m: float, width_m: float, centre_x_m: float, top_y_m: float, varies: int) -> float:
-    """The a-th variable's value: L, W, then x and d where ``varies`` names them."""
+def _value(a: int, length_m: float, width_m: float, v2: float, v3: float) -> float:
+    """The regression's a-th variable's value: the obstacle's size first, then v2, v3."""
     if a == 0:
         return length_m
     if a == 1:
         return width_m
-    if a == 2 and (varies & VARIES_X) != 0:
-        return centre_x_m
-    return top_y_m
+    if a == 2:
+        return v2
+    return v3
 
 
 @numba.njit(cache=True, nogil=True)
@@ -119,14 +114,14 @@ def _add_row(p, b: float, plan: np.ndarray, row: int):
 
 @numba.njit(
     "Tuple((int64, float64, float64, boolean, int64, float64, float64, int64, float64, float64, float64, float64,"
-    " float64, float64, float64, float64, boolean))(float64, float64, float64, float64, float64, int64,"
-    " float64[::1], int32[::1], float64[::1])",
+    " float64, float64, float64, float64, boolean))(float64, float64, float64, float64, float64, float64, float64,"
+    " int64, float64[::1], int32[::1], float64[::1])",
     cache=True,
     nogil=True,
 )
 def query_core(
-    length_m: float, width_m: float, centre_x_m: float, top_y_m: float, start_y_m: float, varies: int,
-    plan: np.ndarray, index: np.ndarray, bounds: np.ndarray,
+    length_m: float, width_m: float, centre_x_m: float, top_y_m: float, start_y_m: float, v2: float, v3: float,
+    k: int, plan: np.ndarray, index: np.ndarray, bounds: np.ndarray,
 ):  # fmt: skip
     """One query's numbers (module docstring).
 
@@ -134,7 +129,8 @@ def query_core(
         length_m, width_m: L, W [m], finite and positive, checked by the caller.
         centre_x_m, top_y_m, start_y_m: The obstacle's centre x, far edge d and the height of P1
             and P5 [m] of this query.
-        varies: The regression's variables beyond L and W (:data:`VARIES_X`, :data:`VARIES_D`).
+        v2, v3: The values of the regression's third and fourth variables (not read past ``k``).
+        k: The number of the regression's variables (2 to 4), the obstacle's size first.
         plan: The coefficients' plan (:func:`plan_numbers`).
         index, bounds: The region map's lookup arrays
             (:class:`pipeline.certify.lookup.LookupTables`; :data:`NO_TABLES` for none).
@@ -166,7 +162,6 @@ def query_core(
         if not (reach_lo <= radii[point] <= reach_hi):
             unreachable, radius = point, radii[point]
             break
-    k = 2 + (varies & VARIES_X) + (varies & VARIES_D) // VARIES_D
     terms = 1 + k + k * (k + 1) // 2
     rule = _RANGES + 2 * k + 8 * terms
     nodes = (plan.shape[0] - rule) // 5
@@ -190,27 +185,26 @@ def query_core(
         duration = 2.0 * x1 * total / speed
     inside = True
     for a in range(k):
-        value = _value(a, length_m, width_m, centre_x_m, top_y_m, varies)
+        value = _value(a, length_m, width_m, v2, v3)
         if not (plan[_RANGES + 2 * a] <= value <= plan[_RANGES + 2 * a + 1]):
             inside = False
     row = _RANGES + 2 * k
     p = _add_row((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), 1.0, plan, row)
     for a in range(k):
         row += 8
-        p = _add_row(p, _value(a, length_m, width_m, centre_x_m, top_y_m, varies), plan, row)
+        p = _add_row(p, _value(a, length_m, width_m, v2, v3), plan, row)
     for a in range(k):
-        va = _value(a, length_m, width_m, centre_x_m, top_y_m, varies)
+        va = _value(a, length_m, width_m, v2, v3)
         for b in range(a, k):
             row += 8
-            p = _add_row(p, va * _value(b, length_m, width_m, centre_x_m, top_y_m, varies), plan, row)
+            p = _add_row(p, va * _value(b, length_m, width_m, v2, v3), plan, row)
     finite = True
     for col in range(8):
         if not math.isfinite(p[col]):
             finite = False
     leaf, clearance, endpoint, status = -1, math.nan, math.nan, -1
     if inside:
-        v2 = _value(2, length_m, width_m, centre_x_m, top_y_m, varies)
-        leaf = leaf_of(index, bounds, k, length_m, width_m, v2, top_y_m)
+        leaf = leaf_of(index, bounds, k, length_m, width_m, v2, v3)
         if leaf >= 0:
             clearance, endpoint, status = bounds_of(bounds, k, leaf)
     return (

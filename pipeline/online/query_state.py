@@ -21,7 +21,7 @@ from pipeline.model.scene import Scene
 from pipeline.motion.path import LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.variables import Variables
-from pipeline.online.kernel import VARIES_D, VARIES_X, plan_numbers
+from pipeline.online.kernel import plan_numbers
 
 if TYPE_CHECKING:  # the arm, its limits and dynamics need Pinocchio and Coal: imported on first use
     from pipeline.model.arm import PlanarArm
@@ -180,9 +180,8 @@ def _core_arguments(matrix_t: np.ndarray, variables: Variables, scene: Scene, ra
             f"{count} parameters of {terms} terms",
             f"1 to 8 parameters of {variables.basis_size} terms each (the quadratic basis in {names})",
         )
-    varies = sum(bit for name, bit in zip(GIVEN, (VARIES_X, VARIES_D), strict=True) if name in variables.extra)
     padded = np.zeros((matrix_t.shape[0], 8))
     padded[:, : matrix_t.shape[1]] = matrix_t
     scene_numbers = (scene.start_dx_m, scene.approach_dx_m, scene.approach_dy_m, scene.apex_dy_m, scene.speed_m_s)
     rule = np.vstack([LENGTH_RULE_POWERS, LENGTH_RULE_WEIGHTS])
-    return varies, plan_numbers((*scene_numbers, *reach), np.array(ranges, dtype=float), padded, rule)
+    return variables.k, plan_numbers((*scene_numbers, *reach), np.array(ranges, dtype=float), padded, rule)

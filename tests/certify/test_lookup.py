@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
-from pipeline.certify.lookup import LOOKUP_SIZE, NO_TABLES, leaf_of
+from pipeline.certify.lookup import LOOKUP_TREE, NO_TABLES, leaf_of
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import RegionMap
 
@@ -22,10 +22,10 @@ def small_map() -> RegionMap:
 
 def test_leaves_are_the_vectorised_lookups_and_bounds_the_maps_columns(small_map: RegionMap) -> None:
     tables = small_map.lookup_tables
-    assert tables.index[0] == LOOKUP_SIZE and tables.index.dtype == np.int32 and tables.bounds.dtype == float
+    assert tables.index[0] == LOOKUP_TREE and tables.index.dtype == np.int32 and tables.bounds.dtype == float
     rng = np.random.default_rng(4)
-    (l_lo, l_hi), (w_lo, w_hi) = small_map.length_range_m, small_map.width_range_m
-    cells = 2 ** int(small_map.depth.max() + small_map.split_w.max())
+    (l_lo, l_hi), (w_lo, w_hi) = small_map.ranges_m
+    cells = 2**small_map.subpaving.top
     L = np.concatenate([rng.uniform(l_lo, l_hi, 500), l_lo + (l_hi - l_lo) * rng.integers(0, cells + 1, 500) / cells])
     W = np.concatenate([rng.uniform(w_lo, w_hi, 500), w_lo + (w_hi - w_lo) * rng.integers(0, cells + 1, 500) / cells])
     expected = small_map.leaf_indices(L, W)
@@ -39,7 +39,7 @@ def test_leaves_are_the_vectorised_lookups_and_bounds_the_maps_columns(small_map
 
 def test_outside_the_box_and_without_a_map_there_is_no_leaf(small_map: RegionMap) -> None:
     tables = small_map.lookup_tables
-    l_hi, (w_lo, w_hi) = small_map.length_range_m[1], small_map.width_range_m
+    l_hi, (w_lo, w_hi) = small_map.range_of("L")[1], small_map.range_of("W")
     for length, width in ((math.nextafter(l_hi, 1.0), 0.1), (0.25, math.nextafter(w_lo, 0.0)), (math.nan, 0.1)):
         assert leaf_of(*tables, 2, length, width, 0.0, 0.0) == -1
     assert leaf_of(*tables, 2, l_hi, w_hi, 0.0, 0.0) >= 0  # the box's far corner is in it

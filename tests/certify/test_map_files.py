@@ -7,6 +7,9 @@ line naming the file."""
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import io
 import itertools
 import json
 import math
@@ -19,12 +22,13 @@ from pipeline.certify.execution_bounds import COLUMNS, ROUNDED_DOWN, ExecutionBo
 from pipeline.certify.map_files import FORMAT_ARRAYS, load_region_map, region_map_files, save_region_map
 from pipeline.certify.region_map import STATUSES, RegionMap, save_region_map_json
 from pipeline.exceptions import DataFileError
+from pipeline.io.jsonio import json_safe
 from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
 from pipeline.model.dynamics import identify_dynamics
 from pipeline.model.limits import ArmLimits
 
 RANGES = {"L": (0.2, 0.3), "W": (0.08, 0.12), "x": (-0.03, 0.03), "d": (0.5, 0.6)}
-ARRAYS = ("depth", "index_l", "index_w", "split_w", "status")
+TREE = ("cut_axis", "cut_level", "children")
 BOUNDS = ("clearance_bound_m", "endpoint_bound_m", "endpoint_clearance_upper_m")
 
 
@@ -39,17 +43,15 @@ def _nodes(axes: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
 def _map(axes: tuple[str, ...], rng: np.random.Generator, execution: ExecutionBounds | None = None) -> RegionMap:
     depth, index = _nodes(axes)
     n = depth.size
-    return RegionMap(
+    return RegionMap.of_leaves(
+        tuple(RANGES[name] for name in axes),
+        np.repeat(depth[:, None], len(axes), axis=1),
+        index,
         family="paper",
         coefficients_source="coefficients.json",
         coefficients_sha256="ab" * 32,
-        length_range_m=RANGES["L"],
-        width_range_m=RANGES["W"],
         margin_m=0.01,
         endpoint_tolerance_m=0.002,
-        depth=depth,
-        index_l=index[:, 0],
-        index_w=index[:, 1],
         clearance_bound_m=np.append(rng.normal(0.0, 0.02, n - 1), -math.inf),
         endpoint_bound_m=np.append(rng.uniform(0.0, 0.003, n - 1), math.inf),
         endpoint_clearance_upper_m=rng.uniform(0.0, 0.1, n),
@@ -57,8 +59,6 @@ def _map(axes: tuple[str, ...], rng: np.random.Generator, execution: ExecutionBo
         details={"min_cell": 0.25},
         execution=execution,
         axes=axes,
-        extra_ranges_m=tuple(RANGES[name] for name in axes[2:]),
-        extra_index=index[:, 2:] if len(axes) > 2 else None,
     )
 
 
@@ -80,16 +80,15 @@ def region_map(request) -> RegionMap:
 
 def _same(a: RegionMap, b: RegionMap) -> None:
     """Every number of two maps equal, bit for bit (NaN equal to NaN)."""
-    for name in (*ARRAYS, *BOUNDS):
+    for name in ("status", *BOUNDS):
         assert getattr(a, name).dtype == getattr(b, name).dtype and np.array_equal(
             getattr(a, name), getattr(b, name), equal_nan=True
         ), name
-    assert (a.extra_index is None) == (b.extra_index is None)
-    if a.extra_index is not None:
-        assert np.array_equal(a.extra_index, b.extra_index)
-    assert (a.axes, a.extra_ranges_m, a.details, a.coefficients_sha256) == (
+    for name in TREE:
+        assert np.array_equal(getattr(a.subpaving, name), getattr(b.subpaving, name)), name
+    assert (a.axes, a.ranges_m, a.details, a.coefficients_sha256) == (
         b.axes,
-        b.extra_ranges_m,
+        b.ranges_m,
         b.details,
         b.coefficients_sha256,
     )
@@ -105,7 +104,7 @@ def test_a_round_trip_keeps_every_number_and_the_bytes(region_map: RegionMap, tm
     digest = save_region_map(region_map, path)
     header = json.loads(path.read_text())
     assert header["format"] == FORMAT_ARRAYS and header["leaves"]["file"] == "region_map.npy"
-    assert header["leaves"]["rows"] == region_map.depth.size and "cells" not in header
+    assert header["leaves"]["rows"] == region_map.size and "cells" not in header
     fields = header["leaves"]["fields"]
     assert "clearance_bound_m" in fields  # full doubles stay float64
     if region_map.execution is not None:  # short decimals: 5 bytes each instead of 8, every bit kept
@@ -130,6 +129,38 @@ def test_a_map_of_the_json_formats_is_read_and_converts_unchanged(region_map: Re
     _same(region_map, read)
     save_region_map(read, tmp_path / "new.json")
     _same(region_map, load_region_map(tmp_path / "new.json"))
+
+
+def _save_nodes_format(region_map: RegionMap, path: Path) -> None:
+    """Write ``region_map`` in format /4 (a table of a 2^k-tree's nodes: a depth, an index per axis,
+    the halvings of the second axis) as builds of that format did."""
+    levels, indices = region_map.subpaving.levels, region_map.subpaving.indices
+    columns = {"depth": levels[:, 0].astype("<i1")}
+    columns |= {f"index_{name}": indices[:, a].astype("<i4") for a, name in enumerate(region_map.axes)}
+    columns |= {"split_W": (levels[:, 1] - levels[:, 0]).astype("<i1"), "status": region_map.status.astype("<i1")}
+    columns |= {name: getattr(region_map, name).astype("<f8") for name in BOUNDS}
+    n = region_map.size
+    table = np.zeros((), dtype=np.dtype([(name, c.dtype.str, (n,)) for name, c in columns.items()]))
+    for name, column in columns.items():
+        table[name] = column
+    buffer = io.BytesIO()
+    np.save(buffer, table, allow_pickle=False)
+    path.with_suffix(".npy").write_bytes(buffer.getvalue())
+    leaves = {"file": "region_map.npy", "sha256": hashlib.sha256(buffer.getvalue()).hexdigest(), "rows": n}
+    header = {
+        "format": "twolink-region-map/4",
+        **region_map.header_json(),
+        "leaves": leaves | {"fields": list(columns)},
+    }
+    path.write_text(json.dumps(json_safe(header)))
+
+
+def test_a_map_of_the_nodes_format_is_read_with_every_number(region_map: RegionMap, tmp_path: Path) -> None:
+    if region_map.execution is not None:
+        region_map = dataclasses.replace(region_map, execution=None)
+    _save_nodes_format(region_map, tmp_path / "region_map.json")
+    read = load_region_map(tmp_path / "region_map.json")
+    _same(region_map, read)
 
 
 @pytest.fixture

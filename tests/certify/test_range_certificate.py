@@ -35,7 +35,7 @@ from pipeline.certify.range_certificate import (
 )
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, region_map_text
-from pipeline.certify.search import SearchSettings, node_boxes, search
+from pipeline.certify.search import SearchSettings, cell_boxes, node_boxes, search
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
 from pipeline.model.arm import PlanarArm
 from pipeline.model.kinematics import inverse_kinematics
@@ -241,12 +241,13 @@ def test_cells_that_miss_the_tolerance_all_over_are_refined_only_to_the_resoluti
     meets at some centres, the leaves that can still come within it are cut to the bottom."""
     model = RangeModel.from_coefficients(eq9)
     i, j = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
-    grid = [np.full(16, 2), np.column_stack([i.ravel(), j.ravel()]), np.full(16, np.inf)]
+    grid = [np.full((16, 2), 2), np.column_stack([i.ravel(), j.ravel()]), np.full(16, np.inf)]
     max_depth = 8
     for tolerance_m in (0.002, 0.008):
-        (depth, index, _), endpoint, _ = refine_leaves(model, grid, 0.01, tolerance_m, max_depth)
-        assert math.isclose(float(np.sum(4.0 ** -depth.astype(float))), 1.0)
-        center, radius = node_boxes(model, depth, index)
+        (levels, index, _), endpoint, _ = refine_leaves(model, grid, 0.01, tolerance_m, max_depth)
+        assert math.isclose(float(np.sum(2.0 ** -levels.sum(axis=1).astype(float))), 1.0)
+        depth = np.min(levels, axis=1)  # a leaf is cut along its widest axis until every axis is at max_depth
+        center, radius = cell_boxes(model, levels, index)
         assert np.array_equal(endpoint, np.max(endpoint_error_bounds(model, center, radius), axis=1))
         at_centre = np.max(endpoint_error_bounds(model, center, np.zeros_like(radius)), axis=1)
         missed = (2 * at_centre - endpoint > tolerance_m) & (endpoint - at_centre <= 5e-4)
@@ -284,11 +285,11 @@ def test_endpoint_regression_is_proven_within_tolerance_over_the_whole_range(arm
     model = RangeModel.from_coefficients(fitted)
     n = 8
     i, j = (k.ravel() for k in np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
-    leaves = [np.full(n * n, 3), np.column_stack([i, j]), np.full(n * n, np.inf)]  # clearance not asked: bound +inf
-    (depth, index, _), endpoint, _ = refine_leaves(model, leaves, 0.01, 0.002, max_depth=8)
+    leaves = [np.full((n * n, 2), 3), np.column_stack([i, j]), np.full(n * n, np.inf)]  # clearance not asked: +inf
+    (levels, index, _), endpoint, _ = refine_leaves(model, leaves, 0.01, 0.002, max_depth=8)
     i_l, i_w = index.T
     assert np.all(endpoint <= 0.002)
-    assert math.isclose(float(np.sum(4.0 ** -depth.astype(float))), 1.0)
+    assert math.isclose(float(np.sum(2.0 ** -levels.sum(axis=1).astype(float))), 1.0)
     rng = np.random.default_rng(11)
     lo, size = model.range_lo, model.range_size
     for L, W in zip(rng.uniform(0.2, 0.3, 100), rng.uniform(0.08, 0.12, 100), strict=True):
@@ -299,10 +300,10 @@ def test_endpoint_regression_is_proven_within_tolerance_over_the_whole_range(arm
         )
         u, v = (np.array([L, W]) - lo) / size
         leaf = np.flatnonzero(
-            (i_l <= u * 2.0**depth)
-            & (u * 2.0**depth <= i_l + 1)
-            & (i_w <= v * 2.0**depth)
-            & (v * 2.0**depth <= i_w + 1)
+            (i_l <= u * 2.0 ** levels[:, 0])
+            & (u * 2.0 ** levels[:, 0] <= i_l + 1)
+            & (i_w <= v * 2.0 ** levels[:, 1])
+            & (v * 2.0 ** levels[:, 1] <= i_w + 1)
         )
         assert error <= endpoint[leaf].min() <= 0.002
 
@@ -342,7 +343,7 @@ def test_infeasible_cells_of_a_fine_map_hold_no_feasible_pose(eq9: Coefficients,
     assert infeasible.size > 0
     for leaf in infeasible[:: max(1, infeasible.size // 6)]:
         cell = region_map.cell(int(leaf))
-        L, W = np.mean(cell.length_range_m), np.mean(cell.width_range_m)
+        L, W = np.mean(cell.range_of("L")), np.mean(cell.range_of("W"))
         obstacle = Obstacle.in_scene(L, W, eq9.scene)
         p5 = np.array([-(L / 2 + eq9.scene.start_dx_m), eq9.scene.y1_m])
         assert _best_clearance_near(p5, region_map.endpoint_tolerance_m, obstacle, arm) < region_map.margin_m
@@ -418,15 +419,11 @@ def test_the_search_resolves_the_margins_contour_at_its_smallest_cell(eq9: Coeff
     strip = dataclasses.replace(eq9, fitted_range_m={"L": (0.2, 0.225), "W": (0.108, 0.116)})
     model = RangeModel.from_coefficients(strip)
     settings = SearchSettings(margin_m=0.01, max_depth_lw=5, boundary_depth_lw=2, resolution_m=5e-3)
-    boxes = search(model, settings)
-    keys = boxes.depth_lw * 10**6 + boxes.index[:, 0] * 10**3 + boxes.index[:, 1]
-    nodes, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
-    node_bound = np.full(nodes.size, np.inf)
-    np.minimum.at(node_bound, inverse, boxes.bound_m)
-    coarse = np.flatnonzero((node_bound < settings.margin_m) & (boxes.depth_lw[first] < settings.max_depth_lw))
-    assert coarse.size >= 3 and np.any(node_bound >= settings.margin_m)
-    rows = first[coarse]
-    centre, half = node_boxes(model, boxes.depth_lw[rows], boxes.index[rows])
+    found = search(model, settings)
+    smallest = np.all(found.levels == settings.max_depth_lw, axis=1)
+    coarse = np.flatnonzero((found.bound_m < settings.margin_m) & ~smallest)
+    assert coarse.size >= 3 and np.any(found.bound_m >= settings.margin_m)
+    centre, half = cell_boxes(model, found.levels[coarse], found.index[coarse])
     offsets = np.array([[u, v] for u in np.linspace(-1, 1, 5) for v in np.linspace(-1, 1, 5)])
     sizes = (centre[:, None, :] + offsets[None] * half[:, None, :]).reshape(-1, 2)
     s = np.linspace(0.0, 1.0, 401)
@@ -513,7 +510,8 @@ def test_progress_reports_every_stage_and_changes_no_byte(eq9: Coefficients) -> 
         ("range map: search", k, 4) for k in range(5)
     ]
     # The refine stage counts leaves bounded; its total grows by the children of each round's cuts.
-    assert totals["range map: refine"] >= 256 and totals["range map: strips"] == np.count_nonzero(pooled_map.split_w)
+    strips = np.count_nonzero(np.diff(pooled_map.subpaving.levels, axis=1))
+    assert totals["range map: refine"] >= 256 and totals["range map: strips"] == strips
 
 
 def test_chunked_bounds_in_a_pool_are_the_serial_ones_and_count_leaves(eq9: Coefficients) -> None:
@@ -556,4 +554,4 @@ def test_the_command_line_replaces_a_broken_map_and_draws_no_bar_off_a_terminal(
         assert err == "" and f"wrote {tmp_path / DEFAULT_MAP_NAME}" in out
         written = load_region_map(tmp_path / DEFAULT_MAP_NAME)
         assert written.belongs_to(load_coefficients(source, region_map=None))
-        assert json.loads((tmp_path / "summary.json").read_text())["cells"] == written.depth.size
+        assert json.loads((tmp_path / "summary.json").read_text())["cells"] == written.size

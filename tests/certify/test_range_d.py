@@ -321,7 +321,7 @@ def test_map_over_x_and_d_names_its_axes_and_tiles_the_box(eq9_xd_map) -> None:
     from pipeline.certify.region_map import RegionMap
 
     assert eq9_xd_map.axes == ("L", "W", "x", "d")
-    assert eq9_xd_map.extra_ranges_m == ((-0.03, 0.03), D_RANGE)
+    assert eq9_xd_map.ranges_m[2:] == ((-0.03, 0.03), D_RANGE)
     assert sum(eq9_xd_map.summary()["area_fraction"].values()) == pytest.approx(1.0, abs=1e-12)
     assert np.sum(eq9_xd_map.leaf_sizes_m().prod(axis=1)) == pytest.approx(0.1 * 0.04 * 0.06 * 0.02, rel=1e-9)
     again = RegionMap.from_json(eq9_xd_map.to_json())
@@ -333,7 +333,7 @@ def test_map_over_x_and_d_is_below_every_sampled_motion(eq9_xd: Coefficients, eq
     collision-free: each motion's minimum lies above its leaf's bound, a motion that dips below
     the margin is never in a "margin" leaf, and the end poses are within the leaf's endpoint bound."""
     rng = np.random.default_rng(51)
-    ranges = np.array([eq9_xd_map.length_range_m, eq9_xd_map.width_range_m, *eq9_xd_map.extra_ranges_m])
+    ranges = np.array(eq9_xd_map.ranges_m)
     lo, size = ranges[:, 0], ranges[:, 1] - ranges[:, 0]
     proven = np.flatnonzero(eq9_xd_map.clearance_bound_m > 0.0)
     assert proven.size > 0
@@ -346,7 +346,7 @@ def test_map_over_x_and_d_is_below_every_sampled_motion(eq9_xd: Coefficients, eq
         q = trajectory.q(np.linspace(0.0, trajectory.duration_s, 1001))
         lowest = analytic_link_clearance(q, arm, obstacle).min()
         cell = eq9_xd_map.cell_at(L, W, x, d)
-        assert cell.extra_ranges_m[1][0] <= d <= cell.extra_ranges_m[1][1]
+        assert cell.ranges_m[3][0] <= d <= cell.ranges_m[3][1]
         assert lowest >= cell.clearance_bound_m - 1e-12
         if lowest < eq9_xd_map.margin_m:
             assert cell.status != "margin"
@@ -363,7 +363,7 @@ def test_execution_bounds_over_x_and_d_hold_along_sampled_motions(eq9_xd: Coeffi
     from pipeline.model.limits import ArmLimits
 
     mapped = with_execution_bounds(eq9_xd_map, eq9_xd, identify_dynamics(arm), ArmLimits.from_arm(arm, (5.0, 5.0)))
-    assert mapped.execution is not None and mapped.execution.size == eq9_xd_map.depth.size
+    assert mapped.execution is not None and mapped.execution.size == eq9_xd_map.size
     rng = np.random.default_rng(61)
     lo, hi = np.array([0.2, 0.08, -0.03, D_RANGE[0]]), np.array([0.3, 0.12, 0.03, D_RANGE[1]])
     for L, W, x, d in lo + rng.uniform(0.0, 1.0, (15, 4)) * (hi - lo):

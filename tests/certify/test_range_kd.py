@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 
 from pipeline.certify.clearance_bound import box_clearance_bounds
-from pipeline.certify.range_certificate import leaves_from_boxes
 from pipeline.certify.range_model import RangeModel
-from pipeline.certify.search import SearchSettings, node_boxes, search
+from pipeline.certify.search import SearchSettings, cell_boxes, search
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
 from pipeline.model.arm import PlanarArm
@@ -113,10 +112,11 @@ def test_search_leaves_tile_the_box_and_bound_the_clearance(eq9_x: Coefficients,
     settings = SearchSettings(
         margin_m=0.01, max_depth_lw=3, boundary_depth_lw=2, initial_depth_lw=1, max_depth_s=10, resolution_m=2e-3
     )
-    depth, index, bound, _ = leaves_from_boxes(search(model, settings))
-    assert index.shape == (depth.size, 3)
-    assert np.sum(2.0 ** (-3.0 * depth)) == pytest.approx(1.0, abs=1e-12)
-    centre, half = node_boxes(model, depth, index)
+    found = search(model, settings)
+    levels, index, bound = found.levels, found.index, found.bound_m
+    assert index.shape == levels.shape == (bound.size, 3)
+    assert np.sum(2.0 ** -levels.sum(axis=1).astype(float)) == pytest.approx(1.0, abs=1e-12)
+    centre, half = cell_boxes(model, levels, index)
     rng = np.random.default_rng(41)
     points = model.range_lo + rng.uniform(0.0, 1.0, (150, 3)) * model.range_size
     inside = np.all(np.abs(points[:, None, :] - centre[None]) <= half[None] * (1 + 1e-12), axis=2)
@@ -157,7 +157,7 @@ def test_map_over_x_names_its_axes_and_tiles_the_box(eq9_x: Coefficients, eq9_x_
     from pipeline.certify.region_map import RegionMap
 
     assert eq9_x_map.axes == ("L", "W", "x")
-    assert eq9_x_map.extra_ranges_m == ((-0.03, 0.03),)
+    assert eq9_x_map.ranges_m[2:] == ((-0.03, 0.03),)
     assert eq9_x_map.belongs_to(eq9_x) or eq9_x.source_sha256 == ""
     summary = eq9_x_map.summary()
     assert sum(summary["area_fraction"].values()) == pytest.approx(1.0, abs=1e-12)
@@ -175,7 +175,7 @@ def test_map_over_x_is_below_every_sampled_motion(eq9_x: Coefficients, eq9_x_map
         answer = generate(eq9_x, L, W, x=x)
         lowest = analytic_link_clearance(answer.q(np.linspace(0.0, answer.duration_s, 1001)), arm, answer.obstacle)
         cell = eq9_x_map.cell_at(L, W, x)
-        assert cell.extra_ranges_m[0][0] <= x <= cell.extra_ranges_m[0][1]
+        assert cell.ranges_m[2][0] <= x <= cell.ranges_m[2][1]
         assert lowest.min() >= cell.clearance_bound_m - 1e-12
         if lowest.min() < eq9_x_map.margin_m:
             assert cell.status != "margin"
@@ -188,7 +188,7 @@ def test_execution_bounds_over_x_hold_along_sampled_motions(eq9_x: Coefficients,
     from pipeline.model.limits import ArmLimits
 
     mapped = with_execution_bounds(eq9_x_map, eq9_x, identify_dynamics(arm), ArmLimits.from_arm(arm, (5.0, 5.0)))
-    assert mapped.execution is not None and mapped.execution.size == eq9_x_map.depth.size
+    assert mapped.execution is not None and mapped.execution.size == eq9_x_map.size
     rng = np.random.default_rng(61)
     for L, W, x in zip(
         rng.uniform(0.2, 0.3, 20), rng.uniform(0.08, 0.12, 20), rng.uniform(-0.03, 0.03, 20), strict=True

@@ -15,6 +15,7 @@ from pipeline.certify.range_certificate import RangeCertificateConfig, certify_r
 from pipeline.certify.region_map import STATUSES, RegionMap, save_region_map_json
 from pipeline.commands.certify_range import main
 from pipeline.exceptions import DataFileError, InvalidParameterError, OutOfFittedRangeError
+from pipeline.io.jsonio import json_safe
 from pipeline.offline.coefficients import save_coefficients
 
 
@@ -41,8 +42,8 @@ def test_cell_at_and_batch_lookup_agree(small_map: RegionMap) -> None:
     batch = small_map.cells_at(L, W)
     for k in range(500):
         cell = small_map.cell_at(L[k], W[k])
-        assert cell.length_range_m[0] <= L[k] <= cell.length_range_m[1]
-        assert cell.width_range_m[0] <= W[k] <= cell.width_range_m[1]
+        assert cell.range_of("L")[0] <= L[k] <= cell.range_of("L")[1]
+        assert cell.range_of("W")[0] <= W[k] <= cell.range_of("W")[1]
         assert cell.clearance_bound_m == batch["clearance_bound_m"][k]
         assert STATUSES[batch["status"][k]] == cell.status
         # The generator's scalar lookup (flat index) finds the same leaf.
@@ -62,8 +63,10 @@ def test_json_round_trip_and_hash_link(small_map: RegionMap, tmp_path) -> None:
     digest = save_region_map_json(small_map, path)
     assert len(digest) == 64
     again = load_region_map(path)
-    for name in ("depth", "index_l", "index_w", "clearance_bound_m", "endpoint_bound_m", "status"):
+    for name in ("clearance_bound_m", "endpoint_bound_m", "status"):
         assert np.array_equal(getattr(again, name), getattr(small_map, name))
+    assert np.array_equal(again.subpaving.levels, small_map.subpaving.levels)
+    assert np.array_equal(again.subpaving.indices, small_map.subpaving.indices)
     assert again.summary()["area_fraction"] == small_map.summary()["area_fraction"]
     coefficients = load_coefficients("paper")
     assert again.belongs_to(coefficients)
@@ -79,7 +82,7 @@ def test_summary_fractions_add_up(small_map: RegionMap) -> None:
 
 def test_malformed_maps_are_refused(small_map: RegionMap, tmp_path) -> None:
     document = small_map.to_json()
-    document["cells"]["depth"][0] += 1  # the leaves no longer tile the range
+    document["cells"]["children"][0] = document["cells"]["children"][1]  # no longer a tree
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(document))
     with pytest.raises(DataFileError):
@@ -140,24 +143,26 @@ def test_the_map_records_the_coefficients_file_name_not_its_folder(tmp_path) -> 
 
 def test_leaf_centres_are_the_cells_midpoints(small_map: RegionMap) -> None:
     centres = small_map.leaf_centres_m()
-    assert centres.shape == (small_map.depth.size, 2)
-    for leaf in range(0, small_map.depth.size, 7):
+    assert centres.shape == (small_map.size, 2)
+    for leaf in range(0, small_map.size, 7):
         cell = small_map.cell(leaf)
-        assert centres[leaf, 0] == pytest.approx(sum(cell.length_range_m) / 2, abs=1e-15)
-        assert centres[leaf, 1] == pytest.approx(sum(cell.width_range_m) / 2, abs=1e-15)
+        assert centres[leaf, 0] == pytest.approx(sum(cell.range_of("L")) / 2, abs=1e-15)
+        assert centres[leaf, 1] == pytest.approx(sum(cell.range_of("W")) / 2, abs=1e-15)
 
 
 def test_the_small_map_has_strips_and_they_tile_their_cells(small_map: RegionMap) -> None:
-    """The certificate cut cells along W (``split_W``): only at the deepest level, 2^E strips per
+    """The certificate cut cells along W alone (strips): only of the deepest cells, 2^E strips per
     cut cell, each 1 / 2^E of it in W and all of it in L."""
-    split = np.flatnonzero(small_map.split_w > 0)
+    levels, indices = small_map.subpaving.levels, small_map.subpaving.indices
+    halvings = levels[:, 1] - levels[:, 0]
+    split = np.flatnonzero(halvings > 0)
     assert split.size > 0
-    assert np.all(small_map.depth[split] == small_map.depth.max())
-    e = int(small_map.split_w.max())
-    parents = {(int(small_map.index_l[k]), int(small_map.index_w[k]) >> e) for k in split}
+    assert np.all(levels[split, 0] == levels[:, 0].max())
+    e = int(halvings.max())
+    parents = {(int(indices[k, 0]), int(indices[k, 1]) >> e) for k in split}
     assert len(parents) * 2**e == split.size
     sizes = small_map.leaf_sizes_m()
-    plain = np.flatnonzero((small_map.split_w == 0) & (small_map.depth == small_map.depth.max()))
+    plain = np.flatnonzero((halvings == 0) & (levels[:, 0] == levels[:, 0].max()))
     assert np.allclose(sizes[split, 0], sizes[plain[0], 0], rtol=1e-12)
     assert np.allclose(sizes[split, 1] * 2**e, sizes[plain[0], 1], rtol=1e-12)
     assert float(np.sum(small_map.area)) == pytest.approx(1.0, abs=1e-12)
@@ -166,82 +171,64 @@ def test_the_small_map_has_strips_and_they_tile_their_cells(small_map: RegionMap
 def test_strip_lookups_agree_at_strip_edges(small_map: RegionMap) -> None:
     """At every edge between strips (and a hair either side) the scalar lookup, the batch lookup
     and cell_at find the same leaf, and the point lies in that leaf's closed cell."""
-    split = np.flatnonzero(small_map.split_w > 0)[:64]
+    levels = small_map.subpaving.levels
+    split = np.flatnonzero(levels[:, 1] > levels[:, 0])[:64]
     points = []
     for k in split:
         cell = small_map.cell(int(k))
-        L = sum(cell.length_range_m) / 2
+        L = sum(cell.range_of("L")) / 2
         for W in (
-            *cell.width_range_m,
-            np.nextafter(cell.width_range_m[0], 1.0),
-            np.nextafter(cell.width_range_m[1], 0.0),
+            *cell.range_of("W"),
+            np.nextafter(cell.range_of("W")[0], 1.0),
+            np.nextafter(cell.range_of("W")[1], 0.0),
         ):
-            points.append((L, min(W, small_map.width_range_m[1])))
+            points.append((L, min(W, small_map.range_of("W")[1])))
     points = np.array(points)
     leaves = small_map.leaf_indices(points[:, 0], points[:, 1])
     for (L, W), leaf in zip(points, leaves, strict=True):
         cell = small_map.cell_at(L, W)
         assert cell == small_map.cell(int(leaf))
         assert small_map.bounds_at(L, W) == (cell.clearance_bound_m, cell.endpoint_bound_m, cell.status)
-        assert cell.width_range_m[0] <= W <= cell.width_range_m[1]
-        assert cell.length_range_m[0] <= L <= cell.length_range_m[1]
+        assert cell.range_of("W")[0] <= W <= cell.range_of("W")[1]
+        assert cell.range_of("L")[0] <= L <= cell.range_of("L")[1]
 
 
-def test_strips_survive_the_json_round_trip_and_a_gap_is_refused(small_map: RegionMap, tmp_path) -> None:
+def test_strips_survive_the_json_round_trip(small_map: RegionMap, tmp_path) -> None:
     path = tmp_path / "map.json"
     save_region_map_json(small_map, path)
     again = load_region_map(path)
-    assert np.array_equal(again.split_w, small_map.split_w)
+    assert np.array_equal(again.subpaving.levels, small_map.subpaving.levels)
     assert save_region_map_json(again, tmp_path / "again.json") == save_region_map_json(
         small_map, tmp_path / "first.json"
     )
-    document = json.loads(path.read_text())
-    strip = int(np.flatnonzero(small_map.split_w > 0)[0])
-    for column in document["cells"].values():
-        del column[strip]
-    path.write_text(json.dumps(document))
-    with pytest.raises(DataFileError, match="tiling"):
-        load_region_map(path)
 
 
-def test_split_above_the_deepest_level_is_refused(small_map: RegionMap) -> None:
-    """Leaves of depths 1 and 2 (the verifier's layout): cutting a depth-1 leaf in two along W
-    tiles the range but is refused, the lookup table only knows strips of the deepest cells."""
-    depth = np.array([1, 1, 1, 2, 2, 2, 2, 1])
-    i_l = np.array([0, 1, 0, 2, 3, 2, 3, 1])
-    i_w = np.array([0, 0, 2, 2, 2, 3, 3, 3])
-    split = np.array([0, 0, 1, 0, 0, 0, 0, 1])
-    values = np.full(8, 0.02)
-    fields = dict(
-        family="paper",
-        coefficients_source="test",
-        coefficients_sha256="",
-        length_range_m=(0.2, 0.3),
-        width_range_m=(0.08, 0.12),
-        margin_m=0.01,
-        endpoint_tolerance_m=0.002,
-        depth=depth,
-        index_l=i_l,
-        index_w=i_w,
-        clearance_bound_m=values,
-        endpoint_bound_m=values,
-        endpoint_clearance_upper_m=values,
-        status=np.zeros(8, dtype=int),
-    )
-    with pytest.raises(InvalidParameterError, match="split_w"):
-        RegionMap(**fields, split_w=split)
-    # Lower half: two leaves of depth 1; upper half: the eight cells of depth 2, cell (0, 3) as two strips.
-    cells = [(1, 0, 0, 0), (1, 1, 0, 0)] + [(2, i, j, 0) for i in range(4) for j in (2, 3) if (i, j) != (0, 3)]
+def test_strips_of_any_leaf_are_ordinary_leaves() -> None:
+    """Leaves of depths 1 and 2 (the verifier's layout) with a depth-1 leaf and a depth-2 cell each
+    cut in two along W: ordinary leaves of the subpaving, found by every lookup."""
+    # Lower half: a depth-1 leaf and one as two strips; upper half: the cells of depth 2, cell (0, 3) as two strips.
+    cells = [(1, 0, 0, 0), (1, 1, 0, 1), (1, 1, 1, 1)] + [
+        (2, i, j, 0) for i in range(4) for j in (2, 3) if (i, j) != (0, 3)
+    ]
     cells += [(2, 0, 6, 1), (2, 0, 7, 1)]
     d, il, iw, e = (np.array(column) for column in zip(*cells, strict=True))
     n = d.size
-    deep = dict(fields, depth=d, index_l=il, index_w=iw, status=np.zeros(n, dtype=int))
-    deep.update(
-        {key: np.arange(n) * 1e-3 for key in ("clearance_bound_m", "endpoint_bound_m", "endpoint_clearance_upper_m")}
+    strips = RegionMap.of_leaves(
+        ((0.2, 0.3), (0.08, 0.12)),
+        np.column_stack([d, d + e]),
+        np.column_stack([il, iw]),
+        family="paper",
+        coefficients_source="test",
+        coefficients_sha256="",
+        axes=("L", "W"),
+        margin_m=0.01,
+        endpoint_tolerance_m=0.002,
+        **{key: np.arange(n) * 1e-3 for key in ("clearance_bound_m", "endpoint_bound_m", "endpoint_clearance_upper_m")},
+        status=np.zeros(n, dtype=int),
     )
-    strips = RegionMap(**deep, split_w=e)
-    assert strips.cell_at(0.21, 0.119).width_range_m == pytest.approx((0.115, 0.12))
-    assert strips.cell_at(0.21, 0.114).width_range_m == pytest.approx((0.11, 0.115))
+    assert strips.cell_at(0.21, 0.119).range_of("W") == pytest.approx((0.115, 0.12))
+    assert strips.cell_at(0.21, 0.114).range_of("W") == pytest.approx((0.11, 0.115))
+    assert strips.cell_at(0.29, 0.09).range_of("W") == pytest.approx((0.08, 0.09))
     assert strips.bounds_at(0.21, 0.119)[0] == (n - 1) * 1e-3
     assert strips.leaf_indices(np.array([0.21, 0.21]), np.array([0.119, 0.114])).tolist() == [n - 1, n - 2]
 
@@ -252,10 +239,11 @@ def test_format_1_maps_are_read_as_unsplit(tmp_path) -> None:
         load_coefficients("paper"), RangeCertificateConfig(min_cell=1 / 8, boundary_cell=1 / 8, strip_split=0)
     )
     path = tmp_path / "old.json"
-    save_region_map_json(region_map, path)
-    document = json.loads(path.read_text())
+    levels, indices = region_map.subpaving.levels, region_map.subpaving.indices
+    document = {k: v for k, v in region_map.to_json().items() if k != "axes"}
     document["format"] = "twolink-region-map/1"
-    del document["cells"]["split_W"]
-    path.write_text(json.dumps(document))
+    cells = {"depth": levels[:, 0].tolist(), "index_L": indices[:, 0].tolist(), "index_W": indices[:, 1].tolist()}
+    document["cells"] = cells | {k: v for k, v in document["cells"].items() if not k.startswith(("cut", "child"))}
+    path.write_text(json.dumps(json_safe(document)))
     old = load_region_map(path)
-    assert np.all(old.split_w == 0) and np.array_equal(old.status, region_map.status)
+    assert np.array_equal(old.subpaving.levels, levels) and np.array_equal(old.status, region_map.status)

@@ -58,6 +58,11 @@ def _room_near(coefficients: Coefficients, arm: PlanarArm, L: float, W: float, t
     return min(ends)
 
 
+def _halvings(region_map: RegionMap) -> np.ndarray:
+    """Per leaf, how many more times it is cut along W than along L (> 0: a strip)."""
+    return region_map.subpaving.levels[:, 1] - region_map.subpaving.levels[:, 0]
+
+
 def test_strips_gain_area_on_both_sides_of_the_contours(maps: tuple[RegionMap, RegionMap]) -> None:
     """Cut cells give area to "margin" and to "infeasible" that the uncut map left below the
     margin, and the fractions still add up."""
@@ -67,18 +72,18 @@ def test_strips_gain_area_on_both_sides_of_the_contours(maps: tuple[RegionMap, R
     assert fractions[0]["margin"] >= fractions[1]["margin"]
     assert fractions[0]["collision_free"] < fractions[1]["collision_free"]
     assert sum(fractions[0].values()) == pytest.approx(1.0, abs=1e-12)
-    assert np.count_nonzero(with_strips.split_w) > 0
+    assert np.count_nonzero(_halvings(with_strips)) > 0
 
 
 def test_strip_clearance_bounds_hold_along_the_motions(top: Coefficients, maps, arm: PlanarArm) -> None:
     """At random points of 60 strips and 801 times each, the generator's motion clears the
     strip's bound."""
     region_map = maps[0]
-    strips = np.flatnonzero(region_map.split_w > 0)
+    strips = np.flatnonzero(_halvings(region_map) > 0)
     rng = np.random.default_rng(5)
     for k in rng.choice(strips, size=min(60, strips.size), replace=False):
         cell = region_map.cell(int(k))
-        L, W = rng.uniform(*cell.length_range_m), rng.uniform(*cell.width_range_m)
+        L, W = rng.uniform(*cell.range_of("L")), rng.uniform(*cell.range_of("W"))
         answer = generate(top, L, W, out_of_range="ignore")
         q = answer.q(np.linspace(0.0, answer.duration_s, 801))
         lowest = float(analytic_link_clearance(q, arm, answer.obstacle).min())
@@ -112,24 +117,25 @@ def test_infeasible_strips_hold_no_feasible_end_poses(top: Coefficients, maps, a
     would be caught here)."""
     region_map = maps[0]
     tolerance, margin = region_map.endpoint_tolerance_m, region_map.margin_m
-    infeasible = np.flatnonzero((region_map.split_w > 0) & (region_map.status == STATUSES.index("infeasible")))
+    infeasible = np.flatnonzero((_halvings(region_map) > 0) & (region_map.status == STATUSES.index("infeasible")))
     assert infeasible.size > 0
     for k in infeasible[:: max(1, infeasible.size // 12)]:
         cell = region_map.cell(int(k))
-        for L in cell.length_range_m:
-            room = _room_near(top, arm, L, cell.width_range_m[0], tolerance)
+        for L in cell.range_of("L"):
+            room = _room_near(top, arm, L, cell.range_of("W")[0], tolerance)
             assert room <= cell.endpoint_clearance_upper_m + COAL_DISTANCE_ERROR_M
     reaching = 0
-    for k in np.flatnonzero(region_map.split_w > 0):
+    index_l, index_w = region_map.subpaving.indices.T
+    for k in np.flatnonzero(_halvings(region_map) > 0):
         cell = region_map.cell(int(k))
         below_proven = cell.status != "infeasible" and any(
             region_map.cell(int(j)).status == "infeasible"
-            for j in np.flatnonzero((region_map.index_l == region_map.index_l[k]) & (region_map.split_w > 0))
-            if region_map.index_w[j] > region_map.index_w[k]
+            for j in np.flatnonzero((index_l == index_l[k]) & (_halvings(region_map) > 0))
+            if index_w[j] > index_w[k]
         )
         if (
             below_proven
-            and _room_near(top, arm, np.mean(cell.length_range_m), cell.width_range_m[0], tolerance) >= margin
+            and _room_near(top, arm, np.mean(cell.range_of("L")), cell.range_of("W")[0], tolerance) >= margin
         ):
             reaching += 1
             if reaching >= 2:
@@ -143,16 +149,17 @@ def test_a_wrong_choice_of_strips_costs_proofs_not_soundness(top: Coefficients, 
     strips that were proven are now left open."""
     model = RangeModel.from_coefficients(top)
     region_map = maps[0]
-    strips = np.flatnonzero(region_map.split_w > 0)
-    order = np.lexsort((region_map.index_w[strips], region_map.index_l[strips]))
+    strips = np.flatnonzero(_halvings(region_map) > 0)
+    index_l, index_w = region_map.subpaving.indices.T
+    order = np.lexsort((index_w[strips], index_l[strips]))
     strips = strips[order]
-    e = int(region_map.split_w.max())
-    index = np.column_stack([region_map.index_l[strips], region_map.index_w[strips]])
-    c, r = node_boxes(model, region_map.depth[strips], index, e)
+    e = int(_halvings(region_map).max())
+    index = np.column_stack([index_l[strips], index_w[strips]])
+    c, r = node_boxes(model, region_map.subpaving.levels[strips, 0], index, e)
     tolerance, margin = region_map.endpoint_tolerance_m, region_map.margin_m
-    right = strip_infeasibility_bounds(model, c, r, region_map.index_l[strips], margin, tolerance)
+    right = strip_infeasibility_bounds(model, c, r, index_l[strips], margin, tolerance)
     monkeypatch.setattr(strip_split, "ROOM_SLACK_M", -1e-4)
-    wrong = strip_infeasibility_bounds(model, c, r, region_map.index_l[strips], margin, tolerance)
+    wrong = strip_infeasibility_bounds(model, c, r, index_l[strips], margin, tolerance)
     assert np.count_nonzero(wrong < margin) < np.count_nonzero(right < margin)
     for k in np.flatnonzero(wrong < margin)[:6]:
         L0, W0 = c[k] - r[k]

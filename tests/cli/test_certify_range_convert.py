@@ -27,8 +27,10 @@ def test_a_json_map_is_converted_keeping_every_number(tmp_path: Path) -> None:
     assert main(["--convert", str(old), "--output", str(new)]) == 0
     assert json.loads(new.read_text())["format"] == FORMAT_ARRAYS and new.with_suffix(".npy").is_file()
     converted = load_region_map(new)
-    for name in ("depth", "index_l", "index_w", "split_w", "status", "clearance_bound_m", "endpoint_bound_m"):
+    for name in ("status", "clearance_bound_m", "endpoint_bound_m"):
         assert np.array_equal(getattr(converted, name), getattr(region_map, name)), name
+    for name in ("cut_axis", "cut_level", "children"):
+        assert np.array_equal(getattr(converted.subpaving, name), getattr(region_map.subpaving, name)), name
     assert main(["--convert", str(old)]) == 0  # in place
     assert json.loads(old.read_text())["format"] == FORMAT_ARRAYS
 

@@ -62,23 +62,22 @@ def _leaf_map(
     sha256, with the leaves (``depth`` (n,), ``index`` (n, k)), the given clearance bounds and
     statuses, an endpoint bound of 1 mm and an end-pose upper bound of 5 cm."""
     n = depth.size
-    return RegionMap(
+    levels = np.repeat(np.asarray(depth)[:, None], len(axes), axis=1)
+    if split_w is not None:
+        levels[:, 1] += split_w
+    ranges = (tuple(coefficients.fitted_range_m["L"]), tuple(coefficients.fitted_range_m["W"]), *extra_ranges_m)
+    return RegionMap.of_leaves(
+        ranges,
+        levels,
+        index,
         family=coefficients.family.name,
         coefficients_source="test",
         coefficients_sha256=coefficients.source_sha256,
-        length_range_m=tuple(coefficients.fitted_range_m["L"]),
-        width_range_m=tuple(coefficients.fitted_range_m["W"]),
+        axes=axes,
         margin_m=0.01,
         endpoint_tolerance_m=0.002,
-        depth=depth,
-        index_l=index[:, 0],
-        index_w=index[:, 1],
         clearance_bound_m=clearance_bound_m,
         endpoint_bound_m=np.full(n, 1e-3),
         endpoint_clearance_upper_m=np.full(n, 0.05),
         status=status,
-        split_w=split_w,
-        axes=axes,
-        extra_ranges_m=extra_ranges_m,
-        extra_index=index[:, 2:] if len(axes) > 2 else None,
     )

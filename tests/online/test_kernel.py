@@ -43,7 +43,9 @@ def core(coefficients, L, W, x=None, d=None, tables=NO_TABLES):
     c = plan.centre_x if x is None else x
     top = plan.top if d is None else d
     y1 = top if plan.y1_is_top else plan.y1
-    return query_core(L, W, c, top, y1, *plan.core, *tables)
+    given = {"x": x, "d": d}
+    beyond = (*(given[name] for name in plan.extra), math.nan, math.nan)
+    return query_core(L, W, c, top, y1, beyond[0], beyond[1], *plan.core, *tables)
 
 
 @settings(max_examples=200, deadline=None)
@@ -89,9 +91,9 @@ def strips(depth: np.ndarray, index: np.ndarray, rng: np.random.Generator):
 
 def points_to_check(map_, rng: np.random.Generator, n: int) -> np.ndarray:
     """Random points of the map's box, and points on the edges of its deepest cells and on the box's faces."""
-    ranges = np.array([map_.length_range_m, map_.width_range_m, *map_.extra_ranges_m])
+    ranges = np.array(map_.ranges_m)
     lo, hi = ranges[:, 0], ranges[:, 1]
-    cells = 2 ** (int(map_.depth.max()) + int(map_.split_w.max()))
+    cells = 2**map_.subpaving.top
     random = lo + (hi - lo) * rng.random((n, lo.size))
     edges = lo + (hi - lo) * rng.integers(0, cells + 1, (n, lo.size)) / cells
     return np.vstack([random, edges, lo, hi])

@@ -65,7 +65,7 @@ POINTS = [(0.25, 0.1, 0.02), (0.25, 0.1, -0.02), (0.21, 0.085, -0.03), (0.2, 0.1
 def test_generate_reads_the_leaf_holding_l_w_x(paper_x, map_x, L, W, x) -> None:
     leaf = map_x.leaf_at(L, W, x)
     cell = map_x.cell(leaf)
-    assert cell.extra_ranges_m[0][0] <= x <= cell.extra_ranges_m[0][1]
+    assert cell.ranges_m[2][0] <= x <= cell.ranges_m[2][1]
     for answer in (
         generate(paper_x, L, W, x=x, region_map=map_x),
         generate(replace(paper_x, region_map=map_x), L, W, x=x),

@@ -16,17 +16,17 @@ def quadrant_map() -> Callable[[Sequence[float], Sequence[int]], RegionMap]:
     the fourth, with the given clearance bounds [m] and status indices (seven each)."""
 
     def make(clearance_bound_m: Sequence[float], status: Sequence[int]) -> RegionMap:
-        return RegionMap(
+        depth = np.array([1, 1, 1, 2, 2, 2, 2])
+        return RegionMap.of_leaves(
+            ((0.2, 0.3), (0.08, 0.12)),
+            np.column_stack([depth, depth]),
+            np.column_stack([[0, 1, 0, 2, 3, 2, 3], [0, 0, 1, 2, 2, 3, 3]]),
             family="paper",
             coefficients_source="paper",
             coefficients_sha256="ab" * 32,
-            length_range_m=(0.2, 0.3),
-            width_range_m=(0.08, 0.12),
+            axes=("L", "W"),
             margin_m=0.01,
             endpoint_tolerance_m=0.002,
-            depth=np.array([1, 1, 1, 2, 2, 2, 2]),
-            index_l=np.array([0, 1, 0, 2, 3, 2, 3]),
-            index_w=np.array([0, 0, 1, 2, 2, 3, 3]),
             clearance_bound_m=np.array(clearance_bound_m, dtype=float),
             endpoint_bound_m=np.full(7, 0.001),
             endpoint_clearance_upper_m=np.full(7, 0.05),

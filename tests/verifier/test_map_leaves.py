@@ -24,8 +24,8 @@ def test_rectangles_are_the_maps_cells_and_tile_the_range(small_map: RegionMap) 
     rectangles = leaf_rectangles_m(region_map)
     for leaf, (l0, l1, w0, w1) in enumerate(rectangles):
         cell = region_map.cell(leaf)
-        assert_allclose([l0, l1], cell.length_range_m, rtol=0, atol=1e-15)
-        assert_allclose([w0, w1], cell.width_range_m, rtol=0, atol=1e-15)
+        assert_allclose([l0, l1], cell.range_of("L"), rtol=0, atol=1e-15)
+        assert_allclose([w0, w1], cell.range_of("W"), rtol=0, atol=1e-15)
     areas = (rectangles[:, 1] - rectangles[:, 0]) * (rectangles[:, 3] - rectangles[:, 2])
     assert areas.sum() == pytest.approx(0.1 * 0.04, rel=1e-12)
 

@@ -432,7 +432,7 @@ def test_the_map_beside_the_coefficients_is_found_and_can_be_skipped(capsys, tmp
     save_coefficients(load_coefficients("paper"), source)  # the same bytes as the paper's: the map belongs
     (tmp_path / "region_map.json").write_bytes(paper_map_file.read_bytes())
     status, out, _ = run_main(capsys, "--coefficients", str(source), "--n", "1", *FAST)
-    cells = load_region_map(paper_map_file).depth.size
+    cells = load_region_map(paper_map_file).size
     assert f"region map      {tmp_path / 'region_map.json'} ({cells} cells, belongs" in out
     status, out, _ = run_main(capsys, "--coefficients", str(source), "--n", "1", *FAST, "--no-region-map")
     assert "region map" not in out and status in (EXIT_OK, EXIT_FAILED)

@@ -417,7 +417,7 @@ def test_region_map_mesh_puts_each_case_inside_its_own_leaf(small_region_map):
     region_map = small_region_map
     placement = _placement(sweep_points(SWEEP), MapLayout(), region_map)
     mesh = region_map_mesh(region_map, placement)
-    n = region_map.depth.size
+    n = region_map.size
     assert mesh.vertices.shape == (4 * n, 3) and mesh.faces.shape == (2 * n, 3)
     assert_allclose(mesh.color, np.repeat(leaf_drawing(region_map).rgb, 4, axis=0), atol=1e-6)  # float32
     corners = mesh.vertices.reshape(n, 4, 3)

@@ -47,11 +47,11 @@ def leaf_rectangles_m(region_map: RegionMap) -> np.ndarray:
     """(n, 4) rows (L_lo, L_hi, W_lo, W_hi) [m] of the leaves (vectorised :meth:`RegionMap.cell`);
     over more axes than (L, W), each leaf's extent in (L, W) (:func:`leaves_in_slice` picks those
     of one slice)."""
-    (l_lo, _), (w_lo, _) = region_map.length_range_m, region_map.width_range_m
-    sizes = region_map.leaf_sizes_m()
-    dl, dw = sizes[:, 0], sizes[:, 1]
-    il, iw = region_map.index_l.astype(float), region_map.index_w.astype(float)
-    return np.column_stack([l_lo + il * dl, l_lo + (il + 1) * dl, w_lo + iw * dw, w_lo + (iw + 1) * dw])
+    lo = np.array(region_map.ranges_m)[:2, 0]
+    size = region_map.leaf_sizes_m()[:, :2]
+    index = region_map.subpaving.indices[:, :2].astype(float)
+    start, end = lo + index * size, lo + (index + 1) * size
+    return np.column_stack([start[:, 0], end[:, 0], start[:, 1], end[:, 1]])
 
 
 def leaves_in_slice(region_map: RegionMap, extra_m: tuple[float, ...]) -> np.ndarray:
@@ -59,7 +59,7 @@ def leaves_in_slice(region_map: RegionMap, extra_m: tuple[float, ...]) -> np.nda
     (``axes`` order, [m]): those the map's own lookup returns at their (L, W) centre and
     ``extra_m`` (so that a value on a leaf boundary picks the leaf the lookup picks). Every leaf
     for a map over (L, W)."""
-    n = region_map.depth.size
+    n = region_map.size
     if len(region_map.axes) == 2:
         return np.ones(n, dtype=bool)
     rectangles = leaf_rectangles_m(region_map)

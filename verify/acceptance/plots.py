@@ -204,7 +204,7 @@ def _zoom_box_mm(region_map: RegionMap, rectangles_mm: np.ndarray) -> tuple[floa
         return None
     r = rectangles_mm[below]
     box = np.array([r[:, 0].min(), r[:, 1].max(), r[:, 2].min(), r[:, 3].max()])
-    full = np.array([*region_map.length_range_m, *region_map.width_range_m]) * 1e3
+    full = np.array([*region_map.range_of("L"), *region_map.range_of("W")]) * 1e3
     if (box[1] - box[0]) * (box[3] - box[2]) > ZOOM_AREA_FRACTION * (full[1] - full[0]) * (full[3] - full[2]):
         return None
     pad_l, pad_w = 0.1 * (box[1] - box[0]), 0.1 * (box[3] - box[2])
@@ -223,7 +223,7 @@ def _draw_leaves_and_cases(
         handles.append(ax.scatter(bad_mm[:, 0], bad_mm[:, 1], marker="x", s=50, color="red"))
         handles[-1].set_label(f"contradict the map ({len(bad_mm)})")
     worst = region_map.cell(int(np.argmin(region_map.clearance_bound_m)))
-    (l0, l1), (w0, w1) = np.array(worst.length_range_m) * 1e3, np.array(worst.width_range_m) * 1e3
+    (l0, l1), (w0, w1) = np.array(worst.range_of("L")) * 1e3, np.array(worst.range_of("W")) * 1e3
     handles.append(ax.add_patch(Rectangle((l0, w0), l1 - l0, w1 - w0, fill=False, edgecolor="magenta", linewidth=2.0)))
     handles[-1].set_label(f"worst cell ({worst.clearance_bound_m * 1e3:.2f} mm)")
     ax.annotate(
@@ -265,7 +265,7 @@ def plot_region_map(
     bad_mm = np.array([[c.L_m, c.W_m] for c in cases if c.index in bad]).reshape(-1, 2) * 1e3
     for ax in axes:
         handles = _draw_leaves_and_cases(ax, region_map, quads, drawing.rgb, cases_mm, bad_mm)
-    full = np.array([*region_map.length_range_m, *region_map.width_range_m]) * 1e3
+    full = np.array([*region_map.range_of("L"), *region_map.range_of("W")]) * 1e3
     axes[0].set_xlim(full[0], full[1])
     axes[0].set_ylim(full[2], full[3])
     axes[0].set_title(title, fontsize=10)

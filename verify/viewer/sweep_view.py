@@ -277,8 +277,8 @@ class MapPlacement:
 
 def _placement(points: Sequence[SweepPoint], layout: MapLayout, region_map: RegionMap | None) -> MapPlacement:
     """The spans of the cases (and of the region map's range, if given) on the square."""
-    lengths = [p.L_m for p in points] + (list(region_map.length_range_m) if region_map is not None else [])
-    widths = [p.W_m for p in points] + (list(region_map.width_range_m) if region_map is not None else [])
+    lengths = [p.L_m for p in points] + (list(region_map.range_of("L")) if region_map is not None else [])
+    widths = [p.W_m for p in points] + (list(region_map.range_of("W")) if region_map is not None else [])
 
     def span(values: list[float]) -> tuple[float, float]:
         lo, hi = min(values), max(values)
@@ -307,7 +307,7 @@ def _draw_region_map(vis: meshcat.Visualizer, region_map: RegionMap, placement: 
         region_map_mesh(region_map, placement), mg.MeshBasicMaterial(color=0xFFFFFF, vertexColors=True)
     )
     worst = region_map.cell(int(np.argmin(region_map.clearance_bound_m)))
-    (l0, l1), (w0, w1) = worst.length_range_m, worst.width_range_m
+    (l0, l1), (w0, w1) = worst.range_of("L"), worst.range_of("W")
     lo, hi = placement.xy(l0, w0), placement.xy(l1, w1)
     center, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, min_half_m)
     corners = center + half * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [-1, -1]])
