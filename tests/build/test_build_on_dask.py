@@ -1,5 +1,5 @@
-"""The build on a Dask cluster (``BuildConfig.from_settings(scheduler=...)``, ``--scheduler``): the same bytes as
-on the local pool, and an unreachable scheduler refused in one line before any work."""
+"""The build on a Dask cluster (``BuildConfig.from_settings(scheduler=...)``, ``--scheduler``): the
+same bytes as on the local pool, and an unreachable scheduler refused in one line before any work."""
 
 from __future__ import annotations
 
@@ -63,6 +63,8 @@ def test_the_range_stage_on_a_cluster_writes_the_local_pools_bytes(replayed: lis
         "build_timing.json",
         "coefficients.json",
         "doe.json",
+        "near_optimal_cells.json",
+        "near_optimal_cells.npy",
         "region_map.json",
         "region_map.npy",
     ]
