@@ -1,8 +1,8 @@
 """The range certificate of one coefficients file: branch and bound over its axes x s for the
-clearance (the axes are the coefficients' scene variables: (L, W), or (L, W, x) with the
-obstacle's centre x), then per leaf of the axes' 2^k-tree (a quadtree for (L, W)) the
-endpoint-error bound and the infeasibility certificate, assembled into a
-:class:`pipeline.certify.region_map.RegionMap`.
+clearance (the axes are the coefficients' scene variables: (L, W), or with the obstacle's centre
+x and / or its far edge d), then per leaf of the axes' subpaving (cuts of one axis at a time,
+:mod:`pipeline.certify.search`) the endpoint-error bound and the infeasibility certificate,
+assembled into a :class:`pipeline.certify.region_map.RegionMap`.
 
 Soundness rests on the three bound modules (``clearance_bound``, ``endpoints``, ``duration``),
 whose docstrings carry the derivations; this module only combines them:
@@ -10,7 +10,8 @@ whose docstrings carry the derivations; this module only combines them:
 * a leaf's clearance bound is the minimum of the bounds of every closed box whose node
   contains the leaf (the node itself or an ancestor, ``pipeline.certify.search``): those boxes
   cover the leaf times all of s in [0, 1];
-* a leaf is cut further (its children inherit that clearance bound, still valid on them) while
+* a leaf is cut further, in two along its widest axis (its lowest level; its halves inherit
+  that clearance bound, still valid on them), while
   its endpoint bound exceeds the tolerance (unless the family pins the endpoints by
   construction; and where the error at its centre exceeds the tolerance by more than the
   bound's gap above that error, only while the gap exceeds ``_ENDPOINT_RESOLUTION_M``: no cut
@@ -21,8 +22,7 @@ whose docstrings carry the derivations; this module only combines them:
 * smallest cells certified collision-free that still miss the margin without being proven
   infeasible are cut into 2^``strip_split`` strips along W, each proven on its own
   (``pipeline.certify.strip_split``, which derives why W and why that is sound; over (L, W)
-  only); the strips replace their cell in the map (the online lookup grid keeps its size: a
-  split cell points into a small table of strips).
+  only); the strips replace their cell in the map as ordinary leaves of the subpaving.
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.certify.certificate_settings import CertificateSettings
 from pipeline.certify.endpoints import (
     endpoint_clearance_upper_bounds,
     endpoint_error_bounds,
@@ -155,6 +156,17 @@ class RangeCertificateConfig:
     def max_depth_lw(self) -> int:
         """Quadtree depth of the smallest cell."""
         return max(0, math.floor(math.log2(1.0 / self.min_cell) + 1e-9))
+
+    def settings_for(self, margin_m: float) -> CertificateSettings:
+        """The stages' settings after the search, for the margin ``margin_m`` [m]."""
+        return CertificateSettings(
+            margin_m=margin_m,
+            endpoint_tolerance_m=self.endpoint_tolerance_m,
+            max_depth=self.max_depth_lw,
+            max_depth_s=self.max_depth_s,
+            strip_split=self.strip_split,
+            run_on=self.run_on,
+        )
 
     def search_settings(self, margin_m: float) -> SearchSettings:
         """The branch and bound's settings."""
@@ -293,24 +305,22 @@ def sub_cell_bounds(
     model: RangeModel,
     c: np.ndarray,
     r: np.ndarray,
-    tolerance_m: float,
-    margin_m: float,
-    jobs: int | Executor = 1,
+    settings: CertificateSettings,
     progress: ProgressCallback | None = None,
 ) -> np.ndarray:
     """``endpoints.infeasibility_upper_bounds`` over chunks of :data:`_SUB_CELL_CHUNK` leaves,
-    spread over ``jobs`` (processes, or an executor; the bounds do not depend on it); ``progress`` gets
+    spread over ``settings.run_on`` (the bounds do not depend on it); ``progress`` gets
     "range map: sub-cells" in leaves."""
     if c.shape[0] == 0:
         return np.empty(0)
     parts = _in_chunks(
         infeasibility_upper_bounds,
         _SUB_CELL_CHUNK,
-        jobs,
+        settings.run_on,
         model,
         (c, r),
-        tolerance_m,
-        margin_m,
+        settings.endpoint_tolerance_m,
+        settings.margin_m,
         progress=progress,
         stage=PROGRESS_STAGES[2],
     )
@@ -333,19 +343,17 @@ def _leaf_bounds(
 def refine_leaves(
     model: RangeModel,
     leaves: list[np.ndarray],
-    margin_m: float,
-    tolerance_m: float,
-    max_depth: int,
-    jobs: int | Executor = 1,
+    settings: CertificateSettings,
     progress: ProgressCallback | None = None,
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Endpoint bounds and infeasibility upper bounds per leaf, cutting leaves as the module
     docstring says. ``leaves`` = [levels (n, k), index (n, k), clearance bound, *further columns the
     children inherit]; returns the final leaves (the same columns),
     their endpoint bounds (n,) and their endpoint clearance upper bounds (n,) (inf where not needed).
-    The bounds run on ``jobs`` (processes, or an executor) over fixed chunks of leaves (the result
-    does not depend on it). ``progress`` gets "range map: refine" in leaves bounded, whose total grows by
+    The bounds run on ``settings.run_on`` over fixed chunks of leaves (the result does not depend
+    on it). ``progress`` gets "range map: refine" in leaves bounded, whose total grows by
     the children of each round's cuts, then "range map: sub-cells"."""
+    margin_m, tolerance_m = settings.margin_m, settings.endpoint_tolerance_m
     bounded = 0  # leaves whose bounds are computed, over the rounds
     n = leaves[0].shape[0]
     endpoint, centre_error, upper = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
@@ -359,7 +367,7 @@ def refine_leaves(
             parts = _in_chunks(
                 _leaf_bounds,
                 _LEAF_CHUNK,
-                jobs,
+                settings.run_on,
                 model,
                 (c, r, need),
                 tolerance_m,
@@ -370,7 +378,7 @@ def refine_leaves(
             )
             endpoint[todo], centre_error[todo], upper[todo] = np.concatenate(parts).T
             bounded += int(np.count_nonzero(todo))
-        deep = np.min(levels, axis=1) < max_depth
+        deep = np.min(levels, axis=1) < settings.max_depth
         close = (bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M)
         # A family that pins the endpoints has errors of rounding size: its bound is reported, not
         # refined. A leaf whose error at the centre minus the bound's gap above it exceeds the
@@ -383,7 +391,7 @@ def refine_leaves(
         if not np.any(rows):
             if np.any(close):  # smallest cells still close: try sub-cells (pipeline.certify.endpoints)
                 c, r = cell_boxes(model, levels[close], index[close])
-                sub = sub_cell_bounds(model, c, r, tolerance_m, margin_m, jobs, progress)
+                sub = sub_cell_bounds(model, c, r, settings, progress)
                 upper[close] = np.minimum(upper[close], sub)
             return arrays[:-3], endpoint, upper
         arrays = _split(arrays, rows)
@@ -396,21 +404,20 @@ def split_strips(
     leaves: list[np.ndarray],
     endpoint: np.ndarray,
     upper: np.ndarray,
-    margin_m: float,
-    tolerance_m: float,
-    config: RangeCertificateConfig,
+    settings: CertificateSettings,
     progress: ProgressCallback | None = None,
-) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Replace the smallest cells certified collision-free that miss the margin without being
-    proven infeasible, and lie near a contour, by their 2^``config.strip_split`` strips along W
+    proven infeasible, and lie near a contour, by their 2^``settings.strip_split`` strips along W
     (module docstring; (L, W) maps only). ``leaves`` = [levels (n, k), index (n, k), clearance
     bound, lowest clearance at a box centre]; returns the leaves [levels, index, clearance bound]
     and their endpoint and infeasibility bounds. ``progress`` gets "range map: strips" in strips."""
     levels, index, bound, centre = leaves
     leaves = leaves[:3]
-    e = config.strip_split if model.k == 2 else 0
+    margin_m = settings.margin_m
+    e = settings.strip_split if model.k == 2 else 0
     # Collision-free cells only: a cell not certified collision-free stays "undecided" whole.
-    smallest = np.all(levels == config.max_depth_lw, axis=1)
+    smallest = np.all(levels == settings.max_depth, axis=1)
     rows = smallest & (bound > 0.0) & (bound < margin_m) & (upper >= margin_m)
     if e == 0 or not np.any(rows):
         return leaves, endpoint, upper
@@ -431,12 +438,12 @@ def split_strips(
     parts = _in_chunks(
         strip_bounds,
         chunks,
-        config.run_on,
+        settings.run_on,
         model,
         (c, r, floor, s_l),
         margin_m,
-        tolerance_m,
-        config.max_depth_s,
+        settings.endpoint_tolerance_m,
+        settings.max_depth_s,
         progress=progress,
         stage=PROGRESS_STAGES[3],
     )
@@ -508,20 +515,11 @@ def certify_range(
     start = time.perf_counter()
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     model = RangeModel.from_coefficients(coefficients)
-    settings = config.search_settings(margin)
-    found = run_search(model, settings, config.run_on, progress)
-    leaves, endpoint, upper = refine_leaves(
-        model,
-        [found.levels, found.index, found.bound_m, found.center_clearance_m],
-        margin,
-        config.endpoint_tolerance_m,
-        config.max_depth_lw,
-        config.run_on,
-        progress,
-    )
-    (levels, index, bound), endpoint, upper = split_strips(
-        model, leaves, endpoint, upper, margin, config.endpoint_tolerance_m, config, progress
-    )
+    found = run_search(model, config.search_settings(margin), config.run_on, progress)
+    settings = config.settings_for(margin)
+    leaves = [found.levels, found.index, found.bound_m, found.center_clearance_m]
+    leaves, endpoint, upper = refine_leaves(model, leaves, settings, progress)
+    (levels, index, bound), endpoint, upper = split_strips(model, leaves, endpoint, upper, settings, progress)
     seconds = time.perf_counter() - start
     return RegionMap.of_leaves(
         model.ranges_m,

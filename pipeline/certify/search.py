@@ -101,6 +101,8 @@ class SearchLeaves:
         center_clearance_m: The least clearance at those boxes' centres [m].
         evaluations: Boxes evaluated in all.
         boxes_closed: Boxes closed in all.
+        nodes: With ``keep_nodes``, every node (leaf or not) as (levels (N, k), index (N, k), the
+            least bound of its own closed boxes (N,), +inf for none) [m]; else None.
     """
 
     levels: np.ndarray
@@ -109,6 +111,7 @@ class SearchLeaves:
     center_clearance_m: np.ndarray
     evaluations: int
     boxes_closed: int
+    nodes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
 
 class _Nodes:
@@ -202,9 +205,11 @@ def _cut_along(nodes: _Nodes, rows_node: np.ndarray, gaps: np.ndarray, deepest: 
     nodes.cut(unique, np.argmax(score, axis=1), round_)
 
 
-def search(model: RangeModel, settings: SearchSettings, roots: np.ndarray | None = None) -> SearchLeaves:
+def search(
+    model: RangeModel, settings: SearchSettings, roots: np.ndarray | None = None, keep_nodes: bool = False
+) -> SearchLeaves:
     """Run the branch and bound from the given nodes (rows depth, i_1..i_k), default the whole
-    initial grid, each with the initial s grid."""
+    initial grid, each with the initial s grid (``keep_nodes``: :attr:`SearchLeaves.nodes` too)."""
     k = model.k
     if roots is None:
         roots = initial_roots(k, settings.initial_depth_lw)
@@ -238,7 +243,10 @@ def search(model: RangeModel, settings: SearchSettings, roots: np.ndarray | None
     own_bound, own_centre = np.full(nodes.axis.size, np.inf), np.full(nodes.axis.size, np.inf)
     np.minimum.at(own_bound, owner, low)
     np.minimum.at(own_centre, owner, mid)
-    return SearchLeaves(*nodes.leaves(own_bound, own_centre), evaluations=evaluations, boxes_closed=owner.size)
+    kept = (nodes.level, nodes.index, own_bound) if keep_nodes else None
+    return SearchLeaves(
+        *nodes.leaves(own_bound, own_centre), evaluations=evaluations, boxes_closed=owner.size, nodes=kept
+    )
 
 
 def _decide(

@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from pipeline import load_coefficients
 from pipeline.certify.certifiable_regression import clearance_at, clearance_grid
+from pipeline.certify.certificate_settings import CertificateSettings
 from pipeline.certify.clearance_bound import box_clearance_bounds
 from pipeline.certify.endpoints import (
     endpoint_clearance_upper_bounds,
@@ -37,6 +38,7 @@ from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, region_map_text
 from pipeline.certify.search import SearchSettings, cell_boxes, node_boxes, search
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
+from pipeline.io.executor import LocalPool
 from pipeline.model.arm import PlanarArm
 from pipeline.model.kinematics import inverse_kinematics
 from pipeline.model.obstacle import Obstacle
@@ -95,6 +97,10 @@ def true_clearance(coefficients: Coefficients, arm: PlanarArm, points: np.ndarra
         else:
             out[k] = analytic_link_clearance(q, arm, answer.obstacle).min()
     return out
+
+
+def _settings(margin_m: float, tolerance_m: float, max_depth: int, **more) -> CertificateSettings:
+    return CertificateSettings(margin_m=margin_m, endpoint_tolerance_m=tolerance_m, max_depth=max_depth, **more)
 
 
 def test_analytic_route_equals_coal_along_certified_motions(eq9: Coefficients, arm: PlanarArm) -> None:
@@ -244,7 +250,7 @@ def test_cells_that_miss_the_tolerance_all_over_are_refined_only_to_the_resoluti
     grid = [np.full((16, 2), 2), np.column_stack([i.ravel(), j.ravel()]), np.full(16, np.inf)]
     max_depth = 8
     for tolerance_m in (0.002, 0.008):
-        (levels, index, _), endpoint, _ = refine_leaves(model, grid, 0.01, tolerance_m, max_depth)
+        (levels, index, _), endpoint, _ = refine_leaves(model, grid, _settings(0.01, tolerance_m, max_depth))
         assert math.isclose(float(np.sum(2.0 ** -levels.sum(axis=1).astype(float))), 1.0)
         depth = np.min(levels, axis=1)  # a leaf is cut along its widest axis until every axis is at max_depth
         center, radius = cell_boxes(model, levels, index)
@@ -286,7 +292,7 @@ def test_endpoint_regression_is_proven_within_tolerance_over_the_whole_range(arm
     n = 8
     i, j = (k.ravel() for k in np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
     leaves = [np.full((n * n, 2), 3), np.column_stack([i, j]), np.full(n * n, np.inf)]  # clearance not asked: +inf
-    (levels, index, _), endpoint, _ = refine_leaves(model, leaves, 0.01, 0.002, max_depth=8)
+    (levels, index, _), endpoint, _ = refine_leaves(model, leaves, _settings(0.01, 0.002, max_depth=8))
     i_l, i_w = index.T
     assert np.all(endpoint <= 0.002)
     assert math.isclose(float(np.sum(2.0 ** -levels.sum(axis=1).astype(float))), 1.0)
@@ -419,11 +425,12 @@ def test_the_search_resolves_the_margins_contour_at_its_smallest_cell(eq9: Coeff
     strip = dataclasses.replace(eq9, fitted_range_m={"L": (0.2, 0.225), "W": (0.108, 0.116)})
     model = RangeModel.from_coefficients(strip)
     settings = SearchSettings(margin_m=0.01, max_depth_lw=5, boundary_depth_lw=2, resolution_m=5e-3)
-    found = search(model, settings)
-    smallest = np.all(found.levels == settings.max_depth_lw, axis=1)
-    coarse = np.flatnonzero((found.bound_m < settings.margin_m) & ~smallest)
+    found = search(model, settings, keep_nodes=True)
+    levels, index, node_bound = found.nodes
+    smallest = np.all(levels == settings.max_depth_lw, axis=1)
+    coarse = np.flatnonzero((node_bound < settings.margin_m) & ~smallest)
     assert coarse.size >= 3 and np.any(found.bound_m >= settings.margin_m)
-    centre, half = cell_boxes(model, found.levels[coarse], found.index[coarse])
+    centre, half = cell_boxes(model, levels[coarse], index[coarse])
     offsets = np.array([[u, v] for u in np.linspace(-1, 1, 5) for v in np.linspace(-1, 1, 5)])
     sizes = (centre[:, None, :] + offsets[None] * half[:, None, :]).reshape(-1, 2)
     s = np.linspace(0.0, 1.0, 401)
@@ -521,8 +528,9 @@ def test_chunked_bounds_in_a_pool_are_the_serial_ones_and_count_leaves(eq9: Coef
     index = np.arange(300)
     c, r = node_boxes(model, np.full(300, 5), np.column_stack([index // 32, index % 32]))
     calls: list[tuple[str, int, int]] = []
-    pooled = sub_cell_bounds(model, c, r, 0.002, 0.01, jobs=2, progress=lambda *call: calls.append(call))
-    np.testing.assert_array_equal(pooled, sub_cell_bounds(model, c, r, 0.002, 0.01))
+    pooled_settings = _settings(0.01, 0.002, 5, run_on=LocalPool(2))
+    pooled = sub_cell_bounds(model, c, r, pooled_settings, progress=lambda *call: calls.append(call))
+    np.testing.assert_array_equal(pooled, sub_cell_bounds(model, c, r, _settings(0.01, 0.002, 5)))
     assert _check_progress(calls) == {"range map: sub-cells": 300}
     steps = sorted(b[1] - a[1] for a, b in itertools.pairwise(calls))
     assert steps == [44, 128, 128]
