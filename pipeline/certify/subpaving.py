@@ -218,8 +218,10 @@ def _check_tree_shape(children: np.ndarray) -> None:
     parents = np.repeat(np.arange(m), 2)[codes >= 0]
     ok = (
         leaves.size == m + 1
-        and np.array_equal(np.sort(leaves), np.arange(m + 1))
-        and np.array_equal(np.sort(nodes), np.arange(1, m))
+        and int(leaves.max()) <= m
+        and bool(np.all(np.bincount(leaves, minlength=m + 1) == 1))
+        and (nodes.size == 0 or (int(nodes.min()) >= 1 and int(nodes.max()) < m))
+        and bool(np.all(np.bincount(nodes, minlength=m)[1:] == 1))
         and bool(np.all(nodes > parents))
     )
     if not ok:
