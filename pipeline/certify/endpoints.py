@@ -167,7 +167,12 @@ _MAX_SUB_BOXES = 400_000
 #: went nine halvings deep, to 1e-10 m); with the 2 mm tolerance a ninth-level sub-box spans 8 um.
 _POLAR_RESOLUTION_M = 1e-6
 
-__all__ = ["endpoint_clearance_upper_bounds", "endpoint_error_bounds", "infeasibility_upper_bounds"]
+__all__ = [
+    "endpoint_bounds_and_shares",
+    "endpoint_clearance_upper_bounds",
+    "endpoint_error_bounds",
+    "infeasibility_upper_bounds",
+]
 
 
 def _cells(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -181,20 +186,13 @@ def _cells(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> tup
     return center, radius
 
 
-def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
-    """Upper bounds [m] on |tip(0) - P1| and |tip(T) - P5| over cells of the model's axes, shape (N, 2).
-
-    Args:
-        model: The coefficients' range model.
-        center_m: Cell centres (N, k): the axes (L, W[, x][, d]) [m].
-        radius_m: Half widths (N, k) [m].
-    """
-    center2, radius2 = _cells(model, center_m, radius_m)
+def _end_error_jets(model: RangeModel, center2: np.ndarray, radius2: np.ndarray):
+    """Per end (s = 0 with P1, s = 1 with P5): the jets of the tip's error components at the
+    centres and over the cells, and the cells' half widths with s's (0) appended."""
     n = center2.shape[0]
-    out = np.empty((n, 2))
     l1, l2 = model.link_lengths_m
     xi, di = model.x_column, model.d_column
-    for column, (s, side) in enumerate(((0.0, 1.0), (1.0, -1.0))):
+    for s, side in ((0.0, 1.0), (1.0, -1.0)):
         center = np.column_stack([center2, np.full(n, s)])
         radius = np.column_stack([radius2, np.zeros(n)])
         comps = []
@@ -209,13 +207,38 @@ def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.
             ex = theta1.cos() * l1 + phi2.cos() * l2 - px
             ey = theta1.sin() * l1 + phi2.sin() * l2 - py
             comps.append((ex, ey))
-        (px_, py_), (bx_, by_) = comps
+        yield comps, radius
+
+
+def endpoint_error_bounds(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
+    """Upper bounds [m] on |tip(0) - P1| and |tip(T) - P5| over cells of the model's axes, shape (N, 2).
+
+    Args:
+        model: The coefficients' range model.
+        center_m: Cell centres (N, k): the axes (L, W[, x][, d]) [m].
+        radius_m: Half widths (N, k) [m].
+    """
+    return endpoint_bounds_and_shares(model, center_m, radius_m)[0]
+
+
+def endpoint_bounds_and_shares(
+    model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`endpoint_error_bounds` (N, 2), and each axis's share [m] of the bound's gap over each
+    cell (N, k): the larger over the two ends of the sum over the error's components of
+    max |d e / d v_a| r_a, the mean-value form's term along axis a (which axis to cut to tighten
+    the bound; not a bound itself)."""
+    center2, radius2 = _cells(model, center_m, radius_m)
+    out = np.empty((center2.shape[0], 2))
+    shares = np.zeros(center2.shape)
+    for column, (((px_, py_), (bx_, by_)), radius) in enumerate(_end_error_jets(model, center2, radius2)):
         mag_x = np.maximum(np.abs(lower_bound(px_, bx_, radius)), np.abs(upper_bound(px_, bx_, radius)))
         mag_y = np.maximum(np.abs(lower_bound(py_, by_, radius)), np.abs(upper_bound(py_, by_, radius)))
         out[:, column] = np.hypot(mag_x, mag_y) + FLOAT_SLACK_M
+        shares = np.maximum(shares, ((bx_.grad.mag() + by_.grad.mag()) * radius)[:, : model.k])
     pinned = model.endpoints_pinned(center2, radius2)
     out[pinned] = FLOAT_SLACK_M  # exact by construction (RangeModel.endpoints_pinned), up to rounding
-    return out
+    return out, shares
 
 
 def _beta(theta2: np.ndarray, l1: float, l2: float) -> np.ndarray:

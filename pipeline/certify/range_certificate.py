@@ -41,6 +41,7 @@ import numpy as np
 
 from pipeline.certify.certificate_settings import CertificateSettings
 from pipeline.certify.endpoints import (
+    endpoint_bounds_and_shares,
     endpoint_clearance_upper_bounds,
     endpoint_error_bounds,
     infeasibility_upper_bounds,
@@ -261,18 +262,18 @@ def run_search(
     )
 
 
-def _split(arrays: list[np.ndarray], rows: np.ndarray) -> list[np.ndarray]:
-    """Replace the leaves ``rows`` (mask) by their two halves along their widest axis (the lowest
-    level; none of them at ``max_depth`` there); other columns are inherited."""
+def _split(arrays: list[np.ndarray], rows: np.ndarray, axes: np.ndarray) -> list[np.ndarray]:
+    """Replace the leaves ``rows`` (mask) by their two halves along ``axes`` (one per leaf of
+    ``rows``); other columns are inherited."""
     levels, index, *rest = arrays
     cut = np.flatnonzero(rows)
-    axis = np.repeat(np.argmin(levels[cut], axis=1), 2)
+    axis = np.repeat(axes, 2)
     kids_level = np.repeat(levels[cut], 2, axis=0)
     kids_index = np.repeat(index[cut], 2, axis=0)
     at = np.arange(kids_level.shape[0])
     kids_level[at, axis] += 1
     kids_index[at, axis] = 2 * kids_index[at, axis] + at % 2
-    kids = (kids_level, kids_index, *(np.repeat(column[cut], 2) for column in rest))
+    kids = (kids_level, kids_index, *(np.repeat(column[cut], 2, axis=0) for column in rest))
     return [np.concatenate([column[~rows], kid]) for column, kid in zip(arrays, kids, strict=True)]
 
 
@@ -330,10 +331,12 @@ def sub_cell_bounds(
 def _leaf_bounds(
     model: RangeModel, c: np.ndarray, r: np.ndarray, need: np.ndarray, tolerance_m: float, margin_m: float
 ) -> np.ndarray:
-    """Per leaf (centres, half widths): the endpoint bound, the endpoint error at the centre and,
-    where ``need``, the endpoint clearance upper bound (else inf), as columns of an (n, 3) array."""
-    out = np.full((c.shape[0], 3), np.inf)
-    out[:, 0] = np.max(endpoint_error_bounds(model, c, r), axis=1)
+    """Per leaf (centres, half widths): the endpoint bound, the endpoint error at the centre,
+    where ``need`` the endpoint clearance upper bound (else inf), then each axis's share of the
+    endpoint bound's gap, as columns of an (n, 3 + k) array."""
+    out = np.full((c.shape[0], 3 + model.k), np.inf)
+    bounds, out[:, 3:] = endpoint_bounds_and_shares(model, c, r)
+    out[:, 0] = np.max(bounds, axis=1)
     out[:, 1] = np.max(endpoint_error_bounds(model, c, np.zeros_like(r)), axis=1)
     if np.any(need):
         out[need, 2] = np.min(endpoint_clearance_upper_bounds(model, c[need], r[need], tolerance_m, margin_m), axis=1)
@@ -357,9 +360,9 @@ def refine_leaves(
     bounded = 0  # leaves whose bounds are computed, over the rounds
     n = leaves[0].shape[0]
     endpoint, centre_error, upper = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
-    arrays = [*leaves, endpoint, centre_error, upper]
+    arrays = [*leaves, endpoint, centre_error, upper, np.zeros((n, model.k))]
     while True:
-        (levels, index, bound), (endpoint, centre_error, upper) = arrays[:3], arrays[-3:]
+        (levels, index, bound), (endpoint, centre_error, upper, shares) = arrays[:3], arrays[-4:]
         todo = np.isnan(endpoint)
         if np.any(todo):
             c, r = cell_boxes(model, levels[todo], index[todo])
@@ -376,9 +379,12 @@ def refine_leaves(
                 stage=PROGRESS_STAGES[1],
                 before=bounded,
             )
-            endpoint[todo], centre_error[todo], upper[todo] = np.concatenate(parts).T
+            columns = np.concatenate(parts)
+            endpoint[todo], centre_error[todo], upper[todo] = columns[:, :3].T
+            shares[todo] = columns[:, 3:]
             bounded += int(np.count_nonzero(todo))
-        deep = np.min(levels, axis=1) < settings.max_depth
+        open_axes = levels < settings.max_depth
+        deep = np.any(open_axes, axis=1)
         close = (bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M)
         # A family that pins the endpoints has errors of rounding size: its bound is reported, not
         # refined. A leaf whose error at the centre minus the bound's gap above it exceeds the
@@ -393,9 +399,13 @@ def refine_leaves(
                 c, r = cell_boxes(model, levels[close], index[close])
                 sub = sub_cell_bounds(model, c, r, settings, progress)
                 upper[close] = np.minimum(upper[close], sub)
-            return arrays[:-3], endpoint, upper
-        arrays = _split(arrays, rows)
-        for column in arrays[-3:]:  # children get their own endpoint bounds
+            return arrays[:-4], endpoint, upper
+        # Cut a loose leaf along the axis with the largest share of its endpoint bound's gap, one
+        # close to infeasible along its widest axis (the lowest level), among the axes not at the deepest.
+        widest = np.argmin(np.where(open_axes, levels, np.iinfo(np.int64).max), axis=1)
+        steepest = np.argmax(np.where(open_axes, shares, -np.inf), axis=1)
+        arrays = _split(arrays, rows, np.where(loose, steepest, widest)[rows])
+        for column in arrays[-4:-1]:  # children get their own endpoint bounds
             column[-2 * np.count_nonzero(rows) :] = np.nan
 
 
