@@ -107,11 +107,16 @@ def leaf_of(index: np.ndarray, bounds: np.ndarray, axes: int, v0: float, v1: flo
         if not (bounds[2 * a] <= values[a] <= bounds[2 * a + 1]):
             return -1
     n = 1 << index[1]
+    # Each axis's cell at the deepest level, once: the walk reads one bit of one of them per node.
+    c0 = _cell(v0, bounds[0], bounds[1], n)
+    c1 = _cell(v1, bounds[2], bounds[3], n) if axes > 1 else 0
+    c2 = _cell(v2, bounds[4], bounds[5], n) if axes > 2 else 0
+    c3 = _cell(v3, bounds[6], bounds[7], n) if axes > 3 else 0
     node = index[2]
     while node >= 0:
         at = LOOKUP_HEADER + 4 * node
         a = index[at]
-        cell = _cell(values[a], bounds[2 * a], bounds[2 * a + 1], n)
+        cell = c0 if a == 0 else c1 if a == 1 else c2 if a == 2 else c3
         node = index[at + 2 + ((cell >> index[at + 1]) & 1)]
     return -1 - node
 
