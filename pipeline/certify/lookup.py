@@ -9,7 +9,8 @@ for one point, by the floating-point operations of the vectorised
 two, a truncation; the subpaving's module docstring), so it finds the same leaf, and
 :func:`bounds_of` reads that leaf's bounds. The map's scalar lookups (``cell_at``, ``bounds_at``,
 ``leaf_at``) and the online generator's compiled core (:mod:`pipeline.online.kernel`) both call
-them: one scalar lookup. Nothing here knows what an axis means: axes are numbered.
+them: one scalar lookup; :func:`leaves_of` runs it over a batch (the map's ``leaf_indices``).
+Nothing here knows what an axis means: axes are numbered.
 
 All are compiled with Numba for their one signature when this module is imported, and cached on
 disk (``cache=True``). The lookup's arrays are writable copies because Numba's dispatch of a
@@ -35,6 +36,7 @@ __all__ = [
     "bounds_of",
     "build_tree",
     "leaf_of",
+    "leaves_of",
 ]
 
 #: The mode (``LookupTables.index[0]``) of no map: every point is outside (:data:`NO_TABLES`).
@@ -119,6 +121,16 @@ def leaf_of(index: np.ndarray, bounds: np.ndarray, axes: int, v0: float, v1: flo
         cell = c0 if a == 0 else c1 if a == 1 else c2 if a == 2 else c3
         node = index[at + 2 + ((cell >> index[at + 1]) & 1)]
     return -1 - node
+
+
+@numba.njit("int64[::1](int32[::1], float64[::1], int64, float64[:, ::1])", cache=True, nogil=True)
+def leaves_of(index: np.ndarray, bounds: np.ndarray, axes: int, points: np.ndarray) -> np.ndarray:
+    """:func:`leaf_of` of every row of ``points`` (m, 4) (the map's axes first, the rest not
+    read): the batch lookup's compiled route."""
+    out = np.empty(points.shape[0], dtype=np.int64)
+    for row in range(points.shape[0]):
+        out[row] = leaf_of(index, bounds, axes, points[row, 0], points[row, 1], points[row, 2], points[row, 3])
+    return out
 
 
 @numba.njit(cache=True, nogil=True)

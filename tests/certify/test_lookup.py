@@ -1,5 +1,6 @@
-"""The compiled scalar lookup of a region map (pipeline.certify.lookup): the leaf of every point is
-the vectorised lookup's (RegionMap.leaf_indices), the stored bounds are the map's columns, no map
+"""The compiled lookups of a region map (pipeline.certify.lookup): the leaf of every point, one at a
+time (leaf_of) and in a batch (leaves_of, RegionMap.leaf_indices), is the NumPy route's
+(Subpaving.leaf_indices), the stored bounds are the map's columns, no map
 and points outside the box give -1, and values past the map's axes are not read."""
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ def test_leaves_are_the_vectorised_lookups_and_bounds_the_maps_columns(small_map
     cells = 2**small_map.subpaving.top
     L = np.concatenate([rng.uniform(l_lo, l_hi, 500), l_lo + (l_hi - l_lo) * rng.integers(0, cells + 1, 500) / cells])
     W = np.concatenate([rng.uniform(w_lo, w_hi, 500), w_lo + (w_hi - w_lo) * rng.integers(0, cells + 1, 500) / cells])
-    expected = small_map.leaf_indices(L, W)
+    expected = small_map.subpaving.leaf_indices((L, W))  # the NumPy route
+    np.testing.assert_array_equal(small_map.leaf_indices(L, W), expected)  # the compiled batch
     found = [leaf_of(*tables, 2, length, width, math.nan, math.nan) for length, width in zip(L, W, strict=True)]
     np.testing.assert_array_equal(found, expected)  # NaN past the two axes: never read
     for leaf in np.unique(expected).tolist():
