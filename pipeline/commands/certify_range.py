@@ -81,8 +81,9 @@ def parser() -> argparse.ArgumentParser:
         type=Path,
         metavar="MAP",
         default=None,
-        help="instead of certifying: rewrite the region map MAP of an earlier format (the leaves as JSON) as a "
-        "JSON header and a .npy leaf table, every number kept (to --output, default: in place)",
+        help="instead of certifying: rewrite the region map MAP of an earlier format (the leaves as JSON, or a "
+        "table of a 2^k-tree's nodes) as a JSON header and a .npy table of its subpaving, every number kept "
+        "(to --output, default: in place)",
     )
     p.add_argument(
         "-o",
