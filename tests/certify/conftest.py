@@ -17,6 +17,28 @@ from pipeline.motion.path import constraint_points
 
 
 @pytest.fixture(scope="session")
+def random_leaves():
+    """The function drawing the leaves of a random subpaving (:func:`_random_leaves`)."""
+    return _random_leaves
+
+
+def _random_leaves(k: int, cuts: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``cuts`` times, a random leaf cut at the midpoint of a random axis; the leaves' levels and
+    indices (n, k), shuffled."""
+    leaves = [(np.zeros(k, dtype=np.int64), np.zeros(k, dtype=np.int64))]
+    for _ in range(cuts):
+        level, index = leaves.pop(int(rng.integers(len(leaves))))
+        a = int(rng.integers(k))
+        for half in (0, 1):
+            child_level, child_index = level.copy(), index.copy()
+            child_level[a] += 1
+            child_index[a] = 2 * index[a] + half
+            leaves.append((child_level, child_index))
+    order = rng.permutation(len(leaves))
+    return np.array([leaves[i][0] for i in order]), np.array([leaves[i][1] for i in order])
+
+
+@pytest.fixture(scope="session")
 def random_boxes():
     """The function drawing random boxes of (the model's axes, s) (:func:`_random_boxes`)."""
     return _random_boxes

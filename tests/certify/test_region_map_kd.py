@@ -73,22 +73,6 @@ def make_map(nodes: list[Node], axes: tuple[str, ...] = ("L", "W", "x"), levels=
     return RegionMap.of_leaves(ranges, levels, index, **fields)
 
 
-def one_axis_cuts(k: int, cuts: int, seed: int) -> tuple[list[Node], np.ndarray]:
-    """Leaves of a random subpaving: ``cuts`` times, a random leaf cut along a random axis."""
-    rng = np.random.default_rng(seed)
-    leaves = [(np.zeros(k, dtype=int), np.zeros(k, dtype=int))]
-    for _ in range(cuts):
-        level, index = leaves.pop(int(rng.integers(len(leaves))))
-        a = int(rng.integers(k))
-        for half in (0, 1):
-            child_level, child_index = level.copy(), index.copy()
-            child_level[a] += 1
-            child_index[a] = 2 * index[a] + half
-            leaves.append((child_level, child_index))
-    nodes = [(0, tuple(int(i) for i in index)) for _, index in leaves]
-    return nodes, np.array([level for level, _ in leaves])
-
-
 def boxes(region_map: RegionMap) -> tuple[np.ndarray, np.ndarray]:
     """Every leaf's closed box (lo (n, k), hi (n, k)) [m], computed here from the leaves' levels and indices."""
     ranges = np.array([RANGES[name] for name in region_map.axes])
@@ -119,9 +103,10 @@ def deep() -> RegionMap:
 
 
 @pytest.fixture(scope="module")
-def one_axis() -> RegionMap:
+def one_axis(random_leaves) -> RegionMap:
     """400 random cuts of one axis at a time over (L, W, x, d): leaves of every shape."""
-    nodes, levels = one_axis_cuts(4, 400, 5)
+    levels, indices = random_leaves(4, 400, np.random.default_rng(5))
+    nodes = [(0, tuple(int(i) for i in index)) for index in indices]
     return make_map(nodes, axes=("L", "W", "x", "d"), levels=levels)
 
 

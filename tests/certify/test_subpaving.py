@@ -17,21 +17,6 @@ from pipeline.certify.subpaving import Subpaving
 from pipeline.exceptions import InvalidParameterError
 
 
-def random_leaves(k: int, cuts: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """``cuts`` times, a random leaf cut at the midpoint of a random axis; the leaves shuffled."""
-    leaves = [(np.zeros(k, dtype=np.int64), np.zeros(k, dtype=np.int64))]
-    for _ in range(cuts):
-        level, index = leaves.pop(int(rng.integers(len(leaves))))
-        a = int(rng.integers(k))
-        for half in (0, 1):
-            child_level, child_index = level.copy(), index.copy()
-            child_level[a] += 1
-            child_index[a] = 2 * index[a] + half
-            leaves.append((child_level, child_index))
-    order = rng.permutation(len(leaves))
-    return np.array([leaves[i][0] for i in order]), np.array([leaves[i][1] for i in order])
-
-
 def ranges_of(k: int, rng: np.random.Generator) -> tuple[tuple[float, float], ...]:
     lo = rng.uniform(-1.0, 1.0, k)
     return tuple((float(a), float(a + s)) for a, s in zip(lo, rng.uniform(0.01, 2.0, k), strict=True))
@@ -47,7 +32,7 @@ def brute_force(ranges, levels, indices, points) -> np.ndarray:
 
 @settings(max_examples=60, deadline=None)
 @given(st.integers(1, 4), st.integers(0, 120), st.integers(0, 2**31 - 1))
-def test_the_tree_gives_back_the_leaves_and_finds_every_point(k: int, cuts: int, seed: int) -> None:
+def test_the_tree_gives_back_the_leaves_and_finds_every_point(random_leaves, k: int, cuts: int, seed: int) -> None:
     rng = np.random.default_rng(seed)
     levels, indices = random_leaves(k, cuts, rng)
     ranges = ranges_of(k, rng)
@@ -70,7 +55,7 @@ def test_the_tree_gives_back_the_leaves_and_finds_every_point(k: int, cuts: int,
     assert compiled == found.tolist()
 
 
-def test_points_outside_or_not_numbers_have_no_leaf() -> None:
+def test_points_outside_or_not_numbers_have_no_leaf(random_leaves) -> None:
     rng = np.random.default_rng(2)
     tree = Subpaving.from_leaves(((0.0, 1.0), (2.0, 3.0)), *random_leaves(2, 30, rng))
     points = np.array([[math.nextafter(1.0, 2.0), 2.5], [0.5, math.nextafter(2.0, 0.0)], [math.nan, 2.5]])
@@ -86,7 +71,7 @@ def test_a_single_leaf_is_the_whole_box() -> None:
     assert leaf_of(index, np.array([0.0, 1.0, 0.0, 0.0, 0.0]), 1, 0.3, 0.0, 0.0, 0.0) == 0
 
 
-def test_gaps_overlaps_and_bad_leaves_are_refused() -> None:
+def test_gaps_overlaps_and_bad_leaves_are_refused(random_leaves) -> None:
     rng = np.random.default_rng(3)
     levels, indices = random_leaves(3, 40, rng)
     ranges = ((0.0, 1.0),) * 3
@@ -108,7 +93,7 @@ def test_gaps_overlaps_and_bad_leaves_are_refused() -> None:
         Subpaving.from_leaves(((0.0, 1.0), (1.0, 1.0), (0.0, 1.0)), levels, indices)
 
 
-def test_malformed_trees_are_refused() -> None:
+def test_malformed_trees_are_refused(random_leaves) -> None:
     rng = np.random.default_rng(4)
     tree = Subpaving.from_leaves(((0.0, 1.0),) * 2, *random_leaves(2, 20, rng))
     axis, level, children = tree.cut_axis, tree.cut_level, tree.children.copy()
