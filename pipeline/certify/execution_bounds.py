@@ -24,6 +24,7 @@ from types import MappingProxyType
 import numpy as np
 
 from pipeline.exceptions import DataFileError, InvalidParameterError, RegionMapLimitsError
+from pipeline.io.decimal_columns import FloatColumns
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.rest_to_rest import rest_to_rest_bounds
@@ -92,9 +93,11 @@ class ExecutionBounds:
     Attributes:
         limits: The arm's limits the rest-to-rest timings keep.
         dynamics: The arm's dynamics the torque bounds are of.
-        columns: Per leaf (n,) arrays named as :data:`COLUMNS`: the duration range T [s], the
-            angle ranges [rad], the paper timing's peak |dq| [rad/s] and |ddq| [rad/s^2], and the
-            rest-to-rest timing's speed scale c and ramp r [s] (NaN: no timing keeps the limits).
+        columns: Per leaf (n,) arrays named as :data:`COLUMNS` (a dict, or the
+            :class:`pipeline.io.decimal_columns.FloatColumns` of a map's table, read when asked
+            for): the duration range T [s], the angle ranges [rad], the paper timing's peak |dq|
+            [rad/s] and |ddq| [rad/s^2], and the rest-to-rest timing's speed scale c and ramp r
+            [s] (NaN: no timing keeps the limits).
     """
 
     limits: ArmLimits
@@ -107,6 +110,8 @@ class ExecutionBounds:
         missing = [c for c in COLUMNS if c not in self.columns]
         if missing:
             raise InvalidParameterError("columns", missing, f"all of {COLUMNS}")
+        if isinstance(self.columns, FloatColumns):  # a map's table: read when asked for, lengths checked
+            return
         arrays = {k: np.array(self.columns[k], dtype=float) for k in COLUMNS}
         n = arrays[COLUMNS[0]].size
         if any(a.shape != (n,) for a in arrays.values()):
@@ -118,6 +123,8 @@ class ExecutionBounds:
     @property
     def size(self) -> int:
         """Number of leaves."""
+        if isinstance(self.columns, FloatColumns):
+            return self.columns.size
         return self.columns[COLUMNS[0]].size
 
     def _pair(self, stem: str, unit: str) -> np.ndarray:
@@ -221,7 +228,7 @@ class ExecutionBounds:
     @classmethod
     def from_json(cls, document: dict, source: object) -> ExecutionBounds:
         """Read :meth:`to_json`'s document (a null stands for the column's infinite value), or a header
-        whose ``columns`` are arrays of a map's leaf table (taken as they are).
+        whose ``columns`` are a map table's :class:`pipeline.io.decimal_columns.FloatColumns`.
 
         Raises:
             DataFileError: malformed.
@@ -243,8 +250,8 @@ class ExecutionBounds:
                 *(tuple(tuple(float(v) for v in row) for row in dyn[k]) for k in ("m0", "mc", "ms"))
             )
             raw = document["columns"]
-            if isinstance(raw[COLUMNS[0]], np.ndarray):  # columns of a leaf table: kept as they are
-                return cls(limits, dynamics, {key: raw[key] for key in COLUMNS})
+            if isinstance(raw, FloatColumns):  # columns of a map's table: read when asked for
+                return cls(limits, dynamics, raw)
             columns = {}
             for key in COLUMNS:
                 values = np.array(raw[key], dtype=float)  # null -> NaN

@@ -54,7 +54,7 @@ from pipeline.certify.region_map import (
 )
 from pipeline.certify.subpaving import Subpaving
 from pipeline.exceptions import DataFileError, InvalidParameterError
-from pipeline.io.decimal_columns import decimal_parts, from_decimal_parts
+from pipeline.io.decimal_columns import FloatColumns, decimal_parts, from_decimal_parts
 from pipeline.io.jsonio import dumps, read_json, write_bytes_atomic
 
 __all__ = [
@@ -75,6 +75,8 @@ FORMAT_NODES = "twolink-region-map/4"
 TREE_FIELDS = ("cut_axis", "cut_level", "children")
 #: Suffix of the leaf table beside the header (``region_map.json`` -> ``region_map.npy``).
 LEAVES_SUFFIX = ".npy"
+#: Bytes read at a time while hashing a table.
+_HASH_BLOCK = 1 << 20
 #: Suffixes of the two fields of a float column stored as short decimals.
 _MANTISSA, _EXPONENT = ".mantissa", ".exponent"
 
@@ -120,9 +122,15 @@ def _table(region_map: RegionMap) -> np.ndarray:
 
 def _float_column(table: np.ndarray, name: str) -> np.ndarray:
     """The float64 column ``name`` of a table: stored as such, or as short decimals."""
+    stored = _stored_column(table, name)
+    return from_decimal_parts(*stored) if isinstance(stored, tuple) else stored
+
+
+def _stored_column(table: np.ndarray, name: str) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """The float column ``name`` of a table as stored: float64, or (mantissa, exponent)."""
     if name in table.dtype.names:
         return table[name]
-    return from_decimal_parts(table[f"{name}{_MANTISSA}"], table[f"{name}{_EXPONENT}"])
+    return table[f"{name}{_MANTISSA}"], table[f"{name}{_EXPONENT}"]
 
 
 def _header(region_map: RegionMap, table_bytes: bytes, name: str, rows: int, fields: tuple[str, ...]) -> dict:
@@ -203,11 +211,14 @@ def region_map_of(document: dict, path: Path) -> RegionMap:
 def _checked_table(path: Path, leaves: dict) -> np.ndarray:
     """The table the header ``leaves`` names, memory-mapped, after checking its sha256, fields and rows."""
     table_path = path.with_name(Path(str(leaves["file"])).name)
+    digest = hashlib.sha256()
     try:
-        data = table_path.read_bytes()
+        with table_path.open("rb") as stream:  # in blocks: the table is never held twice in memory
+            for block in iter(lambda: stream.read(_HASH_BLOCK), b""):
+                digest.update(block)
     except OSError as exc:
         raise DataFileError(table_path, f"the region map's leaf table cannot be read ({exc.strerror})") from None
-    if hashlib.sha256(data).hexdigest() != leaves["sha256"]:
+    if digest.hexdigest() != leaves["sha256"]:
         raise DataFileError(
             table_path, f"sha256 differs from the one {path.name} records: the table changed after the map was written"
         )
@@ -243,7 +254,8 @@ def _from_table(document: dict, table: np.ndarray, source: Path) -> RegionMap:
         "execution": None
         if execution is None
         else ExecutionBounds.from_json(
-            {**execution, "columns": {name: _float_column(table, name) for name in EXECUTION_COLUMNS}}, source
+            {**execution, "columns": FloatColumns({name: _stored_column(table, name) for name in EXECUTION_COLUMNS})},
+            source,
         ),
     }
     ranges = head_ranges(document)

@@ -8,13 +8,16 @@ double to the decimal, which is the value written. Infinities and NaN take reser
 
 :func:`decimal_parts` returns the parts only when the round trip gives every value back bit for
 bit (checked, not assumed), and None otherwise: a column of other doubles stays float64.
+:class:`FloatColumns` reads such columns of a table when they are first asked for, not before.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
+
 import numpy as np
 
-__all__ = ["decimal_parts", "from_decimal_parts"]
+__all__ = ["FloatColumns", "decimal_parts", "from_decimal_parts"]
 
 #: Largest |e|: 10^22 is the largest power of ten that is an exact double.
 _EXACT_POWERS = 22
@@ -75,3 +78,35 @@ def decimal_parts(values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     special = np.where(np.isnan(values), _NAN, np.where(values > 0, _PLUS_INF, _MINUS_INF))
     parts = mantissa.astype(np.int32), np.where(finite, exponent, special).astype(np.int8)
     return parts if _same_bits(from_decimal_parts(*parts), values) else None
+
+
+class FloatColumns(Mapping):
+    """Float64 columns of one length read from their stored form when first asked for: name ->
+    a float64 array, or a (mantissa, exponent) pair (:func:`from_decimal_parts`); each column is
+    read once and kept, read-only. So a map whose execution bounds are not asked for never
+    decodes them."""
+
+    def __init__(self, stored: Mapping[str, np.ndarray | tuple[np.ndarray, np.ndarray]]) -> None:
+        self._stored = dict(stored)
+        self._read: dict[str, np.ndarray] = {}
+        lengths = {np.shape(v[0] if isinstance(v, tuple) else v) for v in self._stored.values()}
+        if len(lengths) > 1 or any(len(shape) != 1 for shape in lengths):
+            raise ValueError(f"columns of one length expected, got shapes {sorted(lengths)}")
+        self.size = next(iter(lengths))[0] if lengths else 0
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._read:
+            stored = self._stored[name]
+            values = from_decimal_parts(*stored) if isinstance(stored, tuple) else np.asarray(stored, dtype=float)
+            values.setflags(write=False)
+            self._read[name] = values
+        return self._read[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._stored
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._stored)
+
+    def __len__(self) -> int:
+        return len(self._stored)

@@ -7,10 +7,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline.io.decimal_columns import decimal_parts, from_decimal_parts
+from pipeline.io.decimal_columns import FloatColumns, decimal_parts, from_decimal_parts
 
 DECIMALS = st.builds(
     lambda m, e: float(f"{m}e{e}"),
@@ -49,3 +50,22 @@ def test_non_finite_values_and_zero_survive_and_other_doubles_are_refused() -> N
     assert decimal_parts(np.array([math.pi])) is None
     assert decimal_parts(np.array([1e-300])) is None  # beyond the exact powers of ten
     assert decimal_parts(np.array([-0.0])) is None  # its sign would be lost
+
+
+def test_float_columns_read_each_column_when_asked_and_once() -> None:
+    """FloatColumns gives the stored columns' values (short decimals decoded, float64 as they
+    are), decodes nothing before a column is asked for, keeps it read-only, and refuses columns
+    of different lengths."""
+    decimals = np.array([1.25, -3.5e-4, math.inf, 0.0])
+    plain = np.array([math.pi, -math.e, 1e300, math.nan])
+    parts = decimal_parts(decimals)
+    assert parts is not None
+    columns = FloatColumns({"short": parts, "full": plain})
+    assert columns.size == 4 and set(columns) == {"short", "full"} and len(columns) == 2
+    assert "short" in columns and "other" not in columns and columns._read == {}  # nothing read yet
+    np.testing.assert_array_equal(columns["short"], decimals)
+    assert list(columns._read) == ["short"]
+    assert columns["short"] is columns["short"] and not columns["short"].flags.writeable
+    np.testing.assert_array_equal(columns["full"], plain)
+    with pytest.raises(ValueError, match="one length"):
+        FloatColumns({"short": parts, "full": plain[:3]})
