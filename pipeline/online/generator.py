@@ -299,10 +299,7 @@ def generate(
         plan = coefficients.online_state.plan
     except AttributeError:  # a first query (or not a Coefficients: refused)
         plan = state_of(coefficients).plan
-    if region_map is ATTACHED or region_map is coefficients.region_map:  # checked when it was attached
-        region_map = coefficients.region_map
-    elif region_map is not None:
-        check_region_map(region_map, coefficients)
+    tables = _lookup_tables(coefficients, plan, region_map)
     if out_of_range not in OUT_OF_RANGE_POLICIES:
         raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
     if plan.extra or x is not None or d is not None:
@@ -315,7 +312,6 @@ def generate(
         W = _size(width_m, (length_m, width_m), "W")
     if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
         _checked_bottom(plan, L, W, top)
-    tables = NO_TABLES if region_map is None or region_map.axes != plan.variables.names else region_map.lookup_tables
     beyond = (*values, math.nan, math.nan)  # the regression's variables past the obstacle's size
     result = query_core(L, W, c, top, y1, beyond[0], beyond[1], *plan.core, *tables)
     unreachable, radius, duration, inside, leaf, clearance, endpoint, status = result[: PARAMETERS.start]
@@ -344,6 +340,20 @@ def generate(
     return GeneratedTrajectory.trusted(
         L, W, family, coefficients.scene, trajectory, extrapolated, *placed, variables, moved=True
     )
+
+
+def _lookup_tables(coefficients: Coefficients, plan: QueryPlan, region_map: RegionMap | _Attached | None):
+    """The lookup arrays of the map a query reads (:data:`NO_TABLES` without one, or for a map over
+    other axes), after checking a map given in place of the attached one.
+
+    Raises:
+        RegionMapMismatchError: ``region_map`` was made for other coefficients.
+    """
+    if region_map is ATTACHED or region_map is coefficients.region_map:  # checked when it was attached
+        region_map = coefficients.region_map
+    elif region_map is not None:
+        check_region_map(region_map, coefficients)
+    return NO_TABLES if region_map is None or region_map.axes != plan.variables.names else region_map.lookup_tables
 
 
 def _unreachable(plan: QueryPlan, point: int, radius: float, size: tuple[float, float], values: tuple):

@@ -112,6 +112,33 @@ def _add_row(p, b: float, plan: np.ndarray, row: int):
     )  # fmt: skip
 
 
+@numba.njit(cache=True, nogil=True)
+def _duration(plan: np.ndarray, k: int, x1: float, x2: float, y2: float, y3: float, y1: float, speed: float) -> float:
+    """T [s] of the even quartic through (x1, y1), (x2, y2), (0, y3) (pipeline.motion.path.symmetric_quartic,
+    then its length by the plan's arc-length rule); NaN unless x1 > x2 > 0."""
+    if not x1 > x2 > 0.0:
+        return math.nan
+    terms = 1 + k + k * (k + 1) // 2
+    rule = _RANGES + 2 * k + 8 * terms
+    nodes = (plan.shape[0] - rule) // 5
+    ua = x1 * x1
+    ub = x2 * x2
+    ra = (y1 - y3) / ua
+    rb = (y2 - y3) / ub
+    c4 = (ra - rb) / (ua - ub)
+    c2 = ra - c4 * ua
+    k1 = 2.0 * c2 * x1
+    k3 = 4.0 * c4 * x1 * x1 * x1
+    f1, f2, f3 = k1 * k1, 2.0 * k1 * k3, k3 * k3
+    total = 0.0
+    for j in range(rule, rule + nodes):
+        q = plan[j] + f1 * plan[j + nodes]
+        q = q + f2 * plan[j + 2 * nodes]
+        q = q + f3 * plan[j + 3 * nodes]
+        total += math.sqrt(q) * plan[j + 4 * nodes]
+    return 2.0 * x1 * total / speed
+
+
 @numba.njit(
     "Tuple((int64, float64, float64, boolean, int64, float64, float64, int64, float64, float64, float64, float64,"
     " float64, float64, float64, float64, boolean))(float64, float64, float64, float64, float64, float64, float64,"
@@ -162,27 +189,7 @@ def query_core(
         if not (reach_lo <= radii[point] <= reach_hi):
             unreachable, radius = point, radii[point]
             break
-    terms = 1 + k + k * (k + 1) // 2
-    rule = _RANGES + 2 * k + 8 * terms
-    nodes = (plan.shape[0] - rule) // 5
-    duration = math.nan
-    if x1 > x2 > 0.0:  # pipeline.motion.path.symmetric_quartic, then its length
-        ua = x1 * x1
-        ub = x2 * x2
-        ra = (start_y_m - y3) / ua
-        rb = (y2 - y3) / ub
-        c4 = (ra - rb) / (ua - ub)
-        c2 = ra - c4 * ua
-        k1 = 2.0 * c2 * x1
-        k3 = 4.0 * c4 * x1 * x1 * x1
-        f1, f2, f3 = k1 * k1, 2.0 * k1 * k3, k3 * k3
-        total = 0.0
-        for j in range(rule, rule + nodes):
-            q = plan[j] + f1 * plan[j + nodes]
-            q = q + f2 * plan[j + 2 * nodes]
-            q = q + f3 * plan[j + 3 * nodes]
-            total += math.sqrt(q) * plan[j + 4 * nodes]
-        duration = 2.0 * x1 * total / speed
+    duration = _duration(plan, k, x1, x2, y2, y3, start_y_m, speed)
     inside = True
     for a in range(k):
         value = _value(a, length_m, width_m, v2, v3)
