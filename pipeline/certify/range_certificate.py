@@ -10,13 +10,14 @@ whose docstrings carry the derivations; this module only combines them:
 * a leaf's clearance bound is the minimum of the bounds of every closed box whose node
   contains the leaf (the node itself or an ancestor, ``pipeline.certify.search``): those boxes
   cover the leaf times all of s in [0, 1];
-* a leaf is cut further, in two along its widest axis (its lowest level; its halves inherit
-  that clearance bound, still valid on them), while
-  its endpoint bound exceeds the tolerance (unless the family pins the endpoints by
-  construction; and where the error at its centre exceeds the tolerance by more than the
-  bound's gap above that error, only while the gap exceeds ``_ENDPOINT_RESOLUTION_M``: no cut
-  brings such a cell within the tolerance), or while it is below the margin, not yet proven
-  infeasible and close to being so, down to the smallest cell.
+* a leaf is cut further in two (its halves inherit that clearance bound, still valid on them)
+  while its endpoint bound exceeds the tolerance, along the axis with the largest share of
+  that bound's gap (``endpoints.endpoint_bounds_and_shares``; unless the family pins the
+  endpoints by construction; and where the error at its centre exceeds the tolerance by more
+  than the bound's gap above that error, only while the gap exceeds
+  ``_ENDPOINT_RESOLUTION_M``: no cut brings such a cell within the tolerance), or while it is
+  below the margin, not yet proven infeasible and close to being so, along its widest axis
+  (its lowest level), down to the smallest cell.
   Smallest cells still close to being proven infeasible get the sub-cell bound of
   ``endpoints.infeasibility_upper_bounds`` (the lower of the two valid upper bounds is kept);
 * smallest cells certified collision-free that still miss the margin without being proven
@@ -65,16 +66,15 @@ DEFAULT_ENDPOINT_TOLERANCE_M = 0.002
 DEFAULT_MIN_CELL = 1.0 / 1024
 #: Default cell size to which regions below the margin are resolved, fraction of the side.
 DEFAULT_BOUNDARY_CELL = 1.0 / 64
-#: Default (smallest cell, boundary cell) per number of axes: over (L, W, x) a cell of 1/2^d has
-#: 8^d of them in the box, so the cells stop coarser. On the default (L, W, x) build's
-#: coefficients (python -m pipeline.certify_range C --min-cell ...) the margin holds on 97.99 % of
-#: the box with cells of 1/128 (928,131 cells) and on 98.44 % with 1/256 (1,223,209 cells: the
-#: finer cells go only where the margin is lost), 99.01 % of the volume not proven infeasible.
+#: Default (smallest cell, boundary cell) per number of axes: over more axes a cell of 1/2^d has
+#: more of them in the box, so the cells stop coarser. On the default (L, W, x) build's
+#: coefficients (python -m pipeline.certify_range C) cells down to 1/256 give the margin on
+#: 98.50 % of the box in 790,196 cells (docs/results.md).
 DEFAULT_CELLS: Mapping[int, tuple[float, float]] = MappingProxyType(
     {
         2: (DEFAULT_MIN_CELL, DEFAULT_BOUNDARY_CELL),
         3: (1.0 / 256, 1.0 / 16),
-        4: (1.0 / 16, 1.0 / 8),  # (L, W, x, d): 16^4 = 65,536 cells; 1/32 would give about 1 M (some 230 MB of map)
+        4: (1.0 / 16, 1.0 / 8),  # (L, W, x, d)
     }
 )
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
