@@ -111,6 +111,7 @@ def certify_coefficients(
             certificate=replace(
                 map_config,
                 min_cell=max(map_config.min_cell, REFIT_MIN_CELLS[coefficients.variables.k]),
+                extra_depth=0,
                 strip_split=0,
             ),
             final_certificate=map_config,

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from pipeline.exceptions import InvalidParameterError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool
 from pipeline.validation import check_non_negative, check_positive_int
@@ -20,7 +22,9 @@ class CertificateSettings:
     Attributes:
         margin_m: The clearance the statuses refer to [m].
         endpoint_tolerance_m: The endpoint tolerance of the infeasibility certificate [m].
-        max_depth: Deepest level of a cell along any axis (cells of 1 / 2^max_depth of the range).
+        max_depth: Level of the smallest cell (cells of 1 / 2^max_depth of the range): a cell
+            whose levels sum to k times it is cut no further.
+        extra_depth: Levels beyond ``max_depth`` a cell may reach along one axis.
         max_depth_s: Deepest cut of s = t / T (intervals of 1 / 2^depth).
         strip_split: Halvings along W of the smallest cells that miss the margin without being
             proven infeasible (0: none; ``pipeline.certify.strip_split``).
@@ -31,6 +35,7 @@ class CertificateSettings:
     margin_m: float
     endpoint_tolerance_m: float
     max_depth: int
+    extra_depth: int = 0
     max_depth_s: int = 16
     strip_split: int = 0
     run_on: Executor = field(default_factory=LocalPool)
@@ -39,7 +44,15 @@ class CertificateSettings:
         check_non_negative("margin_m", self.margin_m)
         check_non_negative("endpoint_tolerance_m", self.endpoint_tolerance_m)
         check_positive_int("max_depth", self.max_depth, minimum=0)
+        check_positive_int("extra_depth", self.extra_depth, minimum=0)
         check_positive_int("max_depth_s", self.max_depth_s, minimum=1)
         check_positive_int("strip_split", self.strip_split, minimum=0)
         if not isinstance(self.run_on, LocalPool | DaskScheduler):
             raise InvalidParameterError("run_on", self.run_on, "a LocalPool or a DaskScheduler")
+
+    def open_axes(self, levels: np.ndarray) -> np.ndarray:
+        """Per cell (levels (n, k)) and axis, whether a cut along it is allowed: the axis is below
+        ``max_depth + extra_depth`` and the cell larger than the smallest cell's volume."""
+        levels = np.asarray(levels)
+        roomy = levels.sum(axis=1) < levels.shape[1] * self.max_depth
+        return (levels < self.max_depth + self.extra_depth) & roomy[:, None]

@@ -39,7 +39,7 @@ def default_config(
     pinned = coefficients.family.pins_endpoints
     if endpoint_tolerance_m is None:
         endpoint_tolerance_m = 0.0 if pinned else DEFAULT_ENDPOINT_TOLERANCE_M
-    default_min, default_boundary = DEFAULT_CELLS.get(coefficients.variables.k, DEFAULT_CELLS[3])
+    default_min, default_boundary, extra_depth = DEFAULT_CELLS.get(coefficients.variables.k, DEFAULT_CELLS[3])
     if min_cell is None:
         min_cell = default_min
     if boundary_cell is None:
@@ -49,6 +49,7 @@ def default_config(
         endpoint_tolerance_m=endpoint_tolerance_m,
         min_cell=min_cell,
         boundary_cell=min(boundary_cell, 1.0),
+        extra_depth=extra_depth,
         jobs=jobs,
         executor=executor,
     )

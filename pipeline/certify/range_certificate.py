@@ -66,15 +66,15 @@ DEFAULT_ENDPOINT_TOLERANCE_M = 0.002
 DEFAULT_MIN_CELL = 1.0 / 1024
 #: Default cell size to which regions below the margin are resolved, fraction of the side.
 DEFAULT_BOUNDARY_CELL = 1.0 / 64
-#: Default (smallest cell, boundary cell) per number of axes: over more axes a cell of 1/2^d has
-#: more of them in the box, so the cells stop coarser. On the default (L, W, x) build's
-#: coefficients (python -m pipeline.certify_range C) cells down to 1/256 give the margin on
-#: 98.50 % of the box in 790,196 cells (docs/results.md).
-DEFAULT_CELLS: Mapping[int, tuple[float, float]] = MappingProxyType(
+#: Default (smallest cell, boundary cell, extra depth) per number of axes: over more axes a cell
+#: of 1/2^d has more of them in the box, so the cells stop coarser; the extra depth lets a cell
+#: go that many halvings deeper along the axes that dominate its gap, at the smallest cell's
+#: volume (:class:`RangeCertificateConfig`). Measurements: docs/results.md.
+DEFAULT_CELLS: Mapping[int, tuple[float, float, int]] = MappingProxyType(
     {
-        2: (DEFAULT_MIN_CELL, DEFAULT_BOUNDARY_CELL),
-        3: (1.0 / 256, 1.0 / 16),
-        4: (1.0 / 16, 1.0 / 8),  # (L, W, x, d)
+        2: (DEFAULT_MIN_CELL, DEFAULT_BOUNDARY_CELL, 0),
+        3: (1.0 / 256, 1.0 / 16, 3),
+        4: (1.0 / 16, 1.0 / 8, 0),  # (L, W, x, d)
     }
 )
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
@@ -109,7 +109,12 @@ class RangeCertificateConfig:
     Attributes:
         margin_m: Clearance to certify [m]; None takes the coefficients' scene margin.
         endpoint_tolerance_m: Endpoint tolerance of the infeasibility certificate [m].
-        min_cell: Smallest cell, fraction of the fitted range's side (rounded down to 1 / 2^k).
+        min_cell: Smallest cell, fraction of the fitted range's side (rounded down to 1 / 2^k):
+            a cell is cut no further once its volume is the volume of a cube of that side.
+        extra_depth: Halvings beyond ``min_cell`` that a cell may take along one axis (at most
+            that smallest volume: the other axes stay coarser), so that cells cut along the
+            axes that dominate their gap resolve a contour across those axes finely (0: every
+            axis stops at ``min_cell``).
         boundary_cell: Cell size to which regions that miss the margin are resolved (fraction).
         max_depth_s: Deepest cut of s = t / T (intervals of 1 / 2^depth).
         jobs: Worker processes for the branch and bound and the bounds (unless ``executor``).
@@ -125,6 +130,7 @@ class RangeCertificateConfig:
     endpoint_tolerance_m: float = DEFAULT_ENDPOINT_TOLERANCE_M
     min_cell: float = DEFAULT_MIN_CELL
     boundary_cell: float = DEFAULT_BOUNDARY_CELL
+    extra_depth: int = 0
     max_depth_s: int = 16
     jobs: int = 1
     executor: Executor | None = None
@@ -140,6 +146,9 @@ class RangeCertificateConfig:
             if value > 1.0 or value < 2.0**-20:
                 raise InvalidParameterError(name, value, "a fraction of the range's side in [2^-20, 1]")
         check_positive_int("max_depth_s", self.max_depth_s, minimum=4)
+        check_positive_int("extra_depth", self.extra_depth, minimum=0)
+        if self.extra_depth > 6:
+            raise InvalidParameterError("extra_depth", self.extra_depth, "0..6 halvings beyond the smallest cell")
         check_positive_int("jobs", self.jobs)
         if self.executor is not None and not isinstance(self.executor, LocalPool | DaskScheduler):
             raise InvalidParameterError("executor", self.executor, "a LocalPool, a DaskScheduler or None")
@@ -164,6 +173,7 @@ class RangeCertificateConfig:
             margin_m=margin_m,
             endpoint_tolerance_m=self.endpoint_tolerance_m,
             max_depth=self.max_depth_lw,
+            extra_depth=self.extra_depth,
             max_depth_s=self.max_depth_s,
             strip_split=self.strip_split,
             run_on=self.run_on,
@@ -176,6 +186,7 @@ class RangeCertificateConfig:
         return SearchSettings(
             margin_m=margin_m,
             max_depth_lw=depth,
+            extra_depth_lw=self.extra_depth,
             boundary_depth_lw=boundary,
             max_depth_s=self.max_depth_s,
             initial_depth_lw=min(3, depth),
@@ -343,6 +354,49 @@ def _leaf_bounds(
     return out
 
 
+def _halves_upper_bounds(
+    model: RangeModel, c: np.ndarray, r: np.ndarray, open_axes: np.ndarray, tolerance_m: float, margin_m: float
+) -> np.ndarray:
+    """Per cell (centres, half widths (n, k) [m]) and axis, the lower of its two halves' endpoint
+    clearance upper bounds along that axis [m] (+inf along an axis not in ``open_axes``)."""
+    n, k = c.shape
+    out = np.full((n, k), np.inf)
+    for axis in range(k):
+        rows = np.flatnonzero(open_axes[:, axis])
+        if rows.size == 0:
+            continue
+        half = r[rows].copy()
+        half[:, axis] /= 2
+        shift = np.zeros_like(half)
+        shift[:, axis] = half[:, axis]
+        centres = np.concatenate([c[rows] - shift, c[rows] + shift])
+        upper = np.min(
+            endpoint_clearance_upper_bounds(model, centres, np.concatenate([half, half]), tolerance_m, margin_m), axis=1
+        )
+        out[rows, axis] = np.minimum(upper[: rows.size], upper[rows.size :])
+    return out
+
+
+def _infeasibility_axes(
+    model: RangeModel, levels: np.ndarray, index: np.ndarray, open_axes: np.ndarray, settings: CertificateSettings
+) -> np.ndarray:
+    """Per leaf close to being proven infeasible, the open axis to cut it along: the one whose
+    lower half's or upper half's endpoint clearance upper bound is lowest (each axis tried, as
+    interval subpavings try the directions of an undecided box). A choice of work: any axis
+    keeps the certificate sound."""
+    c, r = cell_boxes(model, levels, index)
+    parts = _in_chunks(
+        _halves_upper_bounds,
+        _SUB_CELL_CHUNK,
+        settings.run_on,
+        model,
+        (c, r, open_axes),
+        settings.endpoint_tolerance_m,
+        settings.margin_m,
+    )
+    return np.argmin(np.concatenate(parts), axis=1)
+
+
 def refine_leaves(
     model: RangeModel,
     leaves: list[np.ndarray],
@@ -383,7 +437,7 @@ def refine_leaves(
             endpoint[todo], centre_error[todo], upper[todo] = columns[:, :3].T
             shares[todo] = columns[:, 3:]
             bounded += int(np.count_nonzero(todo))
-        open_axes = levels < settings.max_depth
+        open_axes = settings.open_axes(levels)
         deep = np.any(open_axes, axis=1)
         close = (bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M)
         # A family that pins the endpoints has errors of rounding size: its bound is reported, not
@@ -401,10 +455,12 @@ def refine_leaves(
                 upper[close] = np.minimum(upper[close], sub)
             return arrays[:-4], endpoint, upper
         # Cut a loose leaf along the axis with the largest share of its endpoint bound's gap, one
-        # close to infeasible along its widest axis (the lowest level), among the axes not at the deepest.
-        widest = np.argmin(np.where(open_axes, levels, np.iinfo(np.int64).max), axis=1)
-        steepest = np.argmax(np.where(open_axes, shares, -np.inf), axis=1)
-        arrays = _split(arrays, rows, np.where(loose, steepest, widest)[rows])
+        # close to infeasible along the axis whose halves come closest to the proof, among the open axes.
+        axes = np.argmax(np.where(open_axes, shares, -np.inf), axis=1)
+        trial = rows & ~loose
+        if np.any(trial):
+            axes[trial] = _infeasibility_axes(model, levels[trial], index[trial], open_axes[trial], settings)
+        arrays = _split(arrays, rows, axes[rows])
         for column in arrays[-4:-1]:  # children get their own endpoint bounds
             column[-2 * np.count_nonzero(rows) :] = np.nan
 
@@ -520,8 +576,8 @@ def certify_range(
         The :class:`RegionMap`, linked to the coefficients by their sha256.
     """
     if config is None:
-        min_cell, boundary_cell = DEFAULT_CELLS[coefficients.variables.k]
-        config = RangeCertificateConfig(min_cell=min_cell, boundary_cell=boundary_cell)
+        min_cell, boundary_cell, extra_depth = DEFAULT_CELLS[coefficients.variables.k]
+        config = RangeCertificateConfig(min_cell=min_cell, boundary_cell=boundary_cell, extra_depth=extra_depth)
     start = time.perf_counter()
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     model = RangeModel.from_coefficients(coefficients)

@@ -53,7 +53,10 @@ class SearchSettings:
 
     Attributes:
         margin_m: Clearance the certificate tries to prove [m].
-        max_depth_lw: Deepest level along any axis (cells of 1 / 2^depth of its range).
+        max_depth_lw: Level of the smallest node (1 / 2^depth of the range along every axis): a
+            node whose levels sum to k times it is cut no further.
+        extra_depth_lw: Levels beyond ``max_depth_lw`` a node may reach along one axis (at the
+            smallest node's volume, the others coarser).
         boundary_depth_lw: Depth to which regions below the margin are resolved (a node as
             small as a cell of this depth along every axis: its levels sum to k times it).
         max_depth_s: Deepest s interval (1 / 2^depth).
@@ -66,6 +69,7 @@ class SearchSettings:
 
     margin_m: float = 0.01
     max_depth_lw: int = 8
+    extra_depth_lw: int = 0
     boundary_depth_lw: int = 6
     max_depth_s: int = 16
     initial_depth_lw: int = 2
@@ -77,6 +81,7 @@ class SearchSettings:
         check_non_negative("margin_m", self.margin_m)
         check_positive("resolution_m", self.resolution_m)
         check_positive_int("max_depth_lw", self.max_depth_lw, minimum=0)
+        check_positive_int("extra_depth_lw", self.extra_depth_lw, minimum=0)
         check_positive_int("max_depth_s", self.max_depth_s, minimum=0)
         check_positive_int("initial_depth_lw", self.initial_depth_lw, minimum=0)
         check_positive_int("initial_depth_s", self.initial_depth_s, minimum=0)
@@ -84,10 +89,16 @@ class SearchSettings:
         check_positive_int("max_boxes", self.max_boxes, minimum=1)
         if self.initial_depth_lw > self.max_depth_lw or self.initial_depth_s > self.max_depth_s:
             raise InvalidParameterError("initial_depth", (self.initial_depth_lw, self.initial_depth_s), "<= max depths")
-        if self.max_depth_lw > 20 or self.max_depth_s > 40:
+        if self.max_depth_lw + self.extra_depth_lw > 20 or self.max_depth_s > 40:
             raise InvalidParameterError(
-                "max_depth", (self.max_depth_lw, self.max_depth_s), "<= 20 (L, W) and <= 40 (s)"
+                "max_depth", (self.max_depth_lw + self.extra_depth_lw, self.max_depth_s), "<= 20 (axes) and <= 40 (s)"
             )
+
+    def open_axes(self, levels: np.ndarray) -> np.ndarray:
+        """Per node (levels (n, k)) and axis, whether a cut along it is allowed: the axis is below
+        ``max_depth_lw + extra_depth_lw`` and the node larger than the smallest node's volume."""
+        roomy = levels.sum(axis=1) < levels.shape[1] * self.max_depth_lw
+        return (levels < self.max_depth_lw + self.extra_depth_lw) & roomy[:, None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,29 +127,52 @@ class SearchLeaves:
 
 class _Nodes:
     """The nodes of one search, grown as they are cut: level and index (N, k), parent, the round
-    each was made in, the axis it is cut along (-1: not cut) and its lower half (the upper is next)."""
+    each was made in, the axis it is cut along (-1: not cut) and its lower half (the upper is next).
+    Stored with room to grow (doubled when full), so a round's cuts do not copy every node."""
 
     def __init__(self, levels: np.ndarray, index: np.ndarray) -> None:
         n = levels.shape[0]
-        self.level, self.index = levels.astype(np.int64), index.astype(np.int64)
-        self.parent, self.made = np.full(n, -1, dtype=np.int64), np.zeros(n, dtype=np.int64)
-        self.axis, self.child = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
+        self._size = n
+        self._level, self._index = levels.astype(np.int64), index.astype(np.int64)
+        self._parent, self._made = np.full(n, -1, dtype=np.int64), np.zeros(n, dtype=np.int64)
+        self._axis, self._child = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
+
+    level = property(lambda self: self._level[: self._size], doc="Levels (N, k).")
+    index = property(lambda self: self._index[: self._size], doc="Indices (N, k).")
+    parent = property(lambda self: self._parent[: self._size], doc="Parent node (N,), -1 for a root.")
+    made = property(lambda self: self._made[: self._size], doc="Round each node was made in (N,).")
+    axis = property(lambda self: self._axis[: self._size], doc="Axis each node is cut along (N,), -1: not cut.")
+    child = property(lambda self: self._child[: self._size], doc="Lower half of each node (N,), -1: not cut.")
+
+    def _reserve(self, extra: int) -> None:
+        """Room for ``extra`` more nodes (capacity doubled as needed; new rows not cut)."""
+        need = self._size + extra
+        if need <= self._axis.size:
+            return
+        capacity = max(need, 2 * self._axis.size)
+        for name in ("_level", "_index", "_parent", "_made", "_axis", "_child"):
+            old = getattr(self, name)
+            grown = np.full((capacity, *old.shape[1:]), -1, dtype=old.dtype)
+            grown[: self._size] = old[: self._size]
+            setattr(self, name, grown)
 
     def cut(self, nodes: np.ndarray, axes: np.ndarray, round_: int) -> None:
         """Cut ``nodes`` (not yet cut) in two along ``axes``: their halves are appended."""
-        first = self.level.shape[0] + 2 * np.arange(nodes.size)
-        self.axis[nodes], self.child[nodes] = axes, first
-        level = np.repeat(self.level[nodes], 2, axis=0)
-        index = np.repeat(self.index[nodes], 2, axis=0)
-        rows = np.arange(level.shape[0])
+        m = 2 * nodes.size
+        self._reserve(m)
+        first = self._size + 2 * np.arange(nodes.size)
+        self._axis[nodes], self._child[nodes] = axes, first
+        new = slice(self._size, self._size + m)
+        level = np.repeat(self._level[nodes], 2, axis=0)
+        index = np.repeat(self._index[nodes], 2, axis=0)
+        rows = np.arange(m)
         along = np.repeat(axes, 2)
         level[rows, along] += 1
         index[rows, along] = 2 * index[rows, along] + (rows % 2)
-        self.level, self.index = np.vstack([self.level, level]), np.vstack([self.index, index])
-        self.parent = np.concatenate([self.parent, np.repeat(nodes, 2)])
-        self.made = np.concatenate([self.made, np.full(level.shape[0], round_)])
-        self.axis = np.concatenate([self.axis, np.full(level.shape[0], -1)])
-        self.child = np.concatenate([self.child, np.full(level.shape[0], -1)])
+        self._level[new], self._index[new] = level, index
+        self._parent[new], self._made[new] = np.repeat(nodes, 2), round_
+        self._axis[new], self._child[new] = -1, -1
+        self._size += m
 
     def leaves(self, bound: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, ...]:
         """The uncut nodes' levels, indices and the least of the per-node ``bound`` and ``centre``
@@ -192,16 +226,17 @@ def initial_roots(k: int, depth: int) -> np.ndarray:
     return np.column_stack([np.full(grid.shape[0], depth), grid]).astype(np.int64)
 
 
-def _cut_along(nodes: _Nodes, rows_node: np.ndarray, gaps: np.ndarray, deepest: int, round_: int) -> None:
-    """Cut the nodes of ``rows_node`` not yet cut, each along its axis below ``deepest`` with the
-    largest summed share of the gap of its rows (``gaps``) (module docstring)."""
+def _cut_along(nodes: _Nodes, rows_node: np.ndarray, gaps: np.ndarray, settings: SearchSettings, round_: int) -> None:
+    """Cut the nodes of ``rows_node`` not yet cut, each along its open axis
+    (:meth:`SearchSettings.open_axes`) with the largest summed share of the gap of its rows
+    (``gaps``) (module docstring)."""
     fresh = nodes.axis[rows_node] < 0
     if not np.any(fresh):
         return
     unique, owner = np.unique(rows_node[fresh], return_inverse=True)
     score = np.zeros((unique.size, nodes.level.shape[1]))
     np.add.at(score, owner, gaps[fresh])
-    score[nodes.level[unique] >= deepest] = -np.inf
+    score[~settings.open_axes(nodes.level[unique])] = -np.inf
     nodes.cut(unique, np.argmax(score, axis=1), round_)
 
 
@@ -231,7 +266,7 @@ def search(
         closed.append((node[done], bound[done], centre[done]))
         round_ += 1
         lw_rows = np.flatnonzero(cut_lw)
-        _cut_along(nodes, node[lw_rows], gaps[lw_rows], settings.max_depth_lw, round_)
+        _cut_along(nodes, node[lw_rows], gaps[lw_rows], settings, round_)
         s_rows = np.flatnonzero(cut_s)
         first = nodes.child[node[lw_rows]]
         node, ds, js = (
@@ -268,7 +303,7 @@ def _decide(
     small = level.sum(axis=1) >= level.shape[1] * settings.boundary_depth_lw
     done |= out_of_reach & resolved & far & small
     can_s = ds < settings.max_depth_s
-    can_lw = np.any(level < settings.max_depth_lw, axis=1) | (nodes.axis[node] >= 0)
+    can_lw = np.any(settings.open_axes(level), axis=1) | (nodes.axis[node] >= 0)
     # Resolve the boundary of the margin over the axes before anything else.
     want_s = np.where(out_of_reach & resolved, False, split_s)
     # A box whose gap is dominated by the axes at the deepest node is closed: cutting s cannot help.

@@ -107,14 +107,25 @@ def test_moving_the_obstacle_under_the_same_motion_costs_clearance(eq9: Coeffici
             assert clearance_at(flat, arm, np.array([0.25, 0.1, x, s[k]])) >= b1[k] - 1e-12
 
 
-def test_search_leaves_tile_the_box_and_bound_the_clearance(eq9_x: Coefficients, arm: PlanarArm) -> None:
+@pytest.mark.parametrize("extra", [0, 2])
+def test_search_leaves_tile_the_box_and_bound_the_clearance(eq9_x: Coefficients, arm: PlanarArm, extra: int) -> None:
+    """With an extra depth, leaves go deeper than the smallest cell along some axis, never beyond
+    it, and never below the smallest cell's volume by more than one cut."""
     model = RangeModel.from_coefficients(eq9_x)
     settings = SearchSettings(
-        margin_m=0.01, max_depth_lw=3, boundary_depth_lw=2, initial_depth_lw=1, max_depth_s=10, resolution_m=2e-3
+        margin_m=0.01,
+        max_depth_lw=3,
+        extra_depth_lw=extra,
+        boundary_depth_lw=2,
+        initial_depth_lw=1,
+        max_depth_s=10,
+        resolution_m=2e-3,
     )
     found = search(model, settings)
     levels, index, bound = found.levels, found.index, found.bound_m
     assert index.shape == levels.shape == (bound.size, 3)
+    assert levels.max() <= 3 + extra and (levels.max() > 3) == (extra > 0)
+    assert levels.sum(axis=1).max() <= 3 * 3
     assert np.sum(2.0 ** -levels.sum(axis=1).astype(float)) == pytest.approx(1.0, abs=1e-12)
     centre, half = cell_boxes(model, levels, index)
     rng = np.random.default_rng(41)
@@ -146,11 +157,12 @@ def test_unsupported_axes_and_families_are_refused(eq9: Coefficients, over_x) ->
         )
 
 
-@pytest.fixture(scope="module")
-def eq9_x_map(eq9_x: Coefficients):
+@pytest.fixture(scope="module", params=[0, 2], ids=["cubes", "extra-depth"])
+def eq9_x_map(eq9_x: Coefficients, request):
     from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 
-    return certify_range(eq9_x, RangeCertificateConfig(min_cell=1 / 8, boundary_cell=1 / 4, max_depth_s=12))
+    config = RangeCertificateConfig(min_cell=1 / 8, boundary_cell=1 / 4, max_depth_s=12, extra_depth=request.param)
+    return certify_range(eq9_x, config)
 
 
 def test_map_over_x_names_its_axes_and_tiles_the_box(eq9_x: Coefficients, eq9_x_map) -> None:
