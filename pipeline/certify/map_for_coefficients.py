@@ -29,6 +29,7 @@ def default_config(
     endpoint_tolerance_m: float | None = None,
     min_cell: float | None = None,
     boundary_cell: float | None = None,
+    extra_depth: int | None = None,
     jobs: int = 1,
     executor: Executor | None = None,
 ) -> RangeCertificateConfig:
@@ -39,7 +40,9 @@ def default_config(
     pinned = coefficients.family.pins_endpoints
     if endpoint_tolerance_m is None:
         endpoint_tolerance_m = 0.0 if pinned else DEFAULT_ENDPOINT_TOLERANCE_M
-    default_min, default_boundary, extra_depth = DEFAULT_CELLS.get(coefficients.variables.k, DEFAULT_CELLS[3])
+    default_min, default_boundary, default_extra = DEFAULT_CELLS.get(coefficients.variables.k, DEFAULT_CELLS[3])
+    if extra_depth is None:
+        extra_depth = default_extra
     if min_cell is None:
         min_cell = default_min
     if boundary_cell is None:

@@ -114,6 +114,15 @@ def parser() -> argparse.ArgumentParser:
         f"{DEFAULT_MIN_CELL} over (L, W), {DEFAULT_CELLS[3][0]} over (L, W, x))",
     )
     p.add_argument(
+        "--extra-depth",
+        type=count_argument,
+        default=None,
+        metavar="E",
+        help="halvings beyond the smallest cell a cell may take along the axes that dominate its gap, at the "
+        f"smallest cell's volume, 0..6 [count] (default: {DEFAULT_CELLS[2][2]} over (L, W), {DEFAULT_CELLS[3][2]} "
+        "over (L, W, x))",
+    )
+    p.add_argument(
         "--witnesses",
         type=count_argument,
         default=0,
@@ -187,6 +196,7 @@ def _work(args: argparse.Namespace) -> int:
         endpoint_tolerance_m=args.endpoint_tolerance,
         min_cell=args.min_cell,
         boundary_cell=args.boundary_cell,
+        extra_depth=args.extra_depth,
         jobs=args.jobs,
         executor=executor,
     )

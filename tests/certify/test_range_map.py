@@ -115,6 +115,8 @@ def test_cli_writes_map_and_summary(tmp_path, capsys) -> None:
         ["paper", "--jobs", "-1"],
         ["paper", "--witnesses", "-1"],
         ["paper", "--witnesses", "two"],
+        ["paper", "--extra-depth", "7"],
+        ["paper", "--extra-depth", "-1"],
         ["/nonexistent/coefficients.json"],
     ],
 )
