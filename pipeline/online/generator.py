@@ -1,7 +1,9 @@
 """The online generator: coefficients + (L, W) -> the trajectory, in microseconds.
 
 Per query the generator checks its arguments in Python, then does all the arithmetic in one call
-of a compiled core (:func:`pipeline.online.kernel.query_core`, Numba):
+of a compiled core (:func:`pipeline.online.kernel.query_core`, Numba; called through its compiled
+entry, :data:`pipeline.online.kernel.query_core_entry`, since the checks have made every argument
+of the core's types):
 
 1. check L and W (numbers, finite, positive, larger than the rounded corners, not covering
    the arm's base): one :class:`pipeline.exceptions.ObstacleSizeError` naming L and W otherwise;
@@ -63,7 +65,7 @@ from pipeline.motion.families import EndpointContext, TrajectoryFamily
 from pipeline.motion.path import QuarticPath, constraint_points, desired_path
 from pipeline.motion.trajectory import JointTrajectory
 from pipeline.offline.coefficients import Coefficients
-from pipeline.online.kernel import FINITE, NO_TABLES, PARAMETERS, query_core
+from pipeline.online.kernel import NO_TABLES, query_core_entry
 from pipeline.online.query_state import QueryPlan, state_of
 
 OUT_OF_RANGE_POLICIES = ("warn", "error", "ignore")
@@ -296,38 +298,79 @@ def generate(
         RegionMapMismatchError: ``region_map`` was made for other coefficients.
     """
     try:
-        plan = coefficients.online_state.plan
+        state = coefficients.online_state
+        plan = state.plan
     except AttributeError:  # a first query (or not a Coefficients: refused)
-        plan = state_of(coefficients).plan
-    tables = _lookup_tables(coefficients, plan, region_map)
+        state = state_of(coefficients)
+        plan = state.plan
+    if region_map is ATTACHED or region_map is coefficients.region_map:  # checked when it was attached
+        tables = state.attached_tables
+    elif region_map is None:
+        tables = NO_TABLES
+    else:
+        tables = _given_tables(coefficients, plan, region_map)
     if out_of_range not in OUT_OF_RANGE_POLICIES:
         raise InvalidParameterError("out_of_range", out_of_range, f"one of {OUT_OF_RANGE_POLICIES}")
     if plan.extra or x is not None or d is not None:
-        c, top, y1, values = _placed(plan, x, d)
+        fixed, values = _placed(plan, x, d)
     else:  # coefficients over (L, W) alone: the scene's own pose
-        c, top, y1, values = plan.centre_x, plan.top, plan.y1, ()
+        fixed, values = plan.fixed, ()
     L, W = length_m, width_m
     if type(L) is not float or type(W) is not float or not (0.0 < L < math.inf and 0.0 < W < math.inf):
         L = _size(length_m, (length_m, width_m), "L")
         W = _size(width_m, (length_m, width_m), "W")
-    if not (L >= plan.smallest <= W and plan.height >= plan.smallest and top - W > 0.0):  # else the full check
-        _checked_bottom(plan, L, W, top)
-    beyond = (*values, math.nan, math.nan)  # the regression's variables past the obstacle's size
-    result = query_core(L, W, c, top, y1, beyond[0], beyond[1], *plan.core, *tables)
-    unreachable, radius, duration, inside, leaf, clearance, endpoint, status = result[: PARAMETERS.start]
+    if not L >= plan.size_floor <= W < fixed[1]:  # else the full check (W < d: d - W > 0 for floats)
+        _checked_bottom(plan, L, W, fixed[1])
+    result = query_core_entry(L, W, *fixed, *tables)  # every argument of the core's types, checked above
+    unreachable, _, duration, inside, leaf, clearance, endpoint, status, parameters, finite = result
+    if unreachable >= 0 or not (inside and finite and plan.direct) or duration != duration or values:
+        return _answer_of(coefficients, plan, result, L, W, fixed, values, out_of_range)
+    answer = object.__new__(GeneratedTrajectory)
+    fields = answer.__dict__  # as GeneratedTrajectory.trusted fills it, without a call
+    fields["length_m"] = L
+    fields["width_m"] = W
+    fields["family"] = coefficients.family
+    fields["scene"] = coefficients.scene
+    fields["trajectory"] = JointTrajectory.trusted(parameters, duration)
+    fields["extrapolated"] = False
+    fields["reach_m"] = plan.reach
+    if leaf >= 0:
+        fields["certified_clearance_m"] = clearance
+        fields["endpoint_error_bound_m"] = endpoint
+        fields["range_status"] = STATUSES[status]
+        fields["certificate_source"] = RANGE_SOURCE
+    return answer
+
+
+def _answer_of(
+    coefficients: Coefficients,
+    plan: QueryPlan,
+    result: tuple,
+    L: float,
+    W: float,
+    fixed: tuple,
+    values: tuple[float, ...],
+    out_of_range: str,
+) -> GeneratedTrajectory:
+    """The answer of a query that :func:`generate`'s common route does not cover, from the core's
+    ``result`` for L, W [m] and its arguments ``fixed``: an unreachable point (refused), outside the
+    fitted range (refused or warned as ``out_of_range`` says, attributed to :func:`generate`'s
+    caller), T by the general path where the closed form does not apply, a family that expands its
+    parameters, parameters that are not finite (refused), or ``values`` of extra variables."""
+    unreachable, radius, duration, inside, leaf, clearance, endpoint, status, parameters, finite = result
     if unreachable >= 0:  # P4 and P5 mirror P2 and P1: the first of P1..P3 to fail is named
         raise _unreachable(plan, unreachable, radius, (L, W), values)
     extrapolated = not inside
     if extrapolated and out_of_range != "ignore":
-        _check_range(plan, L, W, out_of_range, tuple(zip(plan.extra, values, plan.extra_ranges, strict=True)))
+        extra = tuple(zip(plan.extra, values, plan.extra_ranges, strict=True))
+        _check_range(plan, L, W, out_of_range, extra, stacklevel=4)  # _check_range, here, generate, its caller
+    c, top, y1 = fixed[:3]
     if duration != duration:  # NaN: approach_dx > start_dx, a scene the closed form does not cover
         centred = coefficients.scene.with_checked(centre_x_m=0.0, top_y_m=top)  # T does not depend on x
         duration = desired_path(Obstacle.in_scene(L, W, centred), centred).duration_s
     family = coefficients.family
-    if family.expands_to_itself:
-        parameters, finite = result[PARAMETERS], result[FINITE]
-    else:
-        parameters = _expanded(coefficients, plan, result[PARAMETERS], duration, c, y1, (L, W, *values))
+    if not family.expands_to_itself:
+        parameters = _expanded(coefficients, plan, parameters, duration, c, y1, (L, W, *values))
         finite = all(map(math.isfinite, parameters))
     if not finite:
         raise ObstacleSizeError("L, W", (L, W), "sizes at which the regression gives finite parameters", (L, W))
@@ -342,18 +385,16 @@ def generate(
     )
 
 
-def _lookup_tables(coefficients: Coefficients, plan: QueryPlan, region_map: RegionMap | _Attached | None):
-    """The lookup arrays of the map a query reads (:data:`NO_TABLES` without one, or for a map over
-    other axes), after checking a map given in place of the attached one.
+def _given_tables(coefficients: Coefficients, plan: QueryPlan, region_map: object):
+    """The lookup arrays of a map given in place of the attached one (:data:`NO_TABLES` for a map
+    over other axes), after checking it.
 
     Raises:
+        InvalidParameterError: ``region_map`` is not a :class:`RegionMap`.
         RegionMapMismatchError: ``region_map`` was made for other coefficients.
     """
-    if region_map is ATTACHED or region_map is coefficients.region_map:  # checked when it was attached
-        region_map = coefficients.region_map
-    elif region_map is not None:
-        check_region_map(region_map, coefficients)
-    return NO_TABLES if region_map is None or region_map.axes != plan.variables.names else region_map.lookup_tables
+    check_region_map(region_map, coefficients)
+    return NO_TABLES if region_map.axes != plan.variables.names else region_map.lookup_tables
 
 
 def _unreachable(plan: QueryPlan, point: int, radius: float, size: tuple[float, float], values: tuple):
@@ -385,7 +426,7 @@ def _expand_with_endpoints(
             f"{where}: the {family.name} family could not pin "
             "the tip to P1 and P5 for these parameters (A1 clamped); endpoints are approximate",
             InexactEndpointsWarning,
-            stacklevel=4,  # generate, _expanded, this
+            stacklevel=5,  # this, _expanded, _answer_of, generate: its caller
         )
     return full
 
@@ -431,11 +472,12 @@ def _extra_values(plan: QueryPlan, x: object, d: object) -> tuple[float | None, 
     return values.get("x"), values.get("d")
 
 
-def _placed(plan: QueryPlan, x: object, d: object) -> tuple[float, float, float, tuple[float, ...]]:
-    """The obstacle's centre x, far edge d and the height y1 of P1 and P5 [m] of a query giving ``x``
-    and ``d``, and the values of the coefficients' extra variables in their canonical order
-    (``plan.extra``); values missing for a variable of the coefficients, given for one they do not
-    vary, or not finite numbers are refused (:func:`_extra_values`)."""
+def _placed(plan: QueryPlan, x: object, d: object) -> tuple[tuple, tuple[float, ...]]:
+    """The core's arguments after L and W and before the map's arrays for a query giving ``x`` and
+    ``d`` (the obstacle's centre x, far edge d and the height y1 of P1 and P5 [m], the regression's
+    variables past L and W, then the plan's), and the values of the coefficients' extra variables
+    in their canonical order (``plan.extra``); values missing for a variable of the coefficients,
+    given for one they do not vary, or not finite numbers are refused (:func:`_extra_values`)."""
     if not (
         (type(x), type(d)) == plan.given_types
         and (x is None or -math.inf < x < math.inf)
@@ -444,7 +486,9 @@ def _placed(plan: QueryPlan, x: object, d: object) -> tuple[float, float, float,
         x, d = _extra_values(plan, x, d)
     values = (x,) if d is None else (d,) if x is None else (x, d)  # in canonical order, as plan.extra
     top = plan.top if d is None else d
-    return plan.centre_x if x is None else x, top, top if plan.y1_is_top else plan.y1, values
+    beyond = (*values, math.nan, math.nan)  # the regression's variables past the obstacle's size
+    pose = (plan.centre_x if x is None else x, top, top if plan.y1_is_top else plan.y1, beyond[0], beyond[1])
+    return (*pose, *plan.core), values
 
 
 def generate_parameters(

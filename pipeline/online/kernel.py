@@ -63,15 +63,15 @@ import numpy as np
 
 from pipeline.certify.lookup import NO_TABLES, bounds_of, leaf_of
 
-__all__ = ["FINITE", "NO_TABLES", "PARAMETERS", "plan_numbers", "query_core"]
+__all__ = ["FINITE", "NO_TABLES", "PARAMETERS", "compiled_entry", "plan_numbers", "query_core", "query_core_entry"]
 
 #: Where the plan's numbers start (:func:`plan_numbers`): the scene's and the reach's seven, then
 #: the fitted range's (lo, hi) of each of the k variables, then the regression, then the rule.
 _RANGES = 7
-#: Where :func:`query_core`'s result holds the regression's eight columns, and whether all are finite
-#: (the fields before them are named in its docstring, in order).
-PARAMETERS = slice(8, 16)
-FINITE = 16
+#: Where :func:`query_core`'s result holds the regression's eight columns (one tuple), and whether all
+#: are finite (the fields before them are named in its docstring, in order).
+PARAMETERS = 8
+FINITE = 9
 
 
 def plan_numbers(
@@ -130,19 +130,26 @@ def _duration(plan: np.ndarray, k: int, x1: float, x2: float, y2: float, y3: flo
     k1 = 2.0 * c2 * x1
     k3 = 4.0 * c4 * x1 * x1 * x1
     f1, f2, f3 = k1 * k1, 2.0 * k1 * k3, k3 * k3
+    # The rule's rows as views, indexed from 0: the compiler then drops the negative-index checks.
+    ones, u2, u4, u6 = (
+        plan[rule : rule + nodes],
+        plan[rule + nodes : rule + 2 * nodes],
+        plan[rule + 2 * nodes : rule + 3 * nodes],
+        plan[rule + 3 * nodes : rule + 4 * nodes],
+    )
+    weights = plan[rule + 4 * nodes : rule + 5 * nodes]
     total = 0.0
-    for j in range(rule, rule + nodes):
-        q = plan[j] + f1 * plan[j + nodes]
-        q = q + f2 * plan[j + 2 * nodes]
-        q = q + f3 * plan[j + 3 * nodes]
-        total += math.sqrt(q) * plan[j + 4 * nodes]
+    for j in range(nodes):
+        q = ones[j] + f1 * u2[j]
+        q = q + f2 * u4[j]
+        q = q + f3 * u6[j]
+        total += math.sqrt(q) * weights[j]
     return 2.0 * x1 * total / speed
 
 
 @numba.njit(
-    "Tuple((int64, float64, float64, boolean, int64, float64, float64, int64, float64, float64, float64, float64,"
-    " float64, float64, float64, float64, boolean))(float64, float64, float64, float64, float64, float64, float64,"
-    " int64, float64[::1], int32[::1], float64[::1])",
+    "Tuple((int64, float64, float64, boolean, int64, float64, float64, int64, UniTuple(float64, 8), boolean))"
+    "(float64, float64, float64, float64, float64, float64, float64, int64, float64[::1], int32[::1], float64[::1])",
     cache=True,
     nogil=True,
 )
@@ -164,12 +171,12 @@ def query_core(
 
     Returns:
         (unreachable, radius_m, duration_s, inside, leaf, clearance_bound_m, endpoint_bound_m,
-        status, p0, ..., p7, finite): the number (0-4) of the first of P1..P5 outside the reach
+        status, (p0, ..., p7), finite): the number (0-4) of the first of P1..P5 outside the reach
         annulus or -1, and its distance from the base [m] (NaN if none); T [s] (NaN where the
         path's closed form does not apply: P2 not between the centre and P1); True inside the
         fitted range; the map's leaf (-1 outside it or without a map) with its two bounds [m]
         and its status (index into ``STATUSES``; NaN, NaN, -1 without a leaf); the regression's
-        eight columns; True if all eight are finite.
+        eight columns, as one tuple; True if all eight are finite.
     """
     start_dx, approach_dx, approach_dy, apex_dy, speed, reach_lo, reach_hi = (
         plan[0], plan[1], plan[2], plan[3], plan[4], plan[5], plan[6],
@@ -214,7 +221,22 @@ def query_core(
         leaf = leaf_of(index, bounds, k, length_m, width_m, v2, v3)
         if leaf >= 0:
             clearance, endpoint, status = bounds_of(bounds, k, leaf)
-    return (
-        unreachable, radius, duration, inside, leaf, clearance, endpoint, status,
-        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], finite,
-    )  # fmt: skip
+    return unreachable, radius, duration, inside, leaf, clearance, endpoint, status, p, finite
+
+
+def compiled_entry(dispatcher):
+    """The Python entry of the machine code of a function compiled for one signature. Called
+    directly, it skips the dispatcher's matching of the arguments' types against its signatures
+    (about a quarter of a microsecond a call), so its caller must pass exactly the signature's
+    types (Python floats and ints, C-contiguous arrays of its dtypes). The dispatcher itself where
+    there is no such entry (e.g. with ``NUMBA_DISABLE_JIT``)."""
+    try:
+        (signature,) = dispatcher.signatures
+        return dispatcher.overloads[signature].entry_point
+    except (AttributeError, KeyError, TypeError, ValueError):
+        return dispatcher
+
+
+#: :func:`query_core`'s compiled entry (:func:`compiled_entry`): for callers that have checked the
+#: types of its arguments, as :func:`pipeline.online.generator.generate` does.
+query_core_entry = compiled_entry(query_core)

@@ -10,11 +10,13 @@ coefficients): no module-level cache holds any of it. A copy of the coefficients
 
 from __future__ import annotations
 
+import math
 from functools import cached_property
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from pipeline.certify.lookup import NO_TABLES, LookupTables
 from pipeline.exceptions import InvalidParameterError
 from pipeline.model.kinematics import reach_annulus_m
 from pipeline.model.scene import Scene
@@ -52,6 +54,7 @@ class QueryPlan(NamedTuple):
     apex_dy: float
     speed: float
     smallest: float  # smallest L and W: twice the corner radius [m]
+    size_floor: float  # smallest, or inf where the obstacle's height is below it (every query is refused)
     corner_radius: float
     height: float
     variables: Variables
@@ -62,6 +65,8 @@ class QueryPlan(NamedTuple):
     centre_x: float  # the scene's centre x [m], for coefficients that do not vary x
     y1_is_top: bool  # y1 = d (the scene's start_y_m is None): a value of d moves P1 and P5 too
     core: tuple  # the compiled core's arguments after the query's five numbers, before the map's tables
+    fixed: tuple  # the core's arguments after L and W, before the map's tables, at the scene's own pose
+    direct: bool  # the family's parameters are the regression's (its expand is the identity)
 
 
 class QueryState:
@@ -75,6 +80,16 @@ class QueryState:
     def __init__(self, coefficients: Coefficients) -> None:
         self.coefficients = coefficients
         self.plan = _built_plan(coefficients)
+
+    @cached_property
+    def attached_tables(self) -> LookupTables:
+        """The lookup arrays of the coefficients' attached map (checked when it was attached), built
+        on first use; :data:`pipeline.certify.lookup.NO_TABLES` without one, or for a map over other
+        axes than their variables."""
+        region_map = self.coefficients.region_map
+        if region_map is None or region_map.axes != self.plan.variables.names:
+            return NO_TABLES
+        return region_map.lookup_tables
 
     @cached_property
     def arm(self) -> PlanarArm:
@@ -142,19 +157,21 @@ def _built_plan(coefficients: Coefficients) -> QueryPlan:
     variables = coefficients.variables
     ranges = [tuple(coefficients.fitted_range_m[name]) for name in variables.names]
     core = _core_arguments(matrix, variables, scene, ranges, reach_annulus_m(coefficients.link_lengths_m))
+    smallest, top, nan_pair = 2.0 * float(scene.corner_radius_m), float(scene.top_y_m), (math.nan, math.nan)
     plan = QueryPlan(
         matrix_t=matrix,
         l_range=tuple(coefficients.fitted_range_m["L"]),
         w_range=tuple(coefficients.fitted_range_m["W"]),
         reach=reach_annulus_m(coefficients.link_lengths_m),
-        top=float(scene.top_y_m),
+        top=top,
         y1=float(scene.y1_m),
         start_dx=float(scene.start_dx_m),
         approach_dx=float(scene.approach_dx_m),
         approach_dy=float(scene.approach_dy_m),
         apex_dy=float(scene.apex_dy_m),
         speed=float(scene.speed_m_s),
-        smallest=2.0 * float(scene.corner_radius_m),
+        smallest=smallest,
+        size_floor=smallest if float(scene.obstacle_height_m) >= smallest else math.inf,
         corner_radius=float(scene.corner_radius_m),
         height=float(scene.obstacle_height_m),
         variables=variables,
@@ -164,6 +181,8 @@ def _built_plan(coefficients: Coefficients) -> QueryPlan:
         centre_x=float(scene.centre_x_m),
         y1_is_top=scene.start_y_m is None,
         core=core,
+        fixed=(float(scene.centre_x_m), top, float(scene.y1_m), *nan_pair, *core),
+        direct=coefficients.family.expands_to_itself,
     )
     return plan
 
