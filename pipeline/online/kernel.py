@@ -227,9 +227,12 @@ def query_core(
 def compiled_entry(dispatcher):
     """The Python entry of the machine code of a function compiled for one signature. Called
     directly, it skips the dispatcher's matching of the arguments' types against its signatures
-    (about a quarter of a microsecond a call), so its caller must pass exactly the signature's
-    types (Python floats and ints, C-contiguous arrays of its dtypes). The dispatcher itself where
-    there is no such entry (e.g. with ``NUMBA_DISABLE_JIT``)."""
+    (about a quarter of a microsecond a call) and gives the dispatcher's answer for the signature's
+    types. A number is converted as the dispatcher converts it and an array of another dtype is
+    refused with a TypeError, but an array's layout is not checked (a strided array would be read
+    as if contiguous): every array given must be C-contiguous, as the plan (:func:`plan_numbers`)
+    and a map's lookup arrays are. The dispatcher itself where there is no such entry (e.g. with
+    ``NUMBA_DISABLE_JIT``)."""
     try:
         (signature,) = dispatcher.signatures
         return dispatcher.overloads[signature].entry_point

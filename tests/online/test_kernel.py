@@ -20,7 +20,7 @@ from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import constraint_points
 from pipeline.offline.variables import Variables
 from pipeline.online.generator import generate
-from pipeline.online.kernel import NO_TABLES, query_core
+from pipeline.online.kernel import NO_TABLES, _duration, query_core, query_core_entry
 from pipeline.online.query_state import state_of
 
 X_RANGE = (-0.03, 0.03)
@@ -37,15 +37,53 @@ def paper_xd(paper, over_xd):
     return over_xd(paper, X_RANGE, D_RANGE, seed=3, scale=0.05)
 
 
-def core(coefficients, L, W, x=None, d=None, tables=NO_TABLES):
-    """query_core's answer for one query, its arguments made as the generator makes them."""
+def core_arguments(coefficients, L, W, x=None, d=None, tables=NO_TABLES) -> tuple:
+    """query_core's arguments for one query, made as the generator makes them."""
     plan = state_of(coefficients).plan
     c = plan.centre_x if x is None else x
     top = plan.top if d is None else d
     y1 = top if plan.y1_is_top else plan.y1
     given = {"x": x, "d": d}
     beyond = (*(given[name] for name in plan.extra), math.nan, math.nan)
-    return query_core(L, W, c, top, y1, beyond[0], beyond[1], *plan.core, *tables)
+    return (L, W, c, top, y1, beyond[0], beyond[1], *plan.core, *tables)
+
+
+def core(coefficients, L, W, x=None, d=None, tables=NO_TABLES):
+    """query_core's answer for one query, its arguments made as the generator makes them."""
+    return query_core(*core_arguments(coefficients, L, W, x, d, tables))
+
+
+def same_bits(a, b) -> bool:
+    """True if two of the core's answers hold the same values, bit for bit (NaN equal to NaN)."""
+    flat = [np.array(v if isinstance(v, tuple) else [v], dtype=float) for v in (*a, *b)]
+    half = len(flat) // 2
+    return all(
+        np.array_equal(u.view(np.int64), v.view(np.int64)) for u, v in zip(flat[:half], flat[half:], strict=True)
+    )
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.floats(0.1, 0.4), st.floats(0.05, 0.15), st.floats(*X_RANGE), st.floats(*D_RANGE))
+def test_the_compiled_entry_is_the_dispatchers_core(paper, paper_x, paper_xd, L, W, x, d) -> None:
+    """The generator's route into the core (query_core_entry, past the dispatcher's type matching)
+    gives the dispatcher's answer, bit for bit, and is not the dispatcher itself."""
+    assert query_core_entry is not query_core
+    for coefficients, given_values in ((paper, {}), (paper_x, {"x": x}), (paper_xd, {"x": x, "d": d})):
+        arguments = core_arguments(coefficients, L, W, **given_values)
+        assert all(a.flags.c_contiguous for a in arguments if isinstance(a, np.ndarray))
+        assert same_bits(query_core_entry(*arguments), query_core(*arguments))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.1, 0.3), st.floats(0.01, 0.1), st.floats(0.1, 0.5), st.floats(0.05, 0.4), st.floats(0.1, 0.5))
+def test_t_is_its_source_run_by_the_interpreter(paper, x1, gap, y1, y3, rise) -> None:
+    """The compiled T is the rule's sum as its source writes it (left to right, no operation fused or
+    reordered by the compiler): equal, bit for bit, to the same function run by Python."""
+    k, plan = state_of(paper).plan.core
+    x2 = x1 - gap if x1 > gap else x1 / 2.0
+    arguments = (plan, k, x1, x2, y3 + rise, y3, y1, paper.scene.speed_m_s)
+    compiled, interpreted = _duration(*arguments), float(_duration.py_func(*arguments))
+    assert np.array_equal(np.array(compiled).view(np.int64), np.array(interpreted).view(np.int64))
 
 
 @settings(max_examples=200, deadline=None)
@@ -118,6 +156,7 @@ def test_the_leaf_is_the_maps(paper, paper_x, paper_xd, leaf_map, axes) -> None:
     expected = map_.leaf_indices(*points.T)
     assert np.all(expected >= 0)
     tables = map_.lookup_tables
+    assert tables.index.flags.c_contiguous and tables.bounds.flags.c_contiguous  # as query_core_entry reads them
     found, bounds = [], []
     for point in points.tolist():
         L, W, *rest = point
