@@ -43,11 +43,13 @@ __all__ = [
     "check_output_folder",
     "count_argument",
     "describe_coefficients",
+    "finite_positive",
     "jobs_count",
     "limits_from_options",
     "load_coefficients_for_cli",
     "run_cli",
     "usage_error",
+    "worker_timeout",
 ]
 
 #: Exit status: success, or every check passed.
@@ -176,7 +178,7 @@ def load_coefficients_for_cli(source: str | Path) -> Coefficients:
     return load_coefficients(source)
 
 
-def _finite_positive(flag: str, unit: str):
+def finite_positive(flag: str, unit: str):
     """An argparse type for ``flag``: a finite value > 0 [``unit``] (zero, negative, NaN and inf refused)."""
 
     def parse(text: str) -> float:
@@ -197,7 +199,7 @@ def _add_limit_argument(parser: argparse.ArgumentParser, flag: str, kind: str, u
     parser.add_argument(
         flag,
         nargs=2,
-        type=_finite_positive(flag, unit),
+        type=finite_positive(flag, unit),
         default=None,
         metavar=(f"{letter}1", f"{letter}2"),
         help=f"the arm's joint {kind} limits [{unit}] (URDF carries none): {use}",
@@ -229,7 +231,7 @@ def add_jerk_limit_argument(parser: argparse.ArgumentParser, use: str) -> None:
     _add_limit_argument(parser, "--jerk-limit", "jerk", "rad/s^3", use)
 
 
-def _worker_timeout(text: str) -> float:
+def worker_timeout(text: str) -> float:
     """argparse type of ``--worker-timeout``: a finite time > 0 [s]."""
     try:
         value = float(text)
@@ -251,7 +253,7 @@ def add_scheduler_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--worker-timeout",
-        type=_worker_timeout,
+        type=worker_timeout,
         default=DEFAULT_WORKER_TIMEOUT_S,
         metavar="SECONDS",
         help="with --scheduler: how long to wait for its first worker before any work; none by then is refused [s]",

@@ -6,7 +6,7 @@ as a rule (P1 out of reach, or the end poses inside the obstacle). :func:`window
 asks :func:`pipeline.offline.scene_window.scene_window` for the window of d over the build's
 own range (L, W and, when the build varies it, x, on the same grids as its pre-check), and
 :func:`scene_for_arm` puts the recommended value into the configuration and runs the build's
-own pre-check (``pipeline.build.doe_fit._check_before_work``) on the result, so a
+own pre-check (``pipeline.build.doe_fit.check_before_work``) on the result, so a
 configuration it returns passes it. ``python -m pipeline.build --urdf FILE`` without
 ``--top-y`` or ``--scene`` calls it; ``python -m pipeline.scene`` prints the window.
 """
@@ -16,8 +16,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from pipeline.build.config import BuildConfig
-from pipeline.build.doe_fit import EXTRA_GRID_POINTS
-from pipeline.build.doe_fit import _check_before_work as check_before_work  # the build's own pre-check
+from pipeline.build.doe_fit import EXTRA_GRID_POINTS, check_before_work
 from pipeline.exceptions import InvalidParameterError
 from pipeline.model.arm import PlanarArm
 from pipeline.offline.convergence import GRID_POINTS

@@ -55,7 +55,7 @@ from pipeline.offline.experiment import ExperimentResult, SolverConfig, score_pa
 from pipeline.offline.fitness import FitnessProblem, fitness_problem
 from pipeline.offline.variables import SIZE
 
-__all__ = ["DOE_STAGE", "DoeFit", "fit_doe", "fit_variables"]
+__all__ = ["DOE_STAGE", "DoeFit", "check_before_work", "fit_doe", "fit_variables"]
 
 #: Progress stage name of the DOE.
 DOE_STAGE = "DOE"
@@ -141,7 +141,7 @@ def _grid_groups(config: BuildConfig, arm: PlanarArm) -> list[_GridGroup]:
     return groups
 
 
-def _check_before_work(config: BuildConfig, arm: PlanarArm) -> list[_GridGroup]:
+def check_before_work(config: BuildConfig, arm: PlanarArm) -> list[_GridGroup]:
     """Every run's path and IK, and those of a grid over the range (where no end pose may
     collide), before any PSO; returns the grid for the check after the regression. Over more
     variables than (L, W), the regression's endpoint grid too."""
@@ -251,7 +251,7 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
             the arm cannot pass or whose end pose collides (before any work).
     """
     started = time.perf_counter()
-    grid = _check_before_work(config, arm)
+    grid = check_before_work(config, arm)
     checks_s = time.perf_counter() - started
     solver, design = config.solver(), config.design.scaled_design()
     total, done = len(design.points()), []

@@ -29,9 +29,17 @@ from pipeline.build.options import BUILD_OPTIONS, GROUPS, OPTIONS, SETTINGS, Opt
 from pipeline.build.run import stage_summary
 from pipeline.certify.certifiable_regression import clearance_refit_lines
 from pipeline.certify.map_for_coefficients import summary_lines
-from pipeline.cli import EXIT_FAILED, EXIT_OK, Parser, add_progress_argument, count_argument, jobs_count, run_cli
-from pipeline.cli import _finite_positive as finite_positive  # the argparse types the other commands use
-from pipeline.cli import _worker_timeout as worker_timeout
+from pipeline.cli import (
+    EXIT_FAILED,
+    EXIT_OK,
+    Parser,
+    add_progress_argument,
+    count_argument,
+    finite_positive,
+    jobs_count,
+    run_cli,
+    worker_timeout,
+)
 from pipeline.commands.regress import OVERWRITE_RULE
 from pipeline.exceptions import BuildNotConvergedError
 from pipeline.io.output_paths import check_output_folder

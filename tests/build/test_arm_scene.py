@@ -9,7 +9,7 @@ import pytest
 
 from pipeline.build.arm_scene import scene_for_arm, window_for_build
 from pipeline.build.config import BuildConfig
-from pipeline.build.doe_fit import _check_before_work as check_before_work
+from pipeline.build.doe_fit import check_before_work
 from pipeline.exceptions import InfeasibleSceneError, InvalidParameterError, NoSceneWindowError
 from pipeline.model.arm import load_planar_arm
 from pipeline.model.scene import Scene

@@ -13,7 +13,7 @@ import pytest
 
 from pipeline.build.arm_scene import config_at
 from pipeline.build.config import BuildConfig
-from pipeline.build.doe_fit import _check_before_work as check_before_work
+from pipeline.build.doe_fit import check_before_work
 from pipeline.exceptions import (
     InfeasibleSceneError,
     InvalidParameterError,
