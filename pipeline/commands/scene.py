@@ -14,19 +14,29 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
-from pathlib import Path
+from dataclasses import replace
 from types import MappingProxyType
 from typing import TextIO
 
 from pipeline.build.arm_scene import check_before_work, config_at, window_for_build
 from pipeline.build.config import SCENE_OPTIONS, BuildConfig, scene_from_options, vary_name
+from pipeline.build.options import BUILD_OPTIONS
 from pipeline.cli import EXIT_OK, Parser, run_cli
+from pipeline.commands.build import add_option
 from pipeline.exceptions import InvalidParameterError
-from pipeline.model.arm import DEFAULT_URDF, load_planar_arm
-from pipeline.model.scene import Scene
+from pipeline.model.arm import load_planar_arm
 from pipeline.offline.designs import DEFAULT_RANGES_M
 
 PROG = "python -m pipeline.scene"
+#: The build's options this command takes, as the build declares them.
+_BUILD_FLAGS = ("--urdf", "--L-range", "--W-range", "--scene", "--start-y", "--margin", "--corner-radius")
+_DECLARED = MappingProxyType(
+    {
+        option.flag: replace(option, details="") if option.flag == "--urdf" else option  # nothing is copied here
+        for option in BUILD_OPTIONS
+        if option.flag in _BUILD_FLAGS
+    }
+)
 #: Scene options besides --top-y (the value this command finds) that change the window.
 _SCENE_FLAGS = MappingProxyType(
     {name: flag for name, flag in SCENE_OPTIONS.items() if name in ("start_y_m", "margin_m", "corner_radius_m")}
@@ -34,8 +44,8 @@ _SCENE_FLAGS = MappingProxyType(
 
 
 def parser() -> Parser:
-    """The command line's options (ranges and scene as ``python -m pipeline.build``'s)."""
-    d, scene = BuildConfig().design, Scene()
+    """The command line's options: the arm, ranges and scene as ``python -m pipeline.build``
+    declares them (:data:`pipeline.build.options.BUILD_OPTIONS`), and this command's own."""
     p = Parser(
         prog=PROG,
         description="Find the window of d, the y of the obstacle's far edge (--top-y of python -m pipeline.build), "
@@ -45,13 +55,9 @@ def parser() -> Parser:
         epilog="Exit status: 0 window found, 2 bad input or no d fits (one line naming the constraints), 130 "
         "interrupted.",
     )
-    p.add_argument("--urdf", type=Path, default=DEFAULT_URDF, help="URDF of the arm (default: the paper's arm)")
-    p.add_argument(
-        "--L-range", nargs=2, type=float, default=list(d.length_range_m), metavar=("MIN", "MAX"), help="L range [m]"
-    )
-    p.add_argument(
-        "--W-range", nargs=2, type=float, default=list(d.width_range_m), metavar=("MIN", "MAX"), help="W range [m]"
-    )
+    settings = BuildConfig().settings()
+    for flag in _BUILD_FLAGS[:3]:
+        add_option(p, _DECLARED[flag], settings)
     p.add_argument(
         "--vary",
         nargs="+",
@@ -60,20 +66,8 @@ def parser() -> Parser:
         help=f"the build varies the obstacle's centre x over [MIN, MAX] [m] too (default range: "
         f"{' '.join(f'{v:g}' for v in DEFAULT_RANGES_M['x'])})",
     )
-    p.add_argument(
-        "--scene", type=Path, metavar="FILE", help="scene file (TOML or JSON) as python -m pipeline.build reads it"
-    )
-    p.add_argument("--start-y", type=float, dest="start_y_m", metavar="M", help="y1 = y5 [m] (default: d)")
-    p.add_argument(
-        "--margin", type=float, dest="margin_m", metavar="M", help=f"safety margin [m] (default: {scene.margin_m})"
-    )
-    p.add_argument(
-        "--corner-radius",
-        type=float,
-        dest="corner_radius_m",
-        metavar="M",
-        help=f"obstacle corner radius [m] (default: {scene.corner_radius_m})",
-    )
+    for flag in _BUILD_FLAGS[3:]:
+        add_option(p, _DECLARED[flag], settings)
     p.add_argument(
         "--end-pose-clearance",
         type=float,

@@ -107,3 +107,19 @@ def test_the_module_runs_as_a_command() -> None:
         [sys.executable, "-m", "pipeline.scene", "--help"], capture_output=True, text=True, cwd=ROOT, timeout=120
     )
     assert done.returncode == 0 and "usage: python -m pipeline.scene" in done.stdout
+
+
+def test_the_options_shared_with_the_build_are_the_builds_declaration() -> None:
+    """--L-range, --W-range and the scene's options read as the build's (one declaration): the
+    same help, default, type and destination; changing one in the declaration changes both."""
+    from pipeline.commands import build, scene
+
+    def actions(parser):
+        return {flag: action for action in parser._actions for flag in action.option_strings}
+
+    ours, builds = actions(scene.parser()), actions(build.parser())
+    for flag in ("--L-range", "--W-range", "--scene", "--start-y", "--margin", "--corner-radius"):
+        a, b = ours[flag], builds[flag]
+        assert (a.help, a.default, a.dest, a.nargs, a.metavar) == (b.help, b.default, b.dest, b.nargs, b.metavar)
+        assert (a.type is None) == (b.type is None)
+    assert ours["--urdf"].default == builds["--urdf"].default
