@@ -113,6 +113,7 @@ def certify_coefficients(
                 min_cell=max(map_config.min_cell, REFIT_MIN_CELLS[coefficients.variables.k]),
                 extra_depth=0,
                 strip_split=0,
+                merge_spread_m=0.0,
             ),
             final_certificate=map_config,
             endpoint=EndpointConstraint(tolerance_m=tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM).for_variables(

@@ -11,7 +11,12 @@ from dataclasses import replace
 import numpy as np
 
 from pipeline.certify.execution_range import execution_bounds
-from pipeline.certify.range_certificate import DEFAULT_CELLS, DEFAULT_ENDPOINT_TOLERANCE_M, RangeCertificateConfig
+from pipeline.certify.range_certificate import (
+    DEFAULT_CELLS,
+    DEFAULT_ENDPOINT_TOLERANCE_M,
+    DEFAULT_MERGE_SPREAD_M,
+    RangeCertificateConfig,
+)
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import DEFAULT_MAP_NAME, STATUSES, RegionMap
 from pipeline.io.executor import Executor
@@ -30,6 +35,7 @@ def default_config(
     min_cell: float | None = None,
     boundary_cell: float | None = None,
     extra_depth: int | None = None,
+    merge_spread_m: float | None = None,
     jobs: int = 1,
     executor: Executor | None = None,
 ) -> RangeCertificateConfig:
@@ -43,6 +49,8 @@ def default_config(
     default_min, default_boundary, default_extra = DEFAULT_CELLS.get(coefficients.variables.k, DEFAULT_CELLS[3])
     if extra_depth is None:
         extra_depth = default_extra
+    if merge_spread_m is None:
+        merge_spread_m = DEFAULT_MERGE_SPREAD_M.get(coefficients.variables.k, DEFAULT_MERGE_SPREAD_M[3])
     if min_cell is None:
         min_cell = default_min
     if boundary_cell is None:
@@ -53,6 +61,7 @@ def default_config(
         min_cell=min_cell,
         boundary_cell=min(boundary_cell, 1.0),
         extra_depth=extra_depth,
+        merge_spread_m=merge_spread_m,
         jobs=jobs,
         executor=executor,
     )

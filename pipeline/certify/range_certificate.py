@@ -47,6 +47,7 @@ from pipeline.certify.endpoints import (
     endpoint_error_bounds,
     infeasibility_upper_bounds,
 )
+from pipeline.certify.leaf_merge import merge_leaves
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
 from pipeline.certify.search import SearchLeaves, SearchSettings, cell_boxes, initial_roots, node_boxes, search
@@ -79,6 +80,10 @@ DEFAULT_CELLS: Mapping[int, tuple[float, float, int]] = MappingProxyType(
         4: (1.0 / 16, 1.0 / 8, 0),  # (L, W, x, d)
     }
 )
+#: Default spread [m] within which sibling leaves' bounds must agree to be stored as their parent
+#: (``pipeline.certify.leaf_merge``), per number of axes; 0: none merged. Over (L, W) the map is
+#: small as it is and keeps every leaf's own bounds.
+DEFAULT_MERGE_SPREAD_M: Mapping[int, float] = MappingProxyType({2: 0.0, 3: 1e-4, 4: 1e-4})
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
 #: within this of the margin [m].
 _INFEASIBILITY_REFINE_M = 1e-3
@@ -126,6 +131,9 @@ class RangeCertificateConfig:
         max_boxes: Budget of box evaluations per worker task.
         strip_split: Halvings along W of the smallest cells that miss the margin without being
             proven infeasible (0: none; ``pipeline.certify.strip_split``).
+        merge_spread_m: Sibling leaves of one status whose clearance bounds, and endpoint bounds,
+            differ by at most this are stored as their parent [m] (``pipeline.certify.leaf_merge``;
+            0: none).
     """
 
     margin_m: float | None = None
@@ -138,6 +146,7 @@ class RangeCertificateConfig:
     executor: Executor | None = None
     max_boxes: int = 5_000_000
     strip_split: int = DEFAULT_STRIP_SPLIT
+    merge_spread_m: float = 0.0
 
     def __post_init__(self) -> None:
         if self.margin_m is not None:
@@ -156,6 +165,7 @@ class RangeCertificateConfig:
             raise InvalidParameterError("executor", self.executor, "a LocalPool, a DaskScheduler or None")
         check_positive_int("max_boxes", self.max_boxes)
         check_positive_int("strip_split", self.strip_split, minimum=0)
+        check_non_negative("merge_spread_m", self.merge_spread_m)
         if self.strip_split > 6:
             raise InvalidParameterError("strip_split", self.strip_split, "0..6 halvings along W")
 
@@ -584,8 +594,14 @@ def certify_range(
         The :class:`RegionMap`, linked to the coefficients by their sha256.
     """
     if config is None:
-        min_cell, boundary_cell, extra_depth = DEFAULT_CELLS[coefficients.variables.k]
-        config = RangeCertificateConfig(min_cell=min_cell, boundary_cell=boundary_cell, extra_depth=extra_depth)
+        k = coefficients.variables.k
+        min_cell, boundary_cell, extra_depth = DEFAULT_CELLS[k]
+        config = RangeCertificateConfig(
+            min_cell=min_cell,
+            boundary_cell=boundary_cell,
+            extra_depth=extra_depth,
+            merge_spread_m=DEFAULT_MERGE_SPREAD_M[k],
+        )
     start = time.perf_counter()
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     model = RangeModel.from_coefficients(coefficients)
@@ -594,6 +610,19 @@ def certify_range(
     leaves = [found.levels, found.index, found.bound_m, found.center_clearance_m]
     leaves, endpoint, upper = refine_leaves(model, leaves, settings, progress)
     (levels, index, bound), endpoint, upper = split_strips(model, leaves, endpoint, upper, settings, progress)
+    if config.merge_spread_m > 0.0:
+        status = statuses(bound, upper, margin)
+        merged = merge_leaves(
+            model.ranges_m,
+            levels,
+            index,
+            status,
+            (bound, endpoint, upper),
+            config.endpoint_tolerance_m,
+            config.merge_spread_m,
+        )
+        levels, index = merged.levels, merged.index
+        bound, endpoint, upper = merged.clearance_bound_m, merged.endpoint_bound_m, merged.endpoint_clearance_upper_m
     seconds = time.perf_counter() - start
     return RegionMap.of_leaves(
         model.ranges_m,

@@ -22,6 +22,7 @@ from pipeline.certify.range_certificate import (
     DEFAULT_BOUNDARY_CELL,
     DEFAULT_CELLS,
     DEFAULT_ENDPOINT_TOLERANCE_M,
+    DEFAULT_MERGE_SPREAD_M,
     DEFAULT_MIN_CELL,
     certify_range,
 )
@@ -123,6 +124,15 @@ def parser() -> argparse.ArgumentParser:
         "over (L, W, x))",
     )
     p.add_argument(
+        "--merge-spread",
+        type=_metres,
+        default=None,
+        metavar="M",
+        help="store two sibling leaves of one status as their parent where their clearance bounds, and their "
+        f"endpoint bounds, differ by at most M [m] (0: none; default: {DEFAULT_MERGE_SPREAD_M[2]} over (L, W), "
+        f"{DEFAULT_MERGE_SPREAD_M[3]} over more axes)",
+    )
+    p.add_argument(
         "--witnesses",
         type=count_argument,
         default=0,
@@ -197,6 +207,7 @@ def _work(args: argparse.Namespace) -> int:
         min_cell=args.min_cell,
         boundary_cell=args.boundary_cell,
         extra_depth=args.extra_depth,
+        merge_spread_m=args.merge_spread,
         jobs=args.jobs,
         executor=executor,
     )

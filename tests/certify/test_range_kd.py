@@ -157,12 +157,37 @@ def test_unsupported_axes_and_families_are_refused(eq9: Coefficients, over_x) ->
         )
 
 
-@pytest.fixture(scope="module", params=[0, 2], ids=["cubes", "extra-depth"])
-def eq9_x_map(eq9_x: Coefficients, request):
+_X_MAPS = {
+    "cubes": {},
+    "extra-depth": {"extra_depth": 2},
+    "merged": {"merge_spread_m": 0.05},
+}  # Eq. 9: endpoint errors of cm
+
+
+def _x_map(eq9_x: Coefficients, **fields):
     from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 
-    config = RangeCertificateConfig(min_cell=1 / 8, boundary_cell=1 / 4, max_depth_s=12, extra_depth=request.param)
-    return certify_range(eq9_x, config)
+    return certify_range(eq9_x, RangeCertificateConfig(min_cell=1 / 8, boundary_cell=1 / 4, max_depth_s=12, **fields))
+
+
+@pytest.fixture(scope="module", params=list(_X_MAPS))
+def eq9_x_map(eq9_x: Coefficients, request):
+    return _x_map(eq9_x, **_X_MAPS[request.param])
+
+
+def test_merged_leaves_keep_every_status_volume_with_fewer_leaves(eq9_x: Coefficients) -> None:
+    """Merging siblings whose bounds agree (pipeline.certify.leaf_merge) keeps each status's
+    volume exactly and never raises a point's clearance bound or lowers its endpoint bound."""
+    plain, merged = _x_map(eq9_x), _x_map(eq9_x, **_X_MAPS["merged"])
+    assert merged.size < plain.size
+    assert merged.summary()["area_fraction"] == plain.summary()["area_fraction"]
+    rng = np.random.default_rng(7)
+    points = [rng.uniform(lo, hi, 2000) for lo, hi in plain.ranges_m]
+    a, b = plain.leaf_indices(*points), merged.leaf_indices(*points)
+    assert np.all(np.asarray(merged.clearance_bound_m)[b] <= np.asarray(plain.clearance_bound_m)[a])
+    assert np.all(np.asarray(merged.clearance_bound_m)[b] >= np.asarray(plain.clearance_bound_m)[a] - 0.05)
+    assert np.all(np.asarray(merged.endpoint_bound_m)[b] >= np.asarray(plain.endpoint_bound_m)[a])
+    assert np.all(np.asarray(merged.status)[b] == np.asarray(plain.status)[a])
 
 
 def test_map_over_x_names_its_axes_and_tiles_the_box(eq9_x: Coefficients, eq9_x_map) -> None:

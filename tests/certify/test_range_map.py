@@ -117,6 +117,7 @@ def test_cli_writes_map_and_summary(tmp_path, capsys) -> None:
         ["paper", "--witnesses", "two"],
         ["paper", "--extra-depth", "7"],
         ["paper", "--extra-depth", "-1"],
+        ["paper", "--merge-spread", "-1e-4"],
         ["/nonexistent/coefficients.json"],
     ],
 )
