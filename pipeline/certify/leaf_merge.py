@@ -52,6 +52,21 @@ class MergedLeaves:
     endpoint_clearance_upper_m: np.ndarray
 
 
+def _halves(
+    tree: Subpaving, nodes: np.ndarray, levels: np.ndarray, indices: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two halves of each of ``nodes`` (of the given levels and indices (m, k)), lower then
+    upper: their levels and indices (2m, k) and child codes (2m,) (a node >= 0, or -1 - leaf)."""
+    a = tree.cut_axis[nodes].astype(np.int64)
+    rows = np.arange(nodes.size)
+    child_levels, child_indices = np.repeat(levels, 2, axis=0), np.repeat(indices, 2, axis=0)
+    child_levels[2 * rows, a] += 1
+    child_levels[2 * rows + 1, a] += 1
+    child_indices[2 * rows, a] *= 2
+    child_indices[2 * rows + 1, a] = 2 * child_indices[2 * rows + 1, a] + 1
+    return child_levels, child_indices, tree.children[nodes].reshape(-1).astype(np.int64)
+
+
 def _nodes_by_depth(tree: Subpaving) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Per depth of the tree, its internal nodes with their levels and indices (m, k)."""
     k = tree.k
@@ -60,14 +75,7 @@ def _nodes_by_depth(tree: Subpaving) -> list[tuple[np.ndarray, np.ndarray, np.nd
     out = []
     while node.size:
         out.append((node, levels, indices))
-        a = tree.cut_axis[node].astype(np.int64)
-        rows = np.arange(node.size)
-        child_levels, child_indices = np.repeat(levels, 2, axis=0), np.repeat(indices, 2, axis=0)
-        child_levels[2 * rows, a] += 1
-        child_levels[2 * rows + 1, a] += 1
-        child_indices[2 * rows, a] *= 2
-        child_indices[2 * rows + 1, a] = 2 * child_indices[2 * rows + 1, a] + 1
-        codes = tree.children[node].reshape(-1).astype(np.int64)
+        child_levels, child_indices, codes = _halves(tree, node, levels, indices)
         inner = codes >= 0
         node, levels, indices = codes[inner], child_levels[inner], child_indices[inner]
     return out
@@ -137,14 +145,7 @@ def _leaves_of(tree: Subpaving, leaf: np.ndarray, node: np.ndarray, merged: np.n
     frontier = np.array([0], dtype=np.int64)
     levels, indices = np.zeros((1, k), dtype=np.int64), np.zeros((1, k), dtype=np.int64)
     while frontier.size:
-        a = tree.cut_axis[frontier].astype(np.int64)
-        rows = np.arange(frontier.size)
-        levels, indices = np.repeat(levels, 2, axis=0), np.repeat(indices, 2, axis=0)
-        levels[2 * rows, a] += 1
-        levels[2 * rows + 1, a] += 1
-        indices[2 * rows, a] *= 2
-        indices[2 * rows + 1, a] = 2 * indices[2 * rows + 1, a] + 1
-        codes = tree.children[frontier].reshape(-1).astype(np.int64)
+        levels, indices, codes = _halves(tree, frontier, levels, indices)
         is_leaf = codes < 0
         is_merged = ~is_leaf & merged[np.maximum(codes, 0)]
         values = np.where(is_leaf[:, None], leaf[np.maximum(-1 - codes, 0)], node[np.maximum(codes, 0)])
