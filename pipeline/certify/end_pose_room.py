@@ -41,13 +41,20 @@ def configuration_clearance(
 
 
 def end_pose_room_m(
-    arm, length_m: np.ndarray, width_m: np.ndarray, tolerance_m: float, centre_x_m: np.ndarray | None = None
+    arm,
+    length_m: np.ndarray,
+    width_m: np.ndarray,
+    tolerance_m: float,
+    centre_x_m: np.ndarray | None = None,
+    rings: int = ROOM_RINGS,
+    angles: int = ROOM_ANGLES,
 ) -> np.ndarray:
     """Sampled room at the ends [m], (n,): for each obstacle (centred at ``centre_x_m`` (n,) [m],
     None: the scene's centre x; P1 and P5 move with it), the smaller over P1 and P5 of the
     largest clearance of a pose on the family's elbow branch whose tip lies within
     ``tolerance_m`` of that end point (tips on :data:`ROOM_RINGS` circles of radii up to the
-    tolerance, :data:`ROOM_ANGLES` angles each; analytic distance). ``arm``: anything with
+    tolerance, :data:`ROOM_ANGLES` angles each, unless ``rings`` and ``angles`` say otherwise;
+    analytic distance). ``arm``: anything with
     ``scene``, ``link_lengths_m``, ``link_radii_m`` and ``elbow`` (coefficients, a range model)."""
     lengths = np.asarray(length_m, dtype=float).ravel()
     widths = np.asarray(width_m, dtype=float).ravel()
@@ -65,12 +72,14 @@ def end_pose_room_m(
                     widths[k : k + _CHUNK_OBSTACLES],
                     tolerance_m,
                     centres[k : k + _CHUNK_OBSTACLES],
+                    rings,
+                    angles,
                 )
                 for k in range(0, lengths.size, _CHUNK_OBSTACLES)
             ]
         )
-    angle = np.linspace(0.0, 2.0 * np.pi, ROOM_ANGLES, endpoint=False)
-    radius = np.linspace(0.0, tolerance_m, ROOM_RINGS)
+    angle = np.linspace(0.0, 2.0 * np.pi, angles, endpoint=False)
+    radius = np.linspace(0.0, tolerance_m, rings)
     offsets = np.stack([np.outer(radius, np.cos(angle)).ravel(), np.outer(radius, np.sin(angle)).ravel()], -1)
     room = np.full(lengths.size, np.inf)
     sizes = np.repeat(np.column_stack([lengths, widths]), offsets.shape[0], axis=0)  # the obstacle of each tip

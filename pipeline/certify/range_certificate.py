@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.certify.certificate_settings import CertificateSettings
+from pipeline.certify.end_pose_room import end_pose_room_m
 from pipeline.certify.endpoints import (
     endpoint_bounds_and_shares,
     endpoint_clearance_upper_bounds,
@@ -91,6 +92,14 @@ _INFEASIBILITY_REFINE_M = 1e-3
 #: gap above it, still exceeds the tolerance: no cut brings them within it) are cut only while
 #: the bound is more than this above the centre's error [m] (the clearance search's resolution).
 _ENDPOINT_RESOLUTION_M = 5e-4
+#: The witnesses that spare a cell the sub-cells (``_witnessed``): tips on 2 circles (the end
+#: point and the tolerance) at 12 angles, and how far above the margin a witness must clear [m]
+#: (covering the pose's rounding). On the (L, W, x) map's smallest cells that stay
+#: collision-free, 0.036 ms per cell found a witness for 79.5 % of them, whose sub-cells cost
+#: 2.83 ms each.
+_WITNESS_RINGS = 2
+_WITNESS_ANGLES = 12
+_WITNESS_SLACK_M = 1e-6
 #: Leaves per task of the infeasibility certificate's sub-cells (fixed, so that the map does not
 #: depend on the worker count).
 _SUB_CELL_CHUNK = 128
@@ -333,22 +342,49 @@ def sub_cell_bounds(
     progress: ProgressCallback | None = None,
 ) -> np.ndarray:
     """``endpoints.infeasibility_upper_bounds`` over chunks of :data:`_SUB_CELL_CHUNK` leaves,
-    spread over ``settings.run_on`` (the bounds do not depend on it); ``progress`` gets
+    spread over ``settings.run_on`` (the bounds do not depend on it), +inf without trying for
+    the cells with a witness that they are not infeasible (``_witnessed``); ``progress`` gets
     "range map: sub-cells" in leaves."""
-    if c.shape[0] == 0:
-        return np.empty(0)
+    out = np.full(c.shape[0], np.inf)
+    todo = np.flatnonzero(~_witnessed(model, c, r, settings))
+    if progress is not None and c.shape[0]:
+        progress(PROGRESS_STAGES[2], 0, c.shape[0])
+        if todo.size == 0:
+            progress(PROGRESS_STAGES[2], c.shape[0], c.shape[0])
+    if todo.size == 0:
+        return out
     parts = _in_chunks(
         infeasibility_upper_bounds,
         _SUB_CELL_CHUNK,
         settings.run_on,
         model,
-        (c, r),
+        (c[todo], r[todo]),
         settings.endpoint_tolerance_m,
         settings.margin_m,
         progress=progress,
         stage=PROGRESS_STAGES[2],
+        before=c.shape[0] - todo.size,  # the witnessed cells: done
     )
-    return np.concatenate(parts)
+    out[todo] = np.concatenate(parts)
+    return out
+
+
+def _witnessed(model: RangeModel, c: np.ndarray, r: np.ndarray, settings: CertificateSettings) -> np.ndarray:
+    """Cells (centres, half widths (n, k) [m]) with a witness that they are not infeasible: a
+    pose at each end, sampled (``end_pose_room_m``, :data:`_WITNESS_RINGS` x
+    :data:`_WITNESS_ANGLES` tips), that keeps the margin (by :data:`_WITNESS_SLACK_M`) against
+    the obstacle at one point of the cell, its smallest L and W and its centre's other axes.
+    No sub-cell bound can prove such a cell infeasible (it would return +inf), so it is not
+    tried: a choice of work that changes no bound (over a d axis, whose scene value may lie
+    outside the cell, no cell is witnessed)."""
+    if model.d_column is not None or c.shape[0] == 0:
+        return np.zeros(c.shape[0], dtype=bool)
+    corner = c - r
+    x = None if model.x_column is None else c[:, model.x_column]
+    room = end_pose_room_m(
+        model, corner[:, 0], corner[:, 1], settings.endpoint_tolerance_m, x, _WITNESS_RINGS, _WITNESS_ANGLES
+    )
+    return room >= settings.margin_m + _WITNESS_SLACK_M
 
 
 def _leaf_bounds(
