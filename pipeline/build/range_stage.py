@@ -22,7 +22,7 @@ from pipeline.certify.certifiable_regression import (
 from pipeline.certify.map_files import region_map_files
 from pipeline.certify.map_for_coefficients import default_config, with_execution_bounds
 from pipeline.certify.near_optimal_cells import cells_files, near_optimal_cells
-from pipeline.certify.range_certificate import certify_range
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import RegionMap
 from pipeline.io.jsonio import dumps
 from pipeline.io.progress import ProgressCallback
@@ -73,6 +73,27 @@ def as_written(coefficients: Coefficients, source: str) -> tuple[Coefficients, s
     return coefficients_from_json(json.loads(text), source, digest), text
 
 
+def _refit_config(
+    config: BuildConfig, coefficients: Coefficients, map_config: RangeCertificateConfig
+) -> CertifiableFitConfig:
+    """The certifiable regression's settings: its rounds but the last only pick constraint points
+    (coarser cells, no extra depth, strips or merging); the last round's certificate is the map's."""
+    return CertifiableFitConfig(
+        certificate=replace(
+            map_config,
+            min_cell=max(map_config.min_cell, REFIT_MIN_CELLS[coefficients.variables.k]),
+            extra_depth=0,
+            strip_split=0,
+            merge_spread_m=0.0,
+        ),
+        final_certificate=map_config,
+        endpoint=EndpointConstraint(
+            tolerance_m=config.regression.endpoint_tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM
+        ).for_variables(coefficients.variables),
+        max_rounds=config.regression.clearance_rounds,
+    )
+
+
 def certify_coefficients(
     config: BuildConfig,
     doe: DoeData,
@@ -106,21 +127,7 @@ def certify_coefficients(
     timing: dict = {"stages_s": seconds}
     report = None
     if config.certifiable_refit:
-        refit = CertifiableFitConfig(
-            # The rounds but the last only pick constraint points: coarser cells, no strips.
-            certificate=replace(
-                map_config,
-                min_cell=max(map_config.min_cell, REFIT_MIN_CELLS[coefficients.variables.k]),
-                extra_depth=0,
-                strip_split=0,
-                merge_spread_m=0.0,
-            ),
-            final_certificate=map_config,
-            endpoint=EndpointConstraint(tolerance_m=tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM).for_variables(
-                coefficients.variables
-            ),
-            max_rounds=config.regression.clearance_rounds,
-        )
+        refit = _refit_config(config, coefficients, map_config)
         started = time.perf_counter()
         stages = (
             None if progress is None else (lambda stage, done, total: progress(f"{REFIT_STAGE} {stage}", done, total))

@@ -70,6 +70,43 @@ def _metres(text: str) -> float:
     return value
 
 
+def _add_cell_options(p: argparse.ArgumentParser) -> None:
+    """The options that shape the map's cells: their smallest size, extra depth, merging and the
+    boundary's cell."""
+    p.add_argument(
+        "--min-cell",
+        type=_fraction,
+        default=None,
+        help="smallest cell, as a fraction of the fitted range's side on every axis [-] (default: "
+        f"{DEFAULT_MIN_CELL} over (L, W), {DEFAULT_CELLS[3][0]} over (L, W, x))",
+    )
+    p.add_argument(
+        "--extra-depth",
+        type=count_argument,
+        default=None,
+        metavar="E",
+        help="halvings beyond the smallest cell a cell may take along the axes that dominate its gap, at the "
+        f"smallest cell's volume, 0..6 [count] (default: {DEFAULT_CELLS[2][2]} over (L, W), {DEFAULT_CELLS[3][2]} "
+        "over (L, W, x))",
+    )
+    p.add_argument(
+        "--merge-spread",
+        type=_metres,
+        default=None,
+        metavar="M",
+        help="store two sibling leaves of one status as their parent where their clearance bounds, and their "
+        f"endpoint bounds, differ by at most M [m] (0: none; default: {DEFAULT_MERGE_SPREAD_M[2]} over (L, W), "
+        f"{DEFAULT_MERGE_SPREAD_M[3]} over more axes)",
+    )
+    p.add_argument(
+        "--boundary-cell",
+        type=_fraction,
+        default=None,
+        help="cell size to which regions that miss the margin are resolved, fraction of the side [-] "
+        f"(default: {DEFAULT_BOUNDARY_CELL})",
+    )
+
+
 def parser() -> argparse.ArgumentParser:
     p = Parser(
         prog="python -m pipeline.certify_range",
@@ -108,31 +145,6 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=jobs_count, default=1, help="worker processes [count], 0 = every CPU")
     add_scheduler_arguments(p)
     p.add_argument(
-        "--min-cell",
-        type=_fraction,
-        default=None,
-        help="smallest cell, as a fraction of the fitted range's side on every axis [-] (default: "
-        f"{DEFAULT_MIN_CELL} over (L, W), {DEFAULT_CELLS[3][0]} over (L, W, x))",
-    )
-    p.add_argument(
-        "--extra-depth",
-        type=count_argument,
-        default=None,
-        metavar="E",
-        help="halvings beyond the smallest cell a cell may take along the axes that dominate its gap, at the "
-        f"smallest cell's volume, 0..6 [count] (default: {DEFAULT_CELLS[2][2]} over (L, W), {DEFAULT_CELLS[3][2]} "
-        "over (L, W, x))",
-    )
-    p.add_argument(
-        "--merge-spread",
-        type=_metres,
-        default=None,
-        metavar="M",
-        help="store two sibling leaves of one status as their parent where their clearance bounds, and their "
-        f"endpoint bounds, differ by at most M [m] (0: none; default: {DEFAULT_MERGE_SPREAD_M[2]} over (L, W), "
-        f"{DEFAULT_MERGE_SPREAD_M[3]} over more axes)",
-    )
-    p.add_argument(
         "--witnesses",
         type=count_argument,
         default=0,
@@ -155,13 +167,7 @@ def parser() -> argparse.ArgumentParser:
         default=0,
         help="seed of the witness searches' restarts (numpy.random.default_rng) [integer >= 0] (default: 0)",
     )
-    p.add_argument(
-        "--boundary-cell",
-        type=_fraction,
-        default=None,
-        help="cell size to which regions that miss the margin are resolved, fraction of the side [-] "
-        f"(default: {DEFAULT_BOUNDARY_CELL})",
-    )
+    _add_cell_options(p)
     add_progress_argument(p)
     return p
 
