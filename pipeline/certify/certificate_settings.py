@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pipeline.certify.subpaving import open_axes
 from pipeline.exceptions import InvalidParameterError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool
 from pipeline.validation import check_non_negative, check_positive_int
@@ -53,6 +54,4 @@ class CertificateSettings:
     def open_axes(self, levels: np.ndarray) -> np.ndarray:
         """Per cell (levels (n, k)) and axis, whether a cut along it is allowed: the axis is below
         ``max_depth + extra_depth`` and the cell larger than the smallest cell's volume."""
-        levels = np.asarray(levels)
-        roomy = levels.sum(axis=1) < levels.shape[1] * self.max_depth
-        return (levels < self.max_depth + self.extra_depth) & roomy[:, None]
+        return open_axes(levels, self.max_depth, self.extra_depth)

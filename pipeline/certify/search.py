@@ -41,6 +41,7 @@ import numpy as np
 
 from pipeline.certify.clearance_bound import box_clearance_bounds
 from pipeline.certify.range_model import RangeModel
+from pipeline.certify.subpaving import open_axes
 from pipeline.exceptions import InvalidParameterError
 from pipeline.validation import check_non_negative, check_positive, check_positive_int
 
@@ -97,8 +98,7 @@ class SearchSettings:
     def open_axes(self, levels: np.ndarray) -> np.ndarray:
         """Per node (levels (n, k)) and axis, whether a cut along it is allowed: the axis is below
         ``max_depth_lw + extra_depth_lw`` and the node larger than the smallest node's volume."""
-        roomy = levels.sum(axis=1) < levels.shape[1] * self.max_depth_lw
-        return (levels < self.max_depth_lw + self.extra_depth_lw) & roomy[:, None]
+        return open_axes(levels, self.max_depth_lw, self.extra_depth_lw)
 
 
 @dataclass(frozen=True, eq=False)

@@ -36,7 +36,7 @@ import numpy as np
 
 from pipeline.exceptions import InvalidParameterError
 
-__all__ = ["MAX_LEVEL", "Subpaving"]
+__all__ = ["MAX_LEVEL", "Subpaving", "open_axes"]
 
 #: Deepest level along any axis (cells of 1 / 2^30 of the range).
 MAX_LEVEL = 30
@@ -186,6 +186,15 @@ class Subpaving:
         head[:3] = (mode, self.top, 0 if self.cut_axis.size else -1)
         rows = np.column_stack([self.cut_axis, self.top - 1 - self.cut_level.astype(np.int64), self.children])
         return np.concatenate([head, rows.reshape(-1)]).astype(np.int32)
+
+
+def open_axes(levels: np.ndarray, max_depth: int, extra_depth: int) -> np.ndarray:
+    """Per box (levels (n, k)) and axis, whether a cut along it is allowed: the axis is below
+    ``max_depth + extra_depth`` and the box larger than a cube of level ``max_depth`` (its levels
+    sum to less than k times it)."""
+    levels = np.asarray(levels)
+    roomy = levels.sum(axis=1) < levels.shape[1] * max_depth
+    return (levels < max_depth + extra_depth) & roomy[:, None]
 
 
 def _checked_ranges(ranges: object) -> tuple[tuple[float, float], ...]:
