@@ -7,7 +7,7 @@ Round k:
    with ``final_certificate``, whose cells may be finer);
 2. for every leaf that misses the margin without being proven infeasible (status
    ``collision_free`` or ``undecided``), take its worst point: the variables' values v at its
-   centre ((L, W), or (L, W, x) with the obstacle's centre x) and the s in [0, 1] where the
+   centre ((L, W), or with the obstacle's centre x and far edge d where they vary) and the s in [0, 1] where the
    clearance along that motion is lowest (dense sampling); for every leaf whose endpoint bound
    exceeds the tolerance, take its centre as an endpoint target;
 3. refit the same quadratic model by SLSQP from the current fit: minimise the squared distance
@@ -102,11 +102,11 @@ DEFAULT_CLEARANCE_ROUNDS = 1
 #: Smallest cell of the maps of the build's refit rounds but the last (fraction of the side), per
 #: number of variables; the last round, whose map the build writes, uses the build's (finer)
 #: cells. The coarser cells keep the refit's points on the leaves that matter and the rounds fast.
-REFIT_MIN_CELLS: Mapping[int, float] = MappingProxyType({2: 1.0 / 256, 3: 1.0 / 32})
-#: The variables the certifiable regression covers: its constraint points move the obstacle by x
-#: only (:func:`_centre_x`; the far edge d stays at the scene's), so coefficients over d are
-#: certified as regressed (``pipeline.build.config.BuildConfig.certifiable_refit``).
-REFIT_VARIABLES: tuple[str, ...] = ("L", "W", "x")
+REFIT_MIN_CELLS: Mapping[int, float] = MappingProxyType({2: 1.0 / 256, 3: 1.0 / 32, 4: 1.0 / 16})
+#: The variables the certifiable regression covers: its constraint points move the obstacle by
+#: x and d (:func:`_moved`; P1 and P5 with it, y1 = d), as the range certificate's axes do
+#: (``pipeline.build.config.BuildConfig.certifiable_refit``).
+REFIT_VARIABLES: tuple[str, ...] = ("L", "W", "x", "d")
 
 
 @dataclass(frozen=True)
@@ -148,7 +148,7 @@ class CertifiableFitConfig:
 @dataclass(frozen=True, eq=False)
 class ClearancePoints:
     """Points (v, s) where the refit must keep the clearance, with their T: v the coefficients'
-    variables ((L, W), or (L, W, x)), s the normalised time.
+    variables (L, W and any of x, d), s the normalised time.
 
     Attributes:
         points: (n, k + 1): the k variables' values [m], then s [-].
@@ -201,15 +201,26 @@ def _design(coefficients: Coefficients, values: np.ndarray) -> np.ndarray:
     return coefficients.variables.design(values)
 
 
-def _centre_x(coefficients: Coefficients, values: np.ndarray) -> np.ndarray | None:
-    """The obstacle's centre x [m] per row of ``values`` (n, k), None where the coefficients do not vary it."""
+def _moved(coefficients: Coefficients, values: np.ndarray) -> dict[str, np.ndarray]:
+    """The obstacle's centre x and far edge y [m] per row of ``values`` (n, k) where the
+    coefficients vary them (``centre_x_m``, ``top_y_m``: keywords of
+    :func:`configuration_clearance` and :func:`end_pose_room_m`); absent, the scene's."""
     variables = coefficients.variables
-    return values[:, variables.index("x")] if "x" in variables.names else None
+    moved = {}
+    for name, keyword in (("x", "centre_x_m"), ("d", "top_y_m")):
+        if name in variables.names:
+            moved[keyword] = values[:, variables.index(name)]
+    return moved
+
+
+def _room(coefficients: Coefficients, values: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """:func:`end_pose_room_m` [m] of the obstacles at ``values`` (n, k) at ``tolerance_m`` [m]."""
+    return end_pose_room_m(coefficients, values[:, 0], values[:, 1], tolerance_m, **_moved(coefficients, values))
 
 
 def _point_clearance(theta: np.ndarray, values: np.ndarray, coefficients: Coefficients) -> np.ndarray:
     """Clearance [m] of ``theta`` (n, 2) against the obstacles at ``values`` (n, k)."""
-    return configuration_clearance(theta, values, coefficients, _centre_x(coefficients, values))
+    return configuration_clearance(theta, values, coefficients, **_moved(coefficients, values))
 
 
 def clearance_at(b: np.ndarray, data: ClearancePoints, coefficients: Coefficients) -> np.ndarray:
@@ -258,8 +269,7 @@ def worst_points(
     # Leaves whose end poses cannot keep the margin (sampled) are left out: the constraint
     # would be infeasible there.
     tolerance = region_map.endpoint_tolerance_m if tolerance_m is None else tolerance_m
-    x = _centre_x(coefficients, centres[failing])
-    room = end_pose_room_m(coefficients, centres[failing, 0], centres[failing, 1], tolerance, x)
+    room = _room(coefficients, centres[failing], tolerance)
     failing = failing[room >= region_map.margin_m + feasible_slack_m]
     order = np.lexsort(centres[failing].T[::-1])
     chosen = failing[order[np.unique(np.linspace(0, order.size - 1, min(limit, order.size)).round().astype(np.int64))]]
@@ -388,7 +398,7 @@ def fit_certifiable(
 
     Args:
         coefficients: The starting fit (paper family).
-        points: The DOE's runs, (n, k): the coefficients' variables [m] ((L, W), or (L, W, x)).
+        points: The DOE's runs, (n, k): the coefficients' variables [m] (L, W and any of x, d).
         values: The DOE optima per parameter (canonical form), name -> (n,).
         config: Settings; default :class:`CertifiableFitConfig`.
         progress: Gets each round's certificate stages, prefixed "round k: ", and its refit.
@@ -509,10 +519,7 @@ def _refit_holding(
     candidate, converged = refit(current, points, values, targets, clearance_points(current, collected), margin, config)
     room = None
     if not converged:
-        held = collected[:, :-1]
-        room = end_pose_room_m(
-            current, held[:, 0], held[:, 1], config.endpoint.fit_tolerance_m, _centre_x(current, held)
-        )
+        room = _room(current, collected[:, :-1], config.endpoint.fit_tolerance_m)
     for slack in RETRY_SLACKS_M:  # the points with least room are the hardest to hold: retry without them
         if converged:
             break

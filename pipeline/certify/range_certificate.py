@@ -373,16 +373,16 @@ def _witnessed(model: RangeModel, c: np.ndarray, r: np.ndarray, settings: Certif
     """Cells (centres, half widths (n, k) [m]) with a witness that they are not infeasible: a
     pose at each end, sampled (``end_pose_room_m``, :data:`_WITNESS_RINGS` x
     :data:`_WITNESS_ANGLES` tips), that keeps the margin (by :data:`_WITNESS_SLACK_M`) against
-    the obstacle at one point of the cell, its smallest L and W and its centre's other axes.
-    No sub-cell bound can prove such a cell infeasible (it would return +inf), so it is not
-    tried: a choice of work that changes no bound (over a d axis, whose scene value may lie
-    outside the cell, no cell is witnessed)."""
-    if model.d_column is not None or c.shape[0] == 0:
-        return np.zeros(c.shape[0], dtype=bool)
+    the obstacle at one point of the cell, its smallest L and W and its centre's x and d (P1
+    and P5 moved with them). No sub-cell bound can prove such a cell infeasible (it would
+    return +inf), so it is not tried: a choice of work that changes no bound."""
+    if c.shape[0] == 0:
+        return np.zeros(0, dtype=bool)
     corner = c - r
     x = None if model.x_column is None else c[:, model.x_column]
+    d = None if model.d_column is None else c[:, model.d_column]
     room = end_pose_room_m(
-        model, corner[:, 0], corner[:, 1], settings.endpoint_tolerance_m, x, _WITNESS_RINGS, _WITNESS_ANGLES
+        model, corner[:, 0], corner[:, 1], settings.endpoint_tolerance_m, x, _WITNESS_RINGS, _WITNESS_ANGLES, d
     )
     return room >= settings.margin_m + _WITNESS_SLACK_M
 

@@ -142,6 +142,37 @@ def test_row_over_x_is_the_generators_answer_with_the_maps_bounds(built_x: Path)
     assert counts.certified == sum(a.certified_clearance_m > 0.0 for a in answers)
 
 
+@pytest.fixture(scope="module")
+def built_xd(tmp_path_factory: pytest.TempPathFactory, over_xd) -> Path:
+    """Coefficients over (L, W, x, d) (the paper's Eq. 9 lifted, d in [0.55, 0.57] m) with a coarse
+    map over (L, W, x, d) beside them."""
+    folder = tmp_path_factory.mktemp("xd")
+    path = folder / "coefficients.json"
+    save_coefficients(over_xd(load_coefficients("paper"), scale=0.02, d_scale=0.2), path)
+    coefficients = load_coefficients(path)
+    coarse = RangeCertificateConfig(min_cell=1 / 4, boundary_cell=1 / 4, max_depth_s=10)
+    save_region_map(certify_range(coefficients, coarse), folder / DEFAULT_MAP_NAME)
+    return path
+
+
+def test_row_over_x_and_d_answers_with_the_maps_bounds_at_the_moved_far_edge(built_xd: Path) -> None:
+    """Over (L, W, x, d) the row passes d too: each answer's obstacle has its far edge at the
+    case's d, and its bounds are the map's leaf's at (L, W, x, d)."""
+    coefficients = load_coefficients(built_xd)
+    region_map = coefficients.region_map
+    assert region_map is not None and region_map.axes == ("L", "W", "x", "d")
+    cases = bench_over_x.sample_cases_x(coefficients, 6, 5)
+    assert cases.shape == (6, 4) and np.ptp(cases[:, 3]) > 0.0
+    row = PerQueryRow(coefficients, cases, region_map)
+    time_side_by_side([row], 1)
+    assert bench_over_x.row_name(coefficients) == "(a*) over (L, W, x, d)"
+    for case, answer in zip(cases, row.answers, strict=True):
+        assert answer.obstacle.centre_x_m == case[2] and answer.obstacle.top_y_m == case[3]
+        clearance, endpoint, _ = region_map.bounds_at(*map(float, case))
+        assert answer.certified_clearance_m == clearance and answer.endpoint_error_bound_m == endpoint
+        assert bench_over_x.moved_scene(coefficients, case, None) == answer.scene
+
+
 def test_without_coefficients_x_the_row_is_left_out_with_the_command_that_makes_them(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path, built_lw: Path
 ) -> None:
@@ -169,7 +200,7 @@ def test_bad_coefficients_x_are_refused_with_one_line(
     lone.write_bytes(built_x.read_bytes())
     for path, message in (
         (tmp_path / "no" / "coefficients.json", "--coefficients-x"),
-        (built_lw, "--coefficients-x must vary L, W, x"),
+        (built_lw, "--coefficients-x must vary (L, W, x) or (L, W, x, d)"),
         (lone, "python -m pipeline.certify_range"),
     ):
         status, out, err = run_main(capsys, *common, "--coefficients-x", str(path))

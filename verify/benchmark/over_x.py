@@ -1,13 +1,15 @@
-"""The benchmark's rows over (L, W, x): coefficients that also vary the obstacle's centre x.
+"""The benchmark's rows over the obstacle's pose: coefficients that also vary its centre x, or
+its centre x and far edge d.
 
-**(a*) over (L, W, x)** times ``generate(coefficients, L, W, x=x, region_map=m)`` one query at a time,
-side by side with (a) and (a*) (:mod:`verify.benchmark.per_query`), on random (L, W, x) uniform
-in the coefficients' fitted box (seeded; its (L, W) columns are drawn as the bench's (L, W)
-obstacles are), with the map over (L, W, x) that the build wrote beside
-them: the answer carries the certified clearance and endpoint bounds of the leaf holding (L, W, x).
-**(d) over (L, W, x)** and **(d+)** run OMPL's RRT-Connect (:mod:`verify.benchmark.ompl_planner`) on
-the same moved obstacles: each query plans around ``Obstacle.in_scene(L, W, scene)`` in the
-answer's moved scene (its ``obstacle``, centred at x), from the IK of that scene's P1 to that of P5.
+**(a*) over (L, W, x)** (or (L, W, x, d)) times ``generate(coefficients, L, W, x=x, region_map=m)``
+(``d=d`` too) one query at a time, side by side with (a) and (a*)
+(:mod:`verify.benchmark.per_query`), on random values uniform in the coefficients' fitted box
+(seeded; its (L, W) columns are drawn as the bench's (L, W) obstacles are), with the map that the
+build wrote beside them: the answer carries the certified clearance and endpoint bounds of the
+leaf holding the query. **(d) over (L, W, x)** and **(d+)** run OMPL's RRT-Connect
+(:mod:`verify.benchmark.ompl_planner`) on the same moved obstacles: each query plans around
+``Obstacle.in_scene(L, W, scene)`` in the answer's moved scene (its ``obstacle``, centred at x,
+its far edge at d), from the IK of that scene's P1 to that of P5.
 
 The coefficients come from ``--coefficients-x FILE``, else ``results-x/coefficients.json`` if it
 exists; else the rows are left out, with the command that makes them.
@@ -36,12 +38,15 @@ from .methods import bench_ompl, range_counts
 from .per_query import PerQueryRow
 from .results import DEFAULT_COEFFICIENTS_X, MAKE_COEFFICIENTS_X, BenchSettings, MethodResult
 
-#: The variables the rows take.
-AXES = ("L", "W", "x")
+#: The variable sets the rows take (the coefficients' own).
+AXES_TAKEN = (("L", "W", "x"), ("L", "W", "x", "d"))
 #: Key of the row, also of its entry in the report's ``skipped``.
 KEY = "a_range_x"
-#: How the table names the row.
-NAME = "(a*) over (L, W, x)"
+
+
+def row_name(coefficients: Coefficients) -> str:
+    """How the table names the row of ``coefficients``: "(a*) over (L, W, x)" or "(a*) over (L, W, x, d)"."""
+    return f"(a*) over ({', '.join(coefficients.variables.names)})"
 
 
 def coefficients_x_path(settings: BenchSettings) -> Path | None:
@@ -69,10 +74,11 @@ def load_coefficients_x(path: Path, arm: PlanarArm) -> Coefficients:
         InvalidParameterError: they were fitted for another arm.
     """
     coefficients = load_coefficients(path)
-    if tuple(coefficients.variables.names) != AXES:
+    if tuple(coefficients.variables.names) not in AXES_TAKEN:
+        taken = " or ".join(f"({', '.join(axes)})" for axes in AXES_TAKEN)
         raise DataFileError(
             path,
-            f"--coefficients-x must vary {', '.join(AXES)}, these vary {', '.join(coefficients.variables.names)} "
+            f"--coefficients-x must vary {taken}, these vary {', '.join(coefficients.variables.names)} "
             f"({MAKE_COEFFICIENTS_X})",
         )
     if coefficients.region_map is None:
@@ -85,20 +91,22 @@ def load_coefficients_x(path: Path, arm: PlanarArm) -> Coefficients:
 
 
 def sample_cases_x(coefficients: Coefficients, n: int, seed: int) -> np.ndarray:
-    """n obstacles (L, W, x) [m], uniform in the coefficients' fitted box, shape (n, 3): L and W drawn
-    first as :func:`verify.acceptance.cases.sample_cases` draws them (the same (L, W) for the same
-    fitted (L, W) range), then x, from ``numpy.random.default_rng(seed)``."""
+    """n obstacles [m], uniform in the coefficients' fitted box, shape (n, k): a column per
+    variable, L and W drawn first as :func:`verify.acceptance.cases.sample_cases` draws them (the
+    same (L, W) for the same fitted (L, W) range), then x (and d), from
+    ``numpy.random.default_rng(seed)``."""
     rng = np.random.default_rng(seed)
-    columns = [rng.uniform(*coefficients.fitted_range_m[name], n) for name in AXES]
+    columns = [rng.uniform(*coefficients.fitted_range_m[name], n) for name in coefficients.variables.names]
     return np.stack(columns, -1)
 
 
 def moved_scene(coefficients: Coefficients, case: np.ndarray, answer: Any) -> Scene:
-    """The scene of the obstacle (L, W, x) = ``case``: the answer's (its obstacle centred at x), or the
-    coefficients' scene moved to x where the generator refused (None)."""
+    """The scene of the obstacle ``case`` (the coefficients' variables [m]): the answer's (its
+    obstacle moved), or the coefficients' scene moved where the generator refused (None)."""
     if answer is not None:
         return answer.scene
-    return coefficients.variables.scene_for(coefficients.scene, {"x": float(case[2])})
+    extra = coefficients.variables.extra
+    return coefficients.variables.scene_for(coefficients.scene, dict(zip(extra, map(float, case[2:]), strict=True)))
 
 
 def x_methods(
@@ -142,16 +150,18 @@ def _generator_row(timed: PerQueryRow, settings: BenchSettings) -> MethodResult:
     coefficients, cases, answers = timed.coefficients, timed.cases, timed.answers
     counts = range_counts(answers, coefficients.scene.margin_m)
     answered = [a for a in answers if a is not None]
+    names = ", ".join(coefficients.variables.names)
+    keywords = ", ".join(f"{name}={name}" for name in coefficients.variables.extra)
     return MethodResult(
         key=KEY,
-        label=f"{NAME}: generator + map",
+        label=f"{row_name(coefficients)}: generator + map",
         obstacles=len(cases),
         times_s=tuple(timed.times_s),
         queries=len(cases),
         answered=len(answered),
         certified=counts.certified,
         keeps_margin=counts.keeps_margin,
-        note=f"generate(coefficients_x, L, W, x=x, region_map=m), each call timed, on random (L, W, x) in the "
+        note=f"generate(coefficients_x, L, W, {keywords}, region_map=m), each call timed, on random ({names}) in the "
         f"fitted box; passes: {settings.repeats}, interleaved with (a)'s and (a*)'s; {counts.certified} of "
         f"{counts.in_range} in-range queries answered with a certified clearance > 0, {counts.keeps_margin} >= "
         "the margin",
@@ -173,6 +183,7 @@ def _ompl_rows(
     validity = margin if ompl_margin_m is None else ompl_margin_m
     scenes = [moved_scene(coefficients, case, answer) for case, answer in zip(cases, answers, strict=True)]
     simplify = " + simplify" if settings.ompl_simplify else ""
+    names = ", ".join(coefficients.variables.names)
     return bench_ompl(
         coefficients,
         cases,
@@ -182,8 +193,8 @@ def _ompl_rows(
         margin,
         scenes=scenes,
         rows=(
-            ("d_x", f"(d) over (L, W, x): OMPL RRT-Connect{simplify}"),
-            ("d_x_cert", "(d+) over (L, W, x): + our certificate"),
+            ("d_x", f"(d) over ({names}): OMPL RRT-Connect{simplify}"),
+            ("d_x_cert", f"(d+) over ({names}): + our certificate"),
         ),
     )
 
@@ -206,12 +217,13 @@ def _over_x_report(timed: PerQueryRow) -> dict[str, Any]:
         },
         "cases_m": [[float(v) for v in case] for case in cases],
         "obstacle_centre_x_m": [float(a.obstacle.centre_x_m) for a in answered],
+        "obstacle_top_y_m": [float(a.obstacle.top_y_m) for a in answered],
     }
 
 
 def timed_load(path: Path, arm: PlanarArm, log: Callable[[str], None]) -> Coefficients:
     """:func:`load_coefficients_x`, logged with its wall time (a fine map over (L, W, x) is tens of MB)."""
-    log(f"loading the coefficients over (L, W, x) and their region map: {path} ...")
+    log(f"loading the coefficients over the obstacle's pose and their region map: {path} ...")
     started = time.perf_counter()
     coefficients = load_coefficients_x(path, arm)
     log(f"  loaded in {time.perf_counter() - started:.1f} s")

@@ -1,4 +1,5 @@
-"""The per-query rows of the benchmark, timed side by side: (a), (a*) and (a*) over (L, W, x).
+"""The per-query rows of the benchmark, timed side by side: (a), (a*) and (a*) over the
+coefficients' variables (L, W, x or L, W, x, d).
 
 Each row calls :func:`pipeline.online.generator.generate` once per obstacle and times every call
 with ``time.perf_counter``. The rows are timed in interleaved passes: round after round, one pass
@@ -33,7 +34,8 @@ class PerQueryRow:
 
     Attributes:
         coefficients: Of the generator.
-        cases: (n, 2) obstacles (L, W) [m], or (n, 3) (L, W, x) for coefficients that vary x.
+        cases: (n, 2) obstacles (L, W) [m], or (n, k) values of the coefficients' k variables
+            (L, W, then x and/or d) [m] for coefficients that vary more than (L, W).
         region_map: The map the answers' bounds come from (None: no bounds).
         near_optimal: Time ``near_optimal_from_map`` (the certified near-optimal answer read off the
             coefficients' attached map) instead of ``generate``.
@@ -50,6 +52,8 @@ class PerQueryRow:
 
     def __post_init__(self) -> None:
         self._rows = [tuple(float(v) for v in case) for case in np.asarray(self.cases)]
+        extra = self.coefficients.variables.extra if np.shape(self.cases)[1] > 2 else ()
+        self._moved = [dict(zip(extra, case[2:], strict=True)) for case in self._rows]  # x=, d= per call
         self.answers = [None] * len(self._rows)
 
     def warm_up(self) -> None:
@@ -82,10 +86,10 @@ class PerQueryRow:
                     answers[i] = None
                 times.append(clock() - started)
         else:
-            for i, (length, width, x) in enumerate(self._rows):
+            for i, (case, moved) in enumerate(zip(self._rows, self._moved, strict=True)):
                 started = clock()
                 try:
-                    answers[i] = generate(coefficients, length, width, x=x, region_map=region_map)
+                    answers[i] = generate(coefficients, case[0], case[1], region_map=region_map, **moved)
                 except PipelineError:
                     answers[i] = None
                 times.append(clock() - started)

@@ -93,6 +93,12 @@ def _table_lines(report: BenchReport) -> list[str]:
     return lines
 
 
+def _pose_axes(report: BenchReport) -> str:
+    """The variables of the rows over the obstacle's pose, as "(L, W, x)" or "(L, W, x, d)"."""
+    names = ("L", "W", "x") if report.over_x is None else tuple(report.over_x["fitted_range_m"])
+    return f"({', '.join(names)})"
+
+
 def _ratio_lines(report: BenchReport) -> list[str]:
     """The ratios of medians per query, measured side by side in this run, and the (a*) line: its median
     per query, its batched time per obstacle, and the fractions of in-range queries it certifies."""
@@ -102,7 +108,7 @@ def _ratio_lines(report: BenchReport) -> list[str]:
     if ratios["b_over_a_range"] is not None:
         shown.append(f"(b) / (a*) = {_format_ratio(ratios['b_over_a_range'])}")
     if ratios.get("d_x_over_a_range_x") is not None:
-        shown.append(f"over (L, W, x): (d) / (a*) = {_format_ratio(ratios['d_x_over_a_range_x'])}")
+        shown.append(f"over {_pose_axes(report)}: (d) / (a*) = {_format_ratio(ratios['d_x_over_a_range_x'])}")
     if ratios.get("n_opt_over_toppra") is not None:
         shown.append(f"(n*) / (tp) = {_format_ratio(ratios['n_opt_over_toppra'])}")
     lines = [f"Ratios of the medians per query (this run): {', '.join(shown)}."] if shown else []
@@ -122,7 +128,8 @@ def _ratio_lines(report: BenchReport) -> list[str]:
         certified = _format_fraction(_nan(summary_x["certified_fraction"]))
         margin = _format_fraction(_nan(summary_x["margin_fraction"]))
         lines.append(
-            f"(a*) over (L, W, x): median {summary_x['median_us']:.3g} us per query, certified clearance > 0 on "
+            f"(a*) over {_pose_axes(report)}: median {summary_x['median_us']:.3g} us per query, certified "
+            "clearance > 0 on "
             f"{certified} and >= the margin on {margin} of {summary_x['in_range_queries']} in-range queries."
         )
     lines += _near_optimal_lines(report)
@@ -236,10 +243,10 @@ def _note_lines(report: BenchReport) -> list[str]:
         box = ", ".join(f"{name} in [{lo:.3f}, {hi:.3f}] m" for name, (lo, hi) in info["fitted_range_m"].items())
         region = info["region_map"]
         lines.append(
-            f"  (a*) over (L, W, x): coefficients {info['source']} ({box}); region map {region['path']} "
+            f"  (a*) over {_pose_axes(report)}: coefficients {info['source']} ({box}); region map {region['path']} "
             f"({region['cells']:,} cells, certified collision-free on "
-            f"{100 * region['certified_collision_free_fraction']:.2f} % of the box); (d) over (L, W, x) plans "
-            "around the answer's obstacle, centred at its x."
+            f"{100 * region['certified_collision_free_fraction']:.2f} % of the box); (d) over {_pose_axes(report)} "
+            "plans around the answer's obstacle, moved as the query asks."
         )
     lines += [
         "  vs (a), vs (b): median time per query divided by that of (a) and of (b).",

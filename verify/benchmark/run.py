@@ -239,7 +239,7 @@ def _time_per_query(
     if coefficients_x is not None:
         cases_x = over_x.sample_cases_x(coefficients_x, settings.n, settings.seed)
         rows[over_x.KEY] = PerQueryRow(coefficients_x, cases_x, coefficients_x.region_map)
-        names += f" and {over_x.NAME}"
+        names += f" and {over_x.row_name(coefficients_x)}"
     ctx.log(f"timing {names} one query at a time, side by side ({settings.repeats} interleaved passes) ...")
     time_side_by_side(list(rows.values()), settings.repeats)
     return rows
