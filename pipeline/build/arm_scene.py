@@ -13,6 +13,7 @@ configuration it returns passes it. ``python -m pipeline.build --urdf FILE`` wit
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 from pipeline.build.config import BuildConfig
@@ -22,7 +23,7 @@ from pipeline.model.arm import PlanarArm
 from pipeline.offline.convergence import GRID_POINTS
 from pipeline.offline.scene_window import SceneWindow, WindowSettings, scene_window
 
-__all__ = ["config_at", "scene_for_arm", "window_for_build", "window_note"]
+__all__ = ["config_at", "d_range_for_arm", "scene_for_arm", "window_for_build", "window_note"]
 
 
 def _x_range(config: BuildConfig) -> tuple[float, float] | None:
@@ -105,3 +106,26 @@ def scene_for_arm(arm: PlanarArm, config: BuildConfig, shrink: bool = True) -> t
     chosen = config_at(config, window)
     check_before_work(chosen, arm)
     return chosen, window_note(window)
+
+
+def d_range_for_arm(arm: PlanarArm, config: BuildConfig) -> tuple[BuildConfig, str]:
+    """``config`` varying d over the window of :func:`window_for_build` (``--vary d`` without a
+    range): every obstacle of its (L, W) and x range, at every d of it, has P1..P5 in the arm's
+    reach and end poses that keep the margin, so the range is the arm's own. Its edges are the
+    window's, rounded inwards to 0.1 mm. Returns the configuration and a one-line note.
+
+    Raises:
+        InvalidParameterError: ``config`` varies d already.
+        NoSceneWindowError: no d fits the range (the message names the constraints); the range is
+            not shrunk.
+    """
+    window = window_for_build(arm, config, shrink=False)
+    low, high = math.ceil(window.low_m * 1e4) / 1e4, math.floor(window.high_m * 1e4) / 1e4
+    if not low < high:
+        low, high = window.low_m, window.high_m
+    chosen = config.with_settings(vary=(*config.design.vary, ("d", low, high)))
+    note = (
+        f"--vary d {low:.4f} {high:.4f} chosen for this arm: the window of d where every obstacle of the range "
+        "is in reach and its end poses keep the margin (python -m pipeline.scene explains its edges)"
+    )
+    return chosen, note

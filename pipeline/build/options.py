@@ -254,7 +254,9 @@ BUILD_OPTIONS: tuple[Option, ...] = (
         unit="m",
         details=f"repeatable: {', '.join(VARY_NAMES)} (x: the obstacle's centre x, d: its far edge y, default "
         f"--top-y); a NAME alone takes its default range ({_DEFAULT_RANGES}; |x| < 0.06 m keeps P1..P5 of every "
-        "corner of the default (L, W) range in reach). The coefficients then vary these too (python -m "
+        "corner of the default (L, W) range in reach; d: the arm's window of d over the range, where every "
+        "obstacle is in reach and its end poses keep the margin, python -m pipeline.scene). The coefficients "
+        "then vary these too (python -m "
         "pipeline.generate --x); the region map covers them (d only with y1 = d, i.e. without --start-y; "
         "otherwise none is written)",
         nargs="+",

@@ -24,8 +24,8 @@ from types import MappingProxyType
 from typing import Any, TextIO
 
 from pipeline.build import BuildConfig, BuildResult, run_build
-from pipeline.build.arm_scene import scene_for_arm
-from pipeline.build.options import BUILD_OPTIONS, GROUPS, OPTIONS, SETTINGS, Option
+from pipeline.build.arm_scene import d_range_for_arm, scene_for_arm
+from pipeline.build.options import BUILD_OPTIONS, GROUPS, OPTIONS, SETTINGS, Option, vary_name
 from pipeline.build.run import stage_summary
 from pipeline.certify.certifiable_regression import clearance_refit_lines
 from pipeline.certify.map_for_coefficients import summary_lines
@@ -131,6 +131,25 @@ def config_from_args(args: argparse.Namespace) -> BuildConfig:
     return BuildConfig.from_settings(**{option.name: option.value(args) for option in SETTINGS.values()})
 
 
+def _without_bare_d(args: argparse.Namespace) -> tuple[argparse.Namespace, bool]:
+    """``args`` without a ``--vary d`` that gives no range, and whether there was one (its range is
+    then the arm's window: :func:`_with_d_for_arm`)."""
+    items = list(args.vary or [])
+    rest = [item for item in items if not (len(item) == 1 and vary_name(item[0]) == "d")]
+    if len(rest) == len(items):
+        return args, False
+    return argparse.Namespace(**{**vars(args), "vary": rest}), True
+
+
+def _with_d_for_arm(config: BuildConfig) -> BuildConfig:
+    """``config`` varying d over the arm's window (:func:`d_range_for_arm`), said on stderr; the
+    output folder is checked first, so that a bad --out is refused before the search."""
+    check_output_folder(config.out_folder, OPTIONS["out_folder"], new_parents=False)
+    config, note = d_range_for_arm(load_planar_arm(config.urdf_path), config)
+    print(f"{PROG}: {note}", file=sys.stderr)
+    return config
+
+
 def _with_scene_for_arm(config: BuildConfig, args: argparse.Namespace) -> BuildConfig:
     """``config`` with the obstacle's far edge d chosen for the arm (:func:`scene_for_arm`) when a
     URDF other than the shipped one is given without --top-y, --scene or a varying d: the build
@@ -185,7 +204,9 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
         PipelineError: bad input (``main`` prints it as one line).
     """
     out = sys.stdout if out is None else out
-    config = _with_scene_for_arm(config_from_args(args), args)
+    args, d_from_arm = _without_bare_d(args)
+    config = config_from_args(args)
+    config = _with_d_for_arm(config) if d_from_arm else _with_scene_for_arm(config, args)
     try:
         with ProgressBars(enabled=not (args.quiet or args.no_progress)) as bars:
             result = run_build(config, progress=bars)

@@ -75,3 +75,25 @@ def test_the_build_command_chooses_d_for_its_own_arm_and_keeps_a_given_one(
     status = build_command.main(["--urdf", str(urdf), "--out", str(tmp_path / "missing" / "deep" / "r")])
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1 and "missing" in err and "chosen" not in err
+
+
+def test_a_bare_vary_d_takes_the_arms_window(tmp_path: Path, capsys, arm) -> None:
+    """``--vary d`` without a range varies d over the arm's window over the build's (L, W, x)
+    range, rounded inwards: inside the window python -m pipeline.scene finds, said on stderr;
+    the build's pre-check passes over it."""
+    from pipeline.commands import build as build_command
+
+    args = build_command.parser().parse_args(
+        ["--out", str(tmp_path / "r"), "--vary", "x", "-0.03", "0.03", "--vary", "d"]
+    )
+    rest, bare = build_command._without_bare_d(args)
+    assert bare and rest.vary == [["x", "-0.03", "0.03"]] and args.vary[-1] == ["d"]
+    config = build_command._with_d_for_arm(build_command.config_from_args(rest))
+    assert config.variables.names == ("L", "W", "x", "d")
+    window = window_for_build(arm, build_command.config_from_args(rest), shrink=False)
+    low, high = config.design.scaled_design().ranges_m["d"]
+    assert window.low_m <= low < high <= window.high_m and low - window.low_m < 1e-4 and window.high_m - high < 1e-4
+    assert f"--vary d {low:.4f} {high:.4f} chosen for this arm" in capsys.readouterr().err
+    check_before_work(config, arm)  # at its grid of d (5 levels, both ends included)
+    given = build_command.parser().parse_args(["--vary", "d", "0.55", "0.57"])
+    assert build_command._without_bare_d(given) == (given, False)
