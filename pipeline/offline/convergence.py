@@ -16,9 +16,10 @@ therefore judges its own results before it writes them:
   tracking and keeping the margin that a single sinusoid per joint cannot avoid; a PSO stopped
   after 2 iterations misses by 168 mm. The 2 mm endpoint tolerance of the build is the
   *regression's*, held over the whole fitted range, not the optima's;
-* **the endpoint-constrained regression met its constraint**: SLSQP converged and the largest
-  endpoint error on its grid and on its denser check grid is within the tolerance (plus 1 nm for
-  rounding);
+* **the endpoint-constrained regression met its constraint**: SLSQP converged (or stopped at its
+  iteration budget at an iterate that holds the fit tolerance on its grid, as the report's
+  ``solver`` says) and the largest endpoint error on its grid and on its denser check grid is
+  within the tolerance (plus 1 nm for rounding);
 * **the regressed trajectories do not collide**: on a 21 x 21 grid over the fitted range, each
   trajectory the coefficients give has a positive clearance at 1001 uniform times (a sampled
   check, the configured clearance route; ``python -m verify.sweep`` certifies it in continuous

@@ -192,6 +192,34 @@ def test_non_convergence_warns_and_says_so(table2, targets) -> None:
     assert report["converged"] is False
 
 
+def test_a_feasible_iterate_at_the_budget_is_used_and_said(table2, targets, monkeypatch) -> None:
+    """SLSQP stopped at its iteration budget (status 9): an iterate within the fit tolerance on the
+    grid is used (converged, the report's ``solver`` says how it stopped), one outside it is not."""
+    import scipy.optimize
+
+    minimize = scipy.optimize.minimize
+    stop_at = {}
+
+    def at_budget(*args, **kwargs):
+        result = minimize(*args, **kwargs)
+        x = result.x if stop_at["optimum"] else args[1]  # the optimum, or the plain fit it started from
+        return scipy.optimize.OptimizeResult(x=x, success=False, status=9, message="Iteration limit reached")
+
+    monkeypatch.setattr(scipy.optimize, "minimize", at_budget)
+    args = (table2.lengths_m, table2.widths_m, table2.free_parameters(), targets)
+    stop_at["optimum"] = True
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _, report = fit_with_endpoints(*args, EndpointConstraint(check_points=0))
+    assert report["converged"] is True and report["grid_endpoint_error_max_m"] <= report["fit_tolerance_m"] * (1 + 1e-6)
+    assert report["solver"].startswith("Iteration limit reached at an iterate within the fit tolerance")
+    stop_at["optimum"] = False
+    with pytest.warns(EndpointConstraintWarning, match="Iteration limit reached"):
+        _, report = fit_with_endpoints(*args, EndpointConstraint(check_points=0))
+    assert report["converged"] is False and "solver" not in report
+    assert report["grid_endpoint_error_max_m"] > report["tolerance_m"]  # the plain fit's
+
+
 def test_converged_fit_does_not_warn(table2, targets) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
