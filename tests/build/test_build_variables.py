@@ -14,6 +14,7 @@ from pipeline import BuildConfig, generate, load_coefficients
 from pipeline.build import doe_fit
 from pipeline.commands import build, regress
 from pipeline.exceptions import InvalidParameterError, PipelineError
+from pipeline.model.scene import Scene
 from pipeline.offline.designs import BoxBehnken, CentralComposite, FullFactorial
 
 #: A PSO small enough for 27 runs in seconds (its optima miss the thresholds: --allow-unconverged).
@@ -29,7 +30,7 @@ BAD = [
     (["--vary", "x", "0.03", "0.03"], "min < max"),
     (["--vary", "x", "zero", "0.03"], "a number"),
     (["--vary", "x", "0.03"], "NAME MIN MAX"),
-    (["--vary", "d"], "no default range"),
+    (["--vary", "d", "--L-range", "0.2", "0.5"], "no d (the obstacle's far edge y, --top-y) fits"),  # no window
     (["--vary", "x", "0.05", "0.07"], "a range the arm reaches"),
     (["--vary", "x", "-0.1", "0.0"], "P5"),
     # A corner of the box that is no Box-Behnken run: the grid over the box refuses it.
@@ -68,7 +69,8 @@ def test_build_config_takes_factors_and_design_classes() -> None:
     )
     assert len(BuildConfig.from_settings(vary=config.design.vary).design.scaled_design().points()) == 27
     assert config.certifiable_refit  # the range certificate covers x
-    assert not BuildConfig.from_settings(vary=(("d", 0.55, 0.57),)).certifiable_refit
+    assert BuildConfig.from_settings(vary=(("d", 0.55, 0.57),)).certifiable_refit  # and d, with y1 = d
+    assert not BuildConfig.from_settings(vary=(("d", 0.55, 0.57),), scene=Scene(start_y_m=0.5)).certifiable_refit
     with pytest.raises(InvalidParameterError, match="--design"):
         BuildConfig.from_settings(design_kind="latin-square")
     with pytest.raises(PipelineError, match="a range the arm reaches"):
