@@ -504,8 +504,7 @@ class BuildConfig:
         """True if the build runs the certifiable regression's rounds before the map (a range
         map over certifiable axes among the regression's
         :data:`~pipeline.certify.certifiable_regression.REFIT_VARIABLES`, rounds > 0, the endpoint
-        constraint, the paper family); over other axes (d) the coefficients are certified as
-        regressed."""
+        constraint, the paper family: L, W, x and d, as the certificate's axes)."""
         return bool(
             self.range_map.enabled
             and self.certifiable_axes
