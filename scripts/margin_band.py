@@ -1,4 +1,4 @@
-"""Where a region map over any axes ((L, W), (L, W, x)) misses the margin without proving
+"""Where a region map over any axes ((L, W), (L, W, x), (L, W, x, d)) misses the margin without proving
 infeasibility, whose is the gap: the certificate's, the end poses' or the regression's?
 
     python scripts/margin_band.py results-x/coefficients.json [--map MAP] [--n 600] [--seed 0]
@@ -9,7 +9,7 @@ margin; ``numpy.random.default_rng(seed)``) and samples at each leaf's centre
 * the regression's clearance along [0, T] at 401 times (analytic distance, the certifiable
   regression's ``clearance_at``, against the obstacle moved by x where the map has x);
 * the room the end poses leave at the map's endpoint tolerance
-  (``pipeline.certify.end_pose_room.end_pose_room_m``, P1 and P5 moved by x),
+  (``pipeline.certify.end_pose_room.end_pose_room_m``, P1 and P5 moved by x and d),
 
 and prints the share of the drawn leaves, and the volume fraction of the box they stand for,
 in which: the regression's sampled clearance keeps the margin (finer cells could prove it); the
@@ -70,8 +70,10 @@ def main(argv: list[str] | None = None) -> int:
     s = np.linspace(0.0, 1.0, SAMPLES_S)
     clearance = clearance_at(b, clearance_grid(coefficients, centres, s), coefficients).reshape(len(drawn), s.size)
     lowest = clearance.min(axis=1)
-    x = centres[:, coefficients.variables.index("x")] if "x" in coefficients.variables.names else None
-    room = end_pose_room_m(coefficients, centres[:, 0], centres[:, 1], region_map.endpoint_tolerance_m, x)
+    names = coefficients.variables.names
+    x = centres[:, names.index("x")] if "x" in names else None
+    d = centres[:, names.index("d")] if "d" in names else None
+    room = end_pose_room_m(coefficients, centres[:, 0], centres[:, 1], region_map.endpoint_tolerance_m, x, top_y_m=d)
     margin = region_map.margin_m
     classes = {
         "the regression keeps the margin at the centre (the bound's share)": lowest >= margin,
