@@ -243,16 +243,19 @@ class DurationModel:
             out[rows] = best
         return out
 
-    def jet(self, center_m: np.ndarray, radius_m: np.ndarray, k: int = 3) -> Jet:
-        """First-order jet of T over boxes of (L, W[, s]) (module docstring, step 3).
+    def jet(self, center_m: np.ndarray, radius_m: np.ndarray, k: int = 3, order: int = 1) -> Jet:
+        """Jet of T over boxes of (L, W[, s]) (module docstring, step 3).
 
         Args:
             center_m: Box centres (N, >= 2), columns L, W [m] (further columns ignored).
             radius_m: Half widths (N, >= 2) [m]; zeros give the enclosure at the centre.
             k: Number of jet variables (L, W first; T does not depend on the others).
+            order: 2 adds the Hessian: [-|H|, |H|] of :meth:`hessian_magnitude` in the (L, W)
+                block, zero elsewhere.
 
         Returns:
-            Jet with value (N,) [s] and gradient (N, k) [s/m] enclosing T and grad T over each box.
+            Jet with value (N,) [s] and gradient (N, k) [s/m] enclosing T and grad T over each box
+            (and with ``order`` 2 its Hessian (N, k, k) [s/m^2]).
         """
         center = np.asarray(center_m, dtype=float)
         # Boxes of one (L, W) node differ only in s: the quadrature runs once per distinct node.
@@ -267,4 +270,8 @@ class DurationModel:
         value = Interval(value_c.lo - value_spread, value_c.hi + value_spread)
         lo, hi = np.zeros((r.shape[0], k)), np.zeros((r.shape[0], k))
         lo[:, :2], hi[:, :2] = grad_c.lo - grad_spread, grad_c.hi + grad_spread
-        return Jet(value, Interval(lo, hi))
+        if order == 1:
+            return Jet(value, Interval(lo, hi))
+        hess = np.zeros((r.shape[0], k, k))
+        hess[:, :2, :2] = hmag
+        return Jet(value, Interval(lo, hi), Interval(-hess, hess))

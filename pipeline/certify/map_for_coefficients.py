@@ -12,9 +12,7 @@ import numpy as np
 
 from pipeline.certify.execution_range import execution_bounds
 from pipeline.certify.range_certificate import (
-    DEFAULT_CELLS,
     DEFAULT_ENDPOINT_TOLERANCE_M,
-    DEFAULT_MERGE_SPREAD_M,
     RangeCertificateConfig,
 )
 from pipeline.certify.range_model import RangeModel
@@ -40,26 +38,17 @@ def default_config(
     executor: Executor | None = None,
 ) -> RangeCertificateConfig:
     """The certificate's settings for these coefficients; None takes the default (endpoint
-    tolerance 0 for a family that pins the endpoints; cells by the number of axes,
-    ``range_certificate.DEFAULT_CELLS``). The tasks run on ``executor``, or on ``jobs`` local
+    tolerance 0 for a family that pins the endpoints; the rest by the number of axes,
+    :meth:`RangeCertificateConfig.for_axes`). The tasks run on ``executor``, or on ``jobs`` local
     processes (:mod:`pipeline.io.executor`)."""
-    pinned = coefficients.family.pins_endpoints
     if endpoint_tolerance_m is None:
-        endpoint_tolerance_m = 0.0 if pinned else DEFAULT_ENDPOINT_TOLERANCE_M
-    default_min, default_boundary, default_extra = DEFAULT_CELLS.get(coefficients.variables.k, DEFAULT_CELLS[3])
-    if extra_depth is None:
-        extra_depth = default_extra
-    if merge_spread_m is None:
-        merge_spread_m = DEFAULT_MERGE_SPREAD_M.get(coefficients.variables.k, DEFAULT_MERGE_SPREAD_M[3])
-    if min_cell is None:
-        min_cell = default_min
-    if boundary_cell is None:
-        boundary_cell = default_boundary
-    return RangeCertificateConfig(
+        endpoint_tolerance_m = 0.0 if coefficients.family.pins_endpoints else DEFAULT_ENDPOINT_TOLERANCE_M
+    return RangeCertificateConfig.for_axes(
+        coefficients.variables.k,
         margin_m=margin_m,
         endpoint_tolerance_m=endpoint_tolerance_m,
         min_cell=min_cell,
-        boundary_cell=min(boundary_cell, 1.0),
+        boundary_cell=None if boundary_cell is None else min(boundary_cell, 1.0),
         extra_depth=extra_depth,
         merge_spread_m=merge_spread_m,
         jobs=jobs,

@@ -85,6 +85,11 @@ DEFAULT_CELLS: Mapping[int, tuple[float, float, int]] = MappingProxyType(
 #: (``pipeline.certify.leaf_merge``), per number of axes; 0: none merged. Over (L, W) the map is
 #: small as it is and keeps every leaf's own bounds.
 DEFAULT_MERGE_SPREAD_M: Mapping[int, float] = MappingProxyType({2: 0.0, 3: 1e-4, 4: 1e-4})
+#: Default of ``RangeCertificateConfig.second_order_endpoints`` per number of axes. Over (L, W)
+#: the map's cells are small enough for the mean-value form and keep their bytes; over three and
+#: four axes the second-order form proves 2 mm on cubes of 1/32 where the mean-value form needs
+#: 1/64 and finer (python scripts/endpoint_gap.py, docs/results.md).
+DEFAULT_SECOND_ORDER_ENDPOINTS: Mapping[int, bool] = MappingProxyType({2: False, 3: True, 4: True})
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
 #: within this of the margin [m].
 _INFEASIBILITY_REFINE_M = 1e-3
@@ -143,6 +148,9 @@ class RangeCertificateConfig:
         merge_spread_m: Sibling leaves of one status whose clearance bounds, and endpoint bounds,
             differ by at most this are stored as their parent [m] (``pipeline.certify.leaf_merge``;
             0: none).
+        second_order_endpoints: Bound the endpoint errors by the tighter of the mean-value and
+            the second-order Taylor forms (``pipeline.certify.endpoints``); False: the mean-value
+            form alone.
     """
 
     margin_m: float | None = None
@@ -156,6 +164,7 @@ class RangeCertificateConfig:
     max_boxes: int = 5_000_000
     strip_split: int = DEFAULT_STRIP_SPLIT
     merge_spread_m: float = 0.0
+    second_order_endpoints: bool = False
 
     def __post_init__(self) -> None:
         if self.margin_m is not None:
@@ -175,8 +184,25 @@ class RangeCertificateConfig:
         check_positive_int("max_boxes", self.max_boxes)
         check_positive_int("strip_split", self.strip_split, minimum=0)
         check_non_negative("merge_spread_m", self.merge_spread_m)
+        if not isinstance(self.second_order_endpoints, bool):
+            raise InvalidParameterError("second_order_endpoints", self.second_order_endpoints, "True or False")
         if self.strip_split > 6:
             raise InvalidParameterError("strip_split", self.strip_split, "0..6 halvings along W")
+
+    @classmethod
+    def for_axes(cls, k: int, **settings: Any) -> RangeCertificateConfig:
+        """The default settings over ``k`` axes (cells :data:`DEFAULT_CELLS`, merging
+        :data:`DEFAULT_MERGE_SPREAD_M`, endpoint form :data:`DEFAULT_SECOND_ORDER_ENDPOINTS`),
+        with ``settings`` that are not None in their place (names of this class's fields)."""
+        min_cell, boundary_cell, extra_depth = DEFAULT_CELLS.get(k, DEFAULT_CELLS[3])
+        defaults = {
+            "min_cell": min_cell,
+            "boundary_cell": boundary_cell,
+            "extra_depth": extra_depth,
+            "merge_spread_m": DEFAULT_MERGE_SPREAD_M.get(k, DEFAULT_MERGE_SPREAD_M[3]),
+            "second_order_endpoints": DEFAULT_SECOND_ORDER_ENDPOINTS.get(k, True),
+        }
+        return cls(**{**defaults, **{name: value for name, value in settings.items() if value is not None}})
 
     @property
     def run_on(self) -> Executor:
@@ -197,6 +223,7 @@ class RangeCertificateConfig:
             extra_depth=self.extra_depth,
             max_depth_s=self.max_depth_s,
             strip_split=self.strip_split,
+            second_order_endpoints=self.second_order_endpoints,
             run_on=self.run_on,
         )
 
@@ -388,13 +415,20 @@ def _witnessed(model: RangeModel, c: np.ndarray, r: np.ndarray, settings: Certif
 
 
 def _leaf_bounds(
-    model: RangeModel, c: np.ndarray, r: np.ndarray, need: np.ndarray, tolerance_m: float, margin_m: float
+    model: RangeModel,
+    c: np.ndarray,
+    r: np.ndarray,
+    need: np.ndarray,
+    tolerance_m: float,
+    margin_m: float,
+    second_order: bool = False,
 ) -> np.ndarray:
-    """Per leaf (centres, half widths): the endpoint bound, the endpoint error at the centre,
-    where ``need`` the endpoint clearance upper bound (else inf), then each axis's share of the
-    endpoint bound's gap, as columns of an (n, 3 + k) array."""
+    """Per leaf (centres, half widths): the endpoint bound (with the second-order form if
+    ``second_order``), the endpoint error at the centre, where ``need`` the endpoint clearance
+    upper bound (else inf), then each axis's share of the endpoint bound's gap, as columns of an
+    (n, 3 + k) array."""
     out = np.full((c.shape[0], 3 + model.k), np.inf)
-    bounds, out[:, 3:] = endpoint_bounds_and_shares(model, c, r)
+    bounds, out[:, 3:] = endpoint_bounds_and_shares(model, c, r, second_order)
     out[:, 0] = np.max(bounds, axis=1)
     out[:, 1] = np.max(endpoint_error_bounds(model, c, np.zeros_like(r)), axis=1)
     if np.any(need):
@@ -477,6 +511,7 @@ def refine_leaves(
                 (c, r, need),
                 tolerance_m,
                 margin_m,
+                settings.second_order_endpoints,
                 progress=progress,
                 stage=PROGRESS_STAGES[1],
                 before=bounded,
@@ -620,8 +655,8 @@ def certify_range(
 
     Args:
         coefficients: Loaded coefficients (any family with jets; the paper's Eq. 9 too).
-        config: Settings; default :class:`RangeCertificateConfig` with the cells of
-            :data:`DEFAULT_CELLS` for the coefficients' number of axes.
+        config: Settings; default :meth:`RangeCertificateConfig.for_axes` of the coefficients'
+            number of axes.
         progress: Called as work finishes, ``progress(stage, done, total)`` for the stages of
             :data:`PROGRESS_STAGES` that have work (e.g. :class:`pipeline.io.progress.ProgressBars`);
             the map does not depend on it.
@@ -630,14 +665,7 @@ def certify_range(
         The :class:`RegionMap`, linked to the coefficients by their sha256.
     """
     if config is None:
-        k = coefficients.variables.k
-        min_cell, boundary_cell, extra_depth = DEFAULT_CELLS[k]
-        config = RangeCertificateConfig(
-            min_cell=min_cell,
-            boundary_cell=boundary_cell,
-            extra_depth=extra_depth,
-            merge_spread_m=DEFAULT_MERGE_SPREAD_M[k],
-        )
+        config = RangeCertificateConfig.for_axes(coefficients.variables.k)
     start = time.perf_counter()
     margin = coefficients.scene.margin_m if config.margin_m is None else config.margin_m
     model = RangeModel.from_coefficients(coefficients)

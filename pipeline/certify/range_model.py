@@ -195,10 +195,10 @@ class RangeModel:
         hi = np.array([self.length_range_m[1], self.width_range_m[1], *(hi for _, hi in self.extra_ranges_m)])
         return hi - self.range_lo
 
-    def variables(self, center: np.ndarray, radius: np.ndarray) -> tuple[Jet, ...]:
-        """Jets of the axes, then s, over boxes (centres and half widths (N, k + 1))."""
+    def variables(self, center: np.ndarray, radius: np.ndarray, order: int = 1) -> tuple[Jet, ...]:
+        """Jets of the axes, then s, over boxes (centres and half widths (N, k + 1)), of ``order`` 1 or 2."""
         n = self.k + 1
-        return tuple(Jet.variable(center[:, i], radius[:, i], i, n) for i in range(n))
+        return tuple(Jet.variable(center[:, i], radius[:, i], i, n, order) for i in range(n))
 
     def column(self, name: str) -> int | None:
         """Column of the axis ``name`` among the axes, or None if the coefficients do not vary it."""
@@ -236,9 +236,10 @@ class RangeModel:
                 value = constant[n] + reach @ linear[n]
                 spread = np.zeros(jet.grad.shape)
                 spread[..., : len(offsets)] = linear[n]
-                out[n] = Jet(
+                out[n] = Jet(  # constant and linear in the offsets: the Hessian is the jet's
                     Interval(jet.value.lo - value, jet.value.hi + value),
                     Interval(jet.grad.lo - spread, jet.grad.hi + spread),
+                    jet.hess,
                 )
         return out
 
@@ -293,11 +294,12 @@ class RangeModel:
         th1 = base - _atan2(sin2 * l2, cos2 * l2 + l1)
         return th1, th2
 
-    def joint_jets(self, center: np.ndarray, radius: np.ndarray) -> tuple[Jet, Jet]:
-        """Jets of (theta1, theta2) [rad] over boxes of (axes, s) with centres/half widths (N, k + 1)."""
-        jets = self.variables(center, radius)
+    def joint_jets(self, center: np.ndarray, radius: np.ndarray, order: int = 1) -> tuple[Jet, Jet]:
+        """Jets of (theta1, theta2) [rad] over boxes of (axes, s) with centres/half widths (N, k + 1),
+        of ``order`` 1 or 2 (2: with Hessians, where the family's expansion keeps them)."""
+        jets = self.variables(center, radius, order)
         s = jets[-1]
-        T = self.duration.jet(center, radius, k=self.k + 1)
+        T = self.duration.jet(center, radius, k=self.k + 1, order=order)
         p = self.parameter_jets(jets, T)
         sT = s * T
         theta1 = (p[1] * sT + p[2]).sin() * p[0] + p[3]
