@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 
@@ -70,6 +71,10 @@ def _metres(text: str) -> float:
     return value
 
 
+#: ``--endpoint-form`` -> ``RangeCertificateConfig.second_order_endpoints``.
+ENDPOINT_FORMS = MappingProxyType({"mean-value": False, "second-order": True})
+
+
 def _add_cell_options(p: argparse.ArgumentParser) -> None:
     """The options that shape the map's cells: their smallest size, extra depth, merging and the
     boundary's cell."""
@@ -97,6 +102,13 @@ def _add_cell_options(p: argparse.ArgumentParser) -> None:
         help="store two sibling leaves of one status as their parent where their clearance bounds, and their "
         f"endpoint bounds, differ by at most M [m] (0: none; default: {DEFAULT_MERGE_SPREAD_M[2]} over (L, W), "
         f"{DEFAULT_MERGE_SPREAD_M[3]} over more axes)",
+    )
+    p.add_argument(
+        "--endpoint-form",
+        choices=tuple(ENDPOINT_FORMS),
+        default=None,
+        help="how the endpoint errors are bounded over a cell: the mean-value form alone, or intersected with the "
+        "second-order Taylor form (default: mean-value over (L, W), second-order over more axes)",
     )
     p.add_argument(
         "--boundary-cell",
@@ -214,6 +226,7 @@ def _work(args: argparse.Namespace) -> int:
         boundary_cell=args.boundary_cell,
         extra_depth=args.extra_depth,
         merge_spread_m=args.merge_spread,
+        second_order_endpoints=None if args.endpoint_form is None else ENDPOINT_FORMS[args.endpoint_form],
         jobs=args.jobs,
         executor=executor,
     )

@@ -165,3 +165,19 @@ def test_the_certificate_setting_reaches_the_leaves(lifted: Coefficients, monkey
     first = certify_range(lifted, replace(coarse, second_order_endpoints=False))
     assert seen and not any(seen)
     assert second.size <= first.size
+
+
+def test_the_command_line_chooses_the_form(capsys: pytest.CaptureFixture[str]) -> None:
+    """``python -m pipeline.certify_range --endpoint-form``: either form by name, a bad one refused
+    in one line; default_config passes it on (None: the default of the number of axes)."""
+    from pipeline.certify.map_for_coefficients import default_config
+    from pipeline.commands import certify_range
+
+    args = certify_range.parser().parse_args(["paper", "--endpoint-form", "second-order"])
+    assert certify_range.ENDPOINT_FORMS[args.endpoint_form] is True
+    eq9 = load_coefficients("paper")
+    assert default_config(eq9, second_order_endpoints=True).second_order_endpoints
+    assert not default_config(eq9).second_order_endpoints
+    assert certify_range.main(["paper", "--endpoint-form", "taylor"]) == 2
+    err = capsys.readouterr().err
+    assert "--endpoint-form" in err and "Traceback" not in err
