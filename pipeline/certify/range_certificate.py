@@ -78,7 +78,7 @@ DEFAULT_CELLS: Mapping[int, tuple[float, float, int]] = MappingProxyType(
     {
         2: (DEFAULT_MIN_CELL, DEFAULT_BOUNDARY_CELL, 0),
         3: (1.0 / 256, 1.0 / 16, 0),
-        4: (1.0 / 16, 1.0 / 8, 0),  # (L, W, x, d)
+        4: (1.0 / 32, 1.0 / 8, 0),  # (L, W, x, d): the second-order endpoint form proves 2 mm on cubes of 1/32
     }
 )
 #: Default spread [m] within which sibling leaves' bounds must agree to be stored as their parent
