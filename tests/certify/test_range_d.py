@@ -94,8 +94,9 @@ def test_d_is_refused_where_the_start_height_is_fixed(eq9_xd: Coefficients) -> N
         RangeModel.from_coefficients(fixed)
     vary = (("x", -0.03, 0.03), ("d", *D_RANGE))
     assert BuildConfig.from_settings(vary=vary).certifiable_axes
-    assert not BuildConfig.from_settings(vary=vary).certifiable_refit  # the refit's points move the obstacle by x only
+    assert BuildConfig.from_settings(vary=vary).certifiable_refit  # the refit's points move the obstacle by x and d
     assert not BuildConfig.from_settings(vary=vary, scene=Scene(start_y_m=0.56)).certifiable_axes
+    assert not BuildConfig.from_settings(vary=vary, scene=Scene(start_y_m=0.56)).certifiable_refit
 
 
 def test_the_path_moves_with_d_and_keeps_its_duration(eq9_xd: Coefficients) -> None:
