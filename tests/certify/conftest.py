@@ -111,3 +111,58 @@ def _end_pose_clearance(coefficients, arm, obstacle, scene, tolerance_m: float) 
         q = inverse_kinematics_batch(p + disc, arm.link_lengths_m, coefficients.elbow)
         out[column] = analytic_link_clearance(q, arm, obstacle).min(axis=-1).max()
     return out
+
+
+@pytest.fixture(scope="session")
+def check_clearance_jacobian():
+    """The function checking the certifiable regression's clearance Jacobian against central
+    differences (:func:`_check_clearance_jacobian`)."""
+    return _check_clearance_jacobian
+
+
+def _check_clearance_jacobian(coefficients, points: np.ndarray, rng: np.random.Generator) -> None:
+    """``clearance_jacobian`` at ``points`` (n, k + 1: the variables, then s) against central
+    differences of ``clearance_at`` in 12 random coefficients (step 1e-7)."""
+    from pipeline.certify.certifiable_regression import clearance_at, clearance_jacobian, clearance_points
+    from pipeline.motion.trajectory import PARAMETER_NAMES
+
+    data = clearance_points(coefficients, points)
+    b = np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
+    jacobian = clearance_jacobian(b, data, coefficients)
+    assert jacobian.shape == (points.shape[0], 8 * coefficients.variables.basis_size)
+    step = 1e-7
+    for k in rng.choice(b.size, 12, replace=False):
+        e = np.zeros(b.size)
+        e[k] = step
+        numeric = (clearance_at(b + e, data, coefficients) - clearance_at(b - e, data, coefficients)) / (2 * step)
+        np.testing.assert_allclose(jacobian[:, k], numeric, rtol=1e-4, atol=1e-6)
+
+
+@pytest.fixture(scope="session")
+def check_clearance_against_generator():
+    """The function checking the certifiable regression's clearance against the generator's
+    answer (:func:`_check_clearance_against_generator`)."""
+    return _check_clearance_against_generator
+
+
+def _check_clearance_against_generator(coefficients, points: np.ndarray, arm) -> None:
+    """``clearance_at`` at ``points`` (n, k + 1: the variables, then s) equals the analytic
+    clearance of ``generate(coefficients, L, W, x=, d=)`` at s T against the answer's own (moved)
+    obstacle, to 1e-9 m, and Coal's within its error."""
+    from pipeline.certify.certifiable_regression import clearance_at, clearance_points
+    from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance
+    from pipeline.motion.trajectory import PARAMETER_NAMES
+    from pipeline.online.generator import generate
+
+    b = np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
+    values = clearance_at(b, clearance_points(coefficients, points), coefficients)
+    extra = coefficients.variables.extra
+    for point, value in zip(points, values, strict=True):
+        moved = dict(zip(extra, map(float, point[2:-1]), strict=True))
+        answer = generate(coefficients, float(point[0]), float(point[1]), region_map=None, **moved)
+        assert answer.obstacle.centre_x_m == moved.get("x", coefficients.scene.centre_x_m)
+        assert answer.obstacle.top_y_m == moved.get("d", coefficients.scene.top_y_m)
+        q = answer.q(point[-1] * answer.duration_s)
+        np.testing.assert_allclose(value, analytic_link_clearance(q, arm, answer.obstacle).min(), rtol=0, atol=1e-9)
+        coal = float(CoalClearance(arm, answer.obstacle).link_clearance(q).min())
+        np.testing.assert_allclose(value, coal, rtol=0, atol=COAL_DISTANCE_ERROR_M)

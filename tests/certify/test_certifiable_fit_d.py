@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
-from pipeline.certify.certifiable_regression import clearance_at, clearance_jacobian, clearance_points
 from pipeline.certify.end_pose_room import configuration_clearance, end_pose_room_m
-from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
+from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance
 from pipeline.model.arm import PlanarArm
 from pipeline.motion.trajectory import PARAMETER_NAMES
 from pipeline.offline.coefficients import Coefficients
@@ -44,31 +43,15 @@ def _matrix(coefficients: Coefficients) -> np.ndarray:
     return np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
 
 
-def test_clearance_is_the_generators_on_the_moved_obstacle(eq9_xd: Coefficients, arm: PlanarArm) -> None:
-    """clearance_at at (L, W, x, d, s) equals the analytic clearance of generate(..., x, d) at
-    s T against the answer's own obstacle (far edge at d), and Coal's within its error."""
-    points = _points(30, 0)
-    values = clearance_at(_matrix(eq9_xd), clearance_points(eq9_xd, points), eq9_xd)
-    for (L, W, x, d, s), value in zip(points, values, strict=True):
-        answer = generate(eq9_xd, L, W, x=x, d=d, region_map=None)
-        assert answer.obstacle.top_y_m == pytest.approx(d, abs=1e-15)
-        q = answer.q(s * answer.duration_s)
-        assert value == pytest.approx(analytic_link_clearance(q, arm, answer.obstacle).min(), abs=1e-9)
-        coal = CoalClearance(arm, answer.obstacle)
-        assert value == pytest.approx(float(coal.link_clearance(q).min()), abs=COAL_DISTANCE_ERROR_M)
+def test_clearance_is_the_generators_on_the_moved_obstacle(
+    eq9_xd: Coefficients, arm: PlanarArm, check_clearance_against_generator
+) -> None:
+    """clearance_at at (L, W, x, d, s) is the generator's answer's, against its own moved obstacle."""
+    check_clearance_against_generator(eq9_xd, _points(30, 0), arm)
 
 
-def test_clearance_jacobian_matches_finite_differences_over_d(eq9_xd: Coefficients) -> None:
-    data = clearance_points(eq9_xd, _points(15, 1))
-    b = _matrix(eq9_xd)
-    jacobian = clearance_jacobian(b, data, eq9_xd)
-    assert jacobian.shape == (15, 8 * eq9_xd.variables.basis_size)
-    step = 1e-7
-    for k in np.random.default_rng(2).choice(b.size, 12, replace=False):
-        e = np.zeros(b.size)
-        e[k] = step
-        numeric = (clearance_at(b + e, data, eq9_xd) - clearance_at(b - e, data, eq9_xd)) / (2 * step)
-        assert jacobian[:, k] == pytest.approx(numeric, rel=1e-4, abs=1e-6)
+def test_clearance_jacobian_matches_finite_differences_over_d(eq9_xd: Coefficients, check_clearance_jacobian) -> None:
+    check_clearance_jacobian(eq9_xd, _points(15, 1), np.random.default_rng(2))
 
 
 def test_end_pose_room_moves_with_the_far_edge(eq9_xd: Coefficients) -> None:

@@ -14,19 +14,17 @@ from pipeline import load_coefficients
 from pipeline.certify.certifiable_regression import (
     CertifiableFitConfig,
     clearance_at,
-    clearance_jacobian,
     clearance_points,
     refit,
 )
 from pipeline.certify.end_pose_room import ROOM_ANGLES, ROOM_RINGS, end_pose_room_m
-from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
+from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance
 from pipeline.model.arm import PlanarArm
 from pipeline.model.kinematics import inverse_kinematics
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.trajectory import PARAMETER_NAMES
 from pipeline.offline.coefficients import Coefficients
 from pipeline.offline.endpoint_regression import EndpointConstraint, endpoint_errors_m, endpoint_targets
-from pipeline.online.generator import generate
 
 
 @pytest.fixture(scope="module")
@@ -46,31 +44,15 @@ def _points(n: int, seed: int) -> np.ndarray:
     )
 
 
-def test_clearance_is_the_generators_on_the_moved_obstacle(eq9_x: Coefficients, arm: PlanarArm) -> None:
-    """clearance_at at (L, W, x, s) equals the analytic clearance of generate(..., x=x) at s T
-    against the answer's own (moved) obstacle, and Coal's within its error."""
-    points = _points(40, 0)
-    values = clearance_at(_matrix(eq9_x), clearance_points(eq9_x, points), eq9_x)
-    for (L, W, x, s), value in zip(points, values, strict=True):
-        answer = generate(eq9_x, L, W, x=x, region_map=None)
-        assert answer.obstacle.center_m[0] == pytest.approx(x, abs=1e-15)
-        q = answer.q(s * answer.duration_s)
-        assert value == pytest.approx(analytic_link_clearance(q, arm, answer.obstacle).min(), abs=1e-9)
-        coal = CoalClearance(arm, answer.obstacle)
-        assert value == pytest.approx(float(coal.link_clearance(q).min()), abs=COAL_DISTANCE_ERROR_M)
+def test_clearance_is_the_generators_on_the_moved_obstacle(
+    eq9_x: Coefficients, arm: PlanarArm, check_clearance_against_generator
+) -> None:
+    """clearance_at at (L, W, x, s) is the generator's answer's, against its own moved obstacle."""
+    check_clearance_against_generator(eq9_x, _points(40, 0), arm)
 
 
-def test_clearance_jacobian_matches_finite_differences_over_x(eq9_x: Coefficients) -> None:
-    data = clearance_points(eq9_x, _points(20, 1))
-    b = _matrix(eq9_x)
-    jacobian = clearance_jacobian(b, data, eq9_x)
-    assert jacobian.shape == (20, 8 * eq9_x.variables.basis_size)
-    step = 1e-7
-    for k in np.random.default_rng(2).choice(b.size, 12, replace=False):
-        e = np.zeros(b.size)
-        e[k] = step
-        numeric = (clearance_at(b + e, data, eq9_x) - clearance_at(b - e, data, eq9_x)) / (2 * step)
-        assert jacobian[:, k] == pytest.approx(numeric, rel=1e-4, abs=1e-6)
+def test_clearance_jacobian_matches_finite_differences_over_x(eq9_x: Coefficients, check_clearance_jacobian) -> None:
+    check_clearance_jacobian(eq9_x, _points(20, 1), np.random.default_rng(2))
 
 
 def test_end_pose_room_moves_with_the_obstacle(eq9_x: Coefficients, arm: PlanarArm) -> None:
