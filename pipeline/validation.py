@@ -45,3 +45,10 @@ def check_positive_int(name: str, value: int, minimum: int = 1) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise InvalidParameterError(name, value, f"an integer >= {minimum}")
     return value
+
+
+def check_bool(name: str, value: bool) -> bool:
+    """Return ``value`` if it is True or False, else raise InvalidParameterError."""
+    if not isinstance(value, bool):
+        raise InvalidParameterError(name, value, "True or False")
+    return value

@@ -10,7 +10,7 @@ import numpy as np
 from pipeline.certify.subpaving import open_axes
 from pipeline.exceptions import InvalidParameterError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool
-from pipeline.validation import check_non_negative, check_positive_int
+from pipeline.validation import check_bool, check_non_negative, check_positive_int
 
 __all__ = ["CertificateSettings"]
 
@@ -51,8 +51,7 @@ class CertificateSettings:
         check_positive_int("extra_depth", self.extra_depth, minimum=0)
         check_positive_int("max_depth_s", self.max_depth_s, minimum=1)
         check_positive_int("strip_split", self.strip_split, minimum=0)
-        if not isinstance(self.second_order_endpoints, bool):
-            raise InvalidParameterError("second_order_endpoints", self.second_order_endpoints, "True or False")
+        check_bool("second_order_endpoints", self.second_order_endpoints)
         if not isinstance(self.run_on, LocalPool | DaskScheduler):
             raise InvalidParameterError("run_on", self.run_on, "a LocalPool or a DaskScheduler")
 

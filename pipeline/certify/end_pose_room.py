@@ -38,8 +38,8 @@ def configuration_clearance(
     range model)."""
     scene = arm.scene
     r = scene.corner_radius_m
-    centre_x = np.full(len(sizes_m), float(scene.centre_x_m)) if centre_x_m is None else centre_x_m
-    top_y = np.full(len(sizes_m), float(scene.top_y_m)) if top_y_m is None else top_y_m
+    centre_x = _per_obstacle(centre_x_m, scene.centre_x_m, len(sizes_m))
+    top_y = _per_obstacle(top_y_m, scene.top_y_m, len(sizes_m))
     center = np.stack([centre_x, top_y - sizes_m[:, 1] / 2], -1)
     half = np.stack([sizes_m[:, 0] / 2 - r, sizes_m[:, 1] / 2 - r], -1)
     links = link_box_clearance(theta, arm.link_lengths_m, arm.link_radii_m, center, half, r)
@@ -106,5 +106,5 @@ def end_pose_room_m(
         clearance = configuration_clearance(
             theta, sizes, arm, np.repeat(centres, tip_count), np.repeat(tops, tip_count)
         )
-        room = np.minimum(room, clearance.reshape(lengths.size, offsets.shape[0]).max(axis=1, initial=-np.inf))
+        room = np.minimum(room, clearance.reshape(lengths.size, tip_count).max(axis=1, initial=-np.inf))
     return room

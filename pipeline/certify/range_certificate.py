@@ -57,7 +57,7 @@ from pipeline.exceptions import InvalidParameterError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool, as_executor, map_tasks
 from pipeline.io.progress import ProgressCallback
 from pipeline.offline.coefficients import Coefficients
-from pipeline.validation import check_non_negative, check_positive, check_positive_int
+from pipeline.validation import check_bool, check_non_negative, check_positive, check_positive_int
 
 #: Default endpoint tolerance of the infeasibility certificate [m] (the build's regression's).
 DEFAULT_ENDPOINT_TOLERANCE_M = 0.002
@@ -184,8 +184,7 @@ class RangeCertificateConfig:
         check_positive_int("max_boxes", self.max_boxes)
         check_positive_int("strip_split", self.strip_split, minimum=0)
         check_non_negative("merge_spread_m", self.merge_spread_m)
-        if not isinstance(self.second_order_endpoints, bool):
-            raise InvalidParameterError("second_order_endpoints", self.second_order_endpoints, "True or False")
+        check_bool("second_order_endpoints", self.second_order_endpoints)
         if self.strip_split > 6:
             raise InvalidParameterError("strip_split", self.strip_split, "0..6 halvings along W")
 
