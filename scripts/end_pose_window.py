@@ -53,7 +53,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", default=None, help="also write the table as JSON to this file")
     args = parser.parse_args(argv)
     from pipeline import load_coefficients
-    from pipeline.certify.region_map import STATUSES, load_region_map
+    from pipeline.certify.map_files import load_region_map
+    from pipeline.certify.region_map import STATUSES
     from pipeline.exceptions import PipelineError
     from pipeline.model.arm import load_planar_arm
 

@@ -46,7 +46,8 @@ def main(argv: list[str] | None = None) -> int:
     from pipeline import load_coefficients
     from pipeline.certify.certifiable_regression import clearance_at, clearance_grid
     from pipeline.certify.end_pose_room import end_pose_room_m
-    from pipeline.certify.region_map import STATUSES, load_region_map
+    from pipeline.certify.map_files import load_region_map
+    from pipeline.certify.region_map import STATUSES
     from pipeline.exceptions import PipelineError
     from pipeline.motion.trajectory import PARAMETER_NAMES
 

@@ -49,7 +49,6 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
 import numpy as np
-from scipy.optimize import minimize
 
 from pipeline.certify.end_pose_room import configuration_clearance, end_pose_room_m
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
@@ -60,6 +59,7 @@ from pipeline.io.progress import ProgressCallback
 from pipeline.model.obstacle import Obstacle
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.coefficient_basis import normalised_basis, solve_coefficients
 from pipeline.offline.coefficients import Coefficients, coefficients_from_json
 from pipeline.offline.doe import DoeData
 from pipeline.offline.endpoint_regression import (
@@ -320,31 +320,25 @@ def _solve_refit(
     config: CertifiableFitConfig,
 ) -> tuple[np.ndarray, bool]:
     """One SLSQP solve: least squares subject to the endpoint slack at ``targets`` (the
-    endpoint constraint's fit tolerance) and clearance >= ``floor_m`` at the points."""
+    endpoint constraint's fit tolerance) and clearance >= ``floor_m`` at the points; over k > 2
+    variables in normalised variables (:mod:`pipeline.offline.coefficient_basis`)."""
+    tolerance_m = config.endpoint.fit_tolerance_m
     constraints = [
-        {
-            "type": "ineq",
-            "fun": endpoint_slack,
-            "jac": endpoint_slack_jacobian,
-            "args": (X_grid, targets, config.endpoint.fit_tolerance_m),
-        }
+        (
+            lambda b: endpoint_slack(b, X_grid, targets, tolerance_m),
+            lambda b: endpoint_slack_jacobian(b, X_grid, targets, tolerance_m),
+        )
     ]
     if clearance.points.shape[0]:
         constraints.append(
-            {
-                "type": "ineq",
-                "fun": lambda b: (clearance_at(b, clearance, start) - floor_m) * _CLEARANCE_SCALE,
-                "jac": lambda b: clearance_jacobian(b, clearance, start) * _CLEARANCE_SCALE,
-            }
+            (
+                lambda b: (clearance_at(b, clearance, start) - floor_m) * _CLEARANCE_SCALE,
+                lambda b: clearance_jacobian(b, clearance, start) * _CLEARANCE_SCALE,
+            )
         )
-    result = minimize(
-        objective,
-        b0,
-        jac=True,
-        method="SLSQP",
-        constraints=constraints,
-        options={"maxiter": config.endpoint.max_iterations, "ftol": config.endpoint.ftol},
-    )
+    box = np.array([start.fitted_range_m[name] for name in start.variables.names]).T  # (2, k): lo, hi
+    options = {"maxiter": config.endpoint.max_iterations, "ftol": config.endpoint.ftol}
+    result = solve_coefficients(objective, b0, constraints, options, normalised_basis(start.variables, box))
     return result.x, bool(result.success)
 
 

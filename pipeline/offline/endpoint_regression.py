@@ -45,6 +45,7 @@ from pipeline.model.obstacle import Obstacle
 from pipeline.model.scene import Scene
 from pipeline.motion.path import desired_path
 from pipeline.motion.trajectory import PARAMETER_NAMES
+from pipeline.offline.coefficient_basis import normalised_basis, solve_coefficients
 from pipeline.offline.regression import (
     QuadraticFit,
     coefficient_of_determination,
@@ -55,9 +56,13 @@ from pipeline.offline.regression import (
 from pipeline.offline.variables import DEFAULT_VARIABLES, SIZE, Variables
 from pipeline.validation import check_positive, check_positive_int
 
-#: (grid_points, check_points) of the endpoint constraint over k > 2 variables, in place of the
-#: (L, W) fit's 21 and 101 per axis (21^3 and 101^3 obstacles would cost minutes and gigabytes).
-K_ENDPOINT_GRID = (9, 21)
+#: (grid_points, check_points) of the endpoint constraint over k > 2 variables, per number of
+#: variables (the largest entry beyond the table), in place of the (L, W) fit's 21 and 101 per axis
+#: (21^3 and 101^3 obstacles would cost minutes and gigabytes). SLSQP's cost per iteration grows
+#: with the constrained obstacles: over (L, W, x, d) on the default build's DOE, 9^4 took 286 s
+#: and 5^4 13 s, both with the check grid's 21^4 within the check tolerance without adding a
+#: point (1.323 and 1.393 mm against 1.65 mm); the range certificate bounds the error between.
+K_ENDPOINT_GRID: Mapping[int, tuple[int, int]] = MappingProxyType({3: (9, 21), 4: (5, 21)})
 #: SLSQP's precision goal of the endpoint-constrained fit over k > 2 variables (the (L, W) fit's
 #: 1e-12 is not reached within its iteration budget there: ``EndpointConstraint.ftol``).
 K_ENDPOINT_FTOL = 1e-9
@@ -72,13 +77,16 @@ K_ENDPOINT_FTOL = 1e-9
 #: (then with cells of 1/128) on 96.72 % (docs/results.md, "Over the obstacle's centre x").
 #: k = 4 (cells of 1/16, whose endpoint bound exceeds 2 mm anyway): 0.35.
 K_ENDPOINT_HEADROOM: Mapping[int, float] = MappingProxyType({3: 0.1, 4: 0.35})
-#: SLSQP's exit status at its iteration budget (scipy.optimize's SLSQP: 9).
-_ITERATION_LIMIT = 9
-#: An iterate at the iteration budget is usable when its largest endpoint error on the grid is
+#: SLSQP's exit statuses that stop at an iterate which may be usable (scipy.optimize's SLSQP): 9,
+#: its iteration budget; 8, no descent along its search direction (in normalised variables, a
+#: restart from a converged fit with a few check points added can end there, at the optimum to
+#: within the precision goal).
+_STALLED = (8, 9)
+#: A stalled iterate (:data:`_STALLED`) is usable when its largest endpoint error on the grid is
 #: within the fit tolerance times (1 + this): SLSQP holds inequality constraints to about 1e-7
 #: relative (1.3000001 mm for 1.3 mm), far inside the headroom to the tolerance.
 _FEASIBLE_ROUNDING = 1e-6
-#: How the report's ``solver`` says that the fit stopped at its budget at a usable iterate.
+#: How the report's ``solver`` says that the fit stalled at a usable iterate.
 _FEASIBLE_STOP = "at an iterate within the fit tolerance"
 
 
@@ -132,7 +140,7 @@ class EndpointConstraint:
         largest one beyond the table; or this constraint's, where coarser or larger)."""
         if variables.is_size_only:
             return self
-        grid, check = K_ENDPOINT_GRID
+        grid, check = K_ENDPOINT_GRID.get(variables.k, K_ENDPOINT_GRID[max(K_ENDPOINT_GRID)])
         return replace(
             self,
             grid_points=min(grid, self.grid_points),
@@ -347,31 +355,20 @@ def _solve(
 ) -> tuple[np.ndarray, bool, str]:
     """One SLSQP solve: least squares subject to the endpoint slack >= 0 at ``targets`` (with
     ``constraint``'s fit tolerance, iteration budget and precision goal). Returns the iterate,
-    whether it is usable and SLSQP's message: converged, or stopped at the iteration budget at an
+    whether it is usable and SLSQP's message: converged, or stalled (:data:`_STALLED`) at an
     iterate that holds every endpoint error within the fit tolerance (plus
     :data:`_FEASIBLE_ROUNDING`, relative; the message then says so). The least squares are the
-    fit's preference, the endpoint errors its contract: over four variables the DOE optima scatter
-    (R^2 down to 0.74) and SLSQP creeps along the constraints' boundary for its whole budget, at a
-    feasible iterate."""
+    fit's preference, the endpoint errors its contract. Over k > 2 variables SLSQP works in
+    normalised variables (:mod:`pipeline.offline.coefficient_basis`): in the raw basis, over four
+    variables, it crept along the constraints' boundary for its whole budget."""
     X_grid = targets.design()
-    from scipy.optimize import minimize  # SciPy only where a fit runs: loading coefficients needs NumPy alone
-
-    result = minimize(
-        objective,
-        start,
-        jac=True,
-        method="SLSQP",
-        constraints=[
-            {
-                "type": "ineq",
-                "fun": endpoint_slack,
-                "jac": endpoint_slack_jacobian,
-                "args": (X_grid, targets, constraint.fit_tolerance_m),
-            }
-        ],
-        options={"maxiter": constraint.max_iterations, "ftol": constraint.ftol},
+    slack = (
+        lambda b: endpoint_slack(b, X_grid, targets, constraint.fit_tolerance_m),
+        lambda b: endpoint_slack_jacobian(b, X_grid, targets, constraint.fit_tolerance_m),
     )
-    if result.success or result.status != _ITERATION_LIMIT:
+    options = {"maxiter": constraint.max_iterations, "ftol": constraint.ftol}
+    result = solve_coefficients(objective, start, [slack], options, normalised_basis(targets.variables, targets.points))
+    if result.success or result.status not in _STALLED:
         return result.x, bool(result.success), str(result.message)
     reached = float(_grid_max(result.x, targets).max())
     feasible = reached <= constraint.fit_tolerance_m * (1.0 + _FEASIBLE_ROUNDING)

@@ -192,9 +192,13 @@ def test_non_convergence_warns_and_says_so(table2, targets) -> None:
     assert report["converged"] is False
 
 
-def test_a_feasible_iterate_at_the_budget_is_used_and_said(table2, targets, monkeypatch) -> None:
-    """SLSQP stopped at its iteration budget (status 9): an iterate within the fit tolerance on the
-    grid is used (converged, the report's ``solver`` says how it stopped), one outside it is not."""
+@pytest.mark.parametrize(
+    ("status", "message"), [(9, "Iteration limit reached"), (8, "Positive directional derivative for linesearch")]
+)
+def test_a_feasible_stalled_iterate_is_used_and_said(table2, targets, monkeypatch, status: int, message: str) -> None:
+    """SLSQP stalled (status 9: its iteration budget; 8: no descent): an iterate within the fit
+    tolerance on the grid is used (converged, the report's ``solver`` says how it stopped), one
+    outside it is not."""
     import scipy.optimize
 
     minimize = scipy.optimize.minimize
@@ -203,7 +207,7 @@ def test_a_feasible_iterate_at_the_budget_is_used_and_said(table2, targets, monk
     def at_budget(*args, **kwargs):
         result = minimize(*args, **kwargs)
         x = result.x if stop_at["optimum"] else args[1]  # the optimum, or the plain fit it started from
-        return scipy.optimize.OptimizeResult(x=x, success=False, status=9, message="Iteration limit reached")
+        return scipy.optimize.OptimizeResult(x=x, success=False, status=status, message=message)
 
     monkeypatch.setattr(scipy.optimize, "minimize", at_budget)
     args = (table2.lengths_m, table2.widths_m, table2.free_parameters(), targets)
@@ -212,9 +216,9 @@ def test_a_feasible_iterate_at_the_budget_is_used_and_said(table2, targets, monk
         warnings.simplefilter("error")
         _, report = fit_with_endpoints(*args, EndpointConstraint(check_points=0))
     assert report["converged"] is True and report["grid_endpoint_error_max_m"] <= report["fit_tolerance_m"] * (1 + 1e-6)
-    assert report["solver"].startswith("Iteration limit reached at an iterate within the fit tolerance")
+    assert report["solver"].startswith(f"{message} at an iterate within the fit tolerance")
     stop_at["optimum"] = False
-    with pytest.warns(EndpointConstraintWarning, match="Iteration limit reached"):
+    with pytest.warns(EndpointConstraintWarning, match=message):
         _, report = fit_with_endpoints(*args, EndpointConstraint(check_points=0))
     assert report["converged"] is False and "solver" not in report
     assert report["grid_endpoint_error_max_m"] > report["tolerance_m"]  # the plain fit's
