@@ -22,8 +22,8 @@ whose docstrings carry the derivations; this module only combines them:
   ``endpoints.infeasibility_upper_bounds`` (the lower of the two valid upper bounds is kept);
 * smallest cells certified collision-free that still miss the margin without being proven
   infeasible are cut into 2^``strip_split`` strips along W, each proven on its own
-  (``pipeline.certify.strip_split``, which derives why W and why that is sound; over (L, W)
-  only); the strips replace their cell in the map as ordinary leaves of the subpaving.
+  (``pipeline.certify.strip_split``, which derives why W and why that is sound, over any axes);
+  the strips replace their cell in the map as ordinary leaves of the subpaving.
 """
 
 from __future__ import annotations
@@ -118,6 +118,12 @@ _SEARCH_GROUPS = 4
 #: feasible area by halvings: 0 -> 99.863 % (30,421 cells), 2 -> 99.927 % (34,681), 3 -> 99.935 %
 #: (40,361 cells).
 DEFAULT_STRIP_SPLIT = 3
+#: Default strip halvings per number of axes (:meth:`RangeCertificateConfig.for_axes`). Strips work
+#: over any axes, but over (L, W, x) a strip keeps its cell's extent in x, and the infeasibility
+#: bound, loose there by about 0.1 mm against the sampled room, proves none of them: on Eq. 9
+#: lifted to (L, W, x) near W = 0.12 m (cells of 1/16 of L in [0.2, 0.21] and W in [0.118, 0.12]),
+#: 0 of 64 candidate strips per task with x cells 25 um wide, where over (L, W) 17 of 30 are.
+DEFAULT_STRIP_SPLITS: Mapping[int, int] = MappingProxyType({2: DEFAULT_STRIP_SPLIT, 3: 0, 4: 0})
 #: Columns (i_L) of strips per task of the strips' bounds (fixed, so that the map does not depend
 #: on the worker count).
 _STRIP_COLUMNS = 32
@@ -191,7 +197,8 @@ class RangeCertificateConfig:
     @classmethod
     def for_axes(cls, k: int, **settings: Any) -> RangeCertificateConfig:
         """The default settings over ``k`` axes (cells :data:`DEFAULT_CELLS`, merging
-        :data:`DEFAULT_MERGE_SPREAD_M`, endpoint form :data:`DEFAULT_SECOND_ORDER_ENDPOINTS`),
+        :data:`DEFAULT_MERGE_SPREAD_M`, endpoint form :data:`DEFAULT_SECOND_ORDER_ENDPOINTS`, strips
+        :data:`DEFAULT_STRIP_SPLITS`),
         with ``settings`` that are not None in their place (names of this class's fields)."""
         min_cell, boundary_cell, extra_depth = DEFAULT_CELLS.get(k, DEFAULT_CELLS[3])
         defaults = {
@@ -200,6 +207,7 @@ class RangeCertificateConfig:
             "extra_depth": extra_depth,
             "merge_spread_m": DEFAULT_MERGE_SPREAD_M.get(k, DEFAULT_MERGE_SPREAD_M[3]),
             "second_order_endpoints": DEFAULT_SECOND_ORDER_ENDPOINTS.get(k, True),
+            "strip_split": DEFAULT_STRIP_SPLITS.get(k, 0),
         }
         return cls(**{**defaults, **{name: value for name, value in settings.items() if value is not None}})
 
@@ -569,32 +577,35 @@ def split_strips(
     levels, index, bound, centre = leaves
     leaves = leaves[:3]
     margin_m = settings.margin_m
-    e = settings.strip_split if model.k == 2 else 0
+    e = settings.strip_split
     # Collision-free cells only: a cell not certified collision-free stays "undecided" whole.
     smallest = np.all(levels == settings.max_depth, axis=1)
     rows = smallest & (bound > 0.0) & (bound < margin_m) & (upper >= margin_m)
     if e == 0 or not np.any(rows):
         return leaves, endpoint, upper
-    depth = levels[:, 0]
-    i_l, i_w = index[:, 0], index[:, 1]
-    rows &= _near_a_contour(i_l, i_w, bound, centre, rows, margin_m)
+    depth, i_w = levels[:, 0], index[:, 1]
+    # A column: one interval on every axis but W (its own key per leaf, in lexicographic order).
+    others = np.delete(index, 1, axis=1)
+    column = np.unique(others, axis=0, return_inverse=True)[1].reshape(-1)
+    rows &= _near_a_contour(column, i_w, bound, centre, rows, margin_m)
     k = 2**e
-    order = np.lexsort((i_w[rows], i_l[rows]))  # by column (i_L), then W
+    order = np.lexsort((i_w[rows], column[rows]))  # by column, then W
     s_depth = np.repeat(depth[rows][order], k)
-    s_l = np.repeat(i_l[rows][order], k)
-    s_w = (i_w[rows][order][:, None] * k + np.arange(k)).ravel()
+    s_column = np.repeat(column[rows][order], k)
+    s_index = np.repeat(index[rows][order], k, axis=0)
+    s_index[:, 1] = (i_w[rows][order][:, None] * k + np.arange(k)).ravel()
     floor = np.repeat(bound[rows][order], k)
-    c, r = node_boxes(model, s_depth, np.column_stack([s_l, s_w]), split_w=e)
+    c, r = node_boxes(model, s_depth, s_index, split_w=e)
     # Tasks of whole columns (the infeasibility's monotonicity works along a column), fixed in size.
-    column_starts = np.concatenate([[0], np.flatnonzero(np.diff(s_l)) + 1])
-    cuts = [*column_starts[::_STRIP_COLUMNS].tolist(), s_l.size]
+    column_starts = np.concatenate([[0], np.flatnonzero(np.diff(s_column)) + 1])
+    cuts = [*column_starts[::_STRIP_COLUMNS].tolist(), s_column.size]
     chunks = [slice(a, b) for a, b in itertools.pairwise(cuts)]
     parts = _in_chunks(
         strip_bounds,
         chunks,
         settings.run_on,
         model,
-        (c, r, floor, s_l),
+        (c, r, floor, s_column),
         margin_m,
         settings.endpoint_tolerance_m,
         settings.max_depth_s,
@@ -608,8 +619,8 @@ def split_strips(
         for a, b in zip(
             (levels, index, bound, endpoint, upper),
             (
-                np.column_stack([s_depth, s_depth + e]),
-                np.column_stack([s_l, s_w]),
+                _strip_levels(s_depth, model.k, e),
+                s_index,
                 s_bound,
                 s_endpoint,
                 s_upper,
@@ -620,19 +631,26 @@ def split_strips(
     return joined[:3], joined[3], joined[4]
 
 
+def _strip_levels(depth: np.ndarray, k: int, e: int) -> np.ndarray:
+    """Levels (n, k) of strips of cells at ``depth`` (n,): W ``e`` halvings deeper."""
+    levels = np.repeat(depth[:, None], k, axis=1)
+    levels[:, 1] += e
+    return levels
+
+
 def _near_a_contour(
-    i_l: np.ndarray, i_w: np.ndarray, bound: np.ndarray, centre: np.ndarray, rows: np.ndarray, margin_m: float
+    column: np.ndarray, i_w: np.ndarray, bound: np.ndarray, centre: np.ndarray, rows: np.ndarray, margin_m: float
 ) -> np.ndarray:
     """Which of the smallest cells ``rows`` may gain from strips: near the margin's contour by the
     search's rule (2 centre - bound >= margin: the clearance may rise to the margin within the
     cell), or within two cells of the top of their column's run of such cells (where the
     infeasible region, which is the top of a column when it is anything, begins). Elsewhere
     (the paper's Eq. 9 misses the margin over a fifth of the range) strips could change no
-    status. A choice of work, not of soundness."""
+    status. A choice of work, not of soundness. ``column``: each leaf's column (0..)."""
     near_margin = 2.0 * centre - bound >= margin_m
-    top = np.full(int(i_l.max()) + 1, -1)
-    np.maximum.at(top, i_l[rows], i_w[rows])
-    near_top = i_w >= top[i_l] - 2
+    top = np.full(int(column.max()) + 1, -1)
+    np.maximum.at(top, column[rows], i_w[rows])
+    near_top = i_w >= top[column] - 2
     return near_margin | near_top
 
 

@@ -1,5 +1,5 @@
 """Strips along W: the smallest cells that straddle a contour, cut along W alone and proven strip
-by strip (the region map's ``split_W``).
+by strip (leaves of the subpaving whose W level is deeper than their other axes').
 
 Where the map misses the margin without proving infeasibility, its leaves sit at the smallest
 cell astride one of two contours: where the coefficients' clearance crosses the margin, or where
@@ -8,7 +8,11 @@ near W = 0.12 m (as W grows the obstacle's corner nears the arm's pose at P5; th
 about 0.67 mm per mm of W there and changes little along L), so a cut along W separates them
 where a cut along L would not, and 2^E strips cost 2^E, not 4^E, times the leaves.
 
-Each strip (L in the leaf's interval, W in one 2^-E of it) gets:
+Over more axes (x, d) the same holds with the other axes held: a strip keeps its leaf's interval
+on every axis but W, and a column is the strips that share those intervals (over (L, W, x) the
+band lies near W = 0.12 m too, python scripts/margin_band.py).
+
+Each strip (the leaf's interval on every axis but W, W in one 2^-E of it) gets:
 
 * a clearance lower bound, by branch and bound over s alone on the boxes strip x [s interval]
   (``clearance_bound.box_clearance_bounds``, whose docstring derives the bound): an interval
@@ -22,15 +26,17 @@ Each strip (L in the leaf's interval, W in one 2^-E of it) gets:
   the strip, which lies in the leaf.
 * its endpoint-error bound (``endpoints.endpoint_error_bounds`` over the strip);
 * an infeasibility bound, from the monotonicity of the infeasibility in W: P1 and P5 depend on
-  L alone, and the obstacle O(L, W) grows with W (its core rectangle is [-(L/2 - r), L/2 - r] x
-  [d - W + r, d - r]), so a pose clears O(L, W') by at most what it clears O(L, W) for W' > W.
-  Hence the room U(L, W) = max{c(q, O(L, W)) : tip(q) within the tolerance of P1 (or P5)} is
-  non-increasing in W, and an upper bound on U over one strip bounds U over every strip above
-  it with the same L interval (each of their points (L, W') lies above a point (L, W) of the
-  proven strip). The strips of all cut cells of one column (one L interval of the deepest
-  level) are taken together, W ascending: the certificate finds, by bisection, the lowest strip
-  whose sampled room at its lower edge (``pipeline.certify.end_pose_room``, the larger of its
-  values at (L0, W0) and (L1, W0); monotone in W for the same reason) is :data:`ROOM_SLACK_M`
+  L and, where they are axes, on the centre x and the far edge d, never on W; and with L, x and
+  d held the obstacle O grows with W (its core rectangle is [x - (L/2 - r), x + L/2 - r] x
+  [d - W + r, d - r]), so a pose clears O(L, W', x, d) by at most what it clears O(L, W, x, d)
+  for W' > W. Hence the room U = max{c(q, O) : tip(q) within the tolerance of P1 (or P5)} is
+  non-increasing in W with the other axes held, and an upper bound on U over one strip bounds U
+  over every strip above it in its column (each of their points lies above a point of the
+  proven strip with the same L, x and d). The strips of all cut cells of one column (one
+  interval per axis but W, at the deepest level) are taken together, W ascending: the
+  certificate finds, by bisection, the lowest strip whose sampled room at its lower edge
+  (``pipeline.certify.end_pose_room``, the largest of its values at the corners of that face:
+  (L0, W0) and (L1, W0) over (L, W); monotone in W for the same reason) is :data:`ROOM_SLACK_M`
   below the margin, bounds it and the strip above it by ``endpoints.infeasibility_upper_bounds``
   (:data:`SUB_CELL_LEVELS` halvings of the length, the polar branch and bound
   :data:`POLAR_DEPTH` levels deep), and gives the lower proven one's bound to it and to every
@@ -42,6 +48,8 @@ Each strip (L in the leaf's interval, W in one 2^-E of it) gets:
 """
 
 from __future__ import annotations
+
+import itertools
 
 import numpy as np
 
@@ -80,10 +88,11 @@ def strip_clearance_bounds(
     margin_m: float,
     max_depth_s: int,
 ) -> np.ndarray:
-    """Lower bounds [m] on the clearance of both links over (L, W) cells times all of s in [0, 1]
-    (module docstring), each at least ``floor_m`` (a valid bound known beforehand), shape (n,)."""
-    center2 = np.asarray(center_m, dtype=float).reshape(-1, 2)
-    radius2 = np.asarray(radius_m, dtype=float).reshape(-1, 2)
+    """Lower bounds [m] on the clearance of both links over cells (centres, half widths (n, k))
+    times all of s in [0, 1] (module docstring), each at least ``floor_m`` (a valid bound known
+    beforehand), shape (n,)."""
+    center2 = np.asarray(center_m, dtype=float).reshape(-1, model.k)
+    radius2 = np.asarray(radius_m, dtype=float).reshape(-1, model.k)
     n = center2.shape[0]
     m = 2**_INITIAL_DEPTH_S
     owner = np.repeat(np.arange(n), m)
@@ -107,27 +116,39 @@ def strip_clearance_bounds(
     return np.maximum(worst, np.asarray(floor_m, dtype=float))
 
 
+def _lower_edge_room_m(model: RangeModel, corner_m: np.ndarray, side_m: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """Sampled room [m] at the lower W edge of strips (lowest corners and side lengths (n, k)): the
+    largest of ``end_pose_room_m`` at the corners of that face, every axis but W at either end
+    (over (L, W): (L0, W0) and (L1, W0)), with the obstacle moved by x and d where they are axes."""
+    others = [axis for axis in range(model.k) if axis != 1]
+    room = np.full(corner_m.shape[0], -np.inf)
+    for ends in itertools.product((0.0, 1.0), repeat=len(others)):
+        point = corner_m.copy()
+        for axis, end in zip(others, ends, strict=True):
+            point[:, axis] += end * side_m[:, axis]
+        x = None if model.x_column is None else point[:, model.x_column]
+        d = None if model.d_column is None else point[:, model.d_column]
+        room = np.maximum(room, end_pose_room_m(model, point[:, 0], point[:, 1], tolerance_m, x, top_y_m=d))
+    return room
+
+
 def _lowest_short_strips(
     model: RangeModel,
     corner_m: np.ndarray,
-    length_m: np.ndarray,
+    side_m: np.ndarray,
     starts: np.ndarray,
     margin_m: float,
     tolerance_m: float,
 ) -> np.ndarray:
     """Per column (strips ``starts[c]`` to ``starts[c + 1]`` - 1, W ascending), the index of the
-    lowest strip whose sampled room at its lower edge (the larger of the values at its two
-    corners (L0, W0) and (L1, W0)) is below margin - :data:`ROOM_SLACK_M`; the column's end if
-    none. By bisection: that room is non-increasing in W (module docstring)."""
+    lowest strip whose sampled room at its lower edge (:func:`_lower_edge_room_m`) is below
+    margin - :data:`ROOM_SLACK_M`; the column's end if none. By bisection: that room is
+    non-increasing in W (module docstring)."""
     lo, hi = starts[:-1].copy(), starts[1:].copy()
     while np.any(lo < hi):
         active = np.flatnonzero(lo < hi)
         mid = (lo[active] + hi[active]) // 2
-        room = np.maximum(
-            end_pose_room_m(model, corner_m[mid, 0], corner_m[mid, 1], tolerance_m),
-            end_pose_room_m(model, corner_m[mid, 0] + length_m[mid], corner_m[mid, 1], tolerance_m),
-        )
-        short = room < margin_m - ROOM_SLACK_M
+        short = _lower_edge_room_m(model, corner_m[mid], side_m[mid], tolerance_m) < margin_m - ROOM_SLACK_M
         hi[active[short]] = mid[short]
         lo[active[~short]] = mid[~short] + 1
     return lo
@@ -142,10 +163,10 @@ def strip_infeasibility_bounds(
     tolerance_m: float,
 ) -> np.ndarray:
     """Upper bounds [m] on the end poses' room over strips sorted by ``column`` (strips of one
-    column share their L interval), W ascending within a column (module docstring): below the
-    margin on the strips proven infeasible, +inf on the others, shape (n,)."""
-    center2 = np.asarray(center_m, dtype=float).reshape(-1, 2)
-    radius2 = np.asarray(radius_m, dtype=float).reshape(-1, 2)
+    column share their interval on every axis but W), W ascending within a column (module
+    docstring): below the margin on the strips proven infeasible, +inf on the others, shape (n,)."""
+    center2 = np.asarray(center_m, dtype=float).reshape(-1, model.k)
+    radius2 = np.asarray(radius_m, dtype=float).reshape(-1, model.k)
     column = np.asarray(column)
     n = center2.shape[0]
     out = np.full(n, np.inf)
@@ -153,7 +174,7 @@ def strip_infeasibility_bounds(
         return out
     starts = np.concatenate([[0], np.flatnonzero(np.diff(column)) + 1, [n]])
     ends = starts[1:]
-    first = _lowest_short_strips(model, center2 - radius2, 2 * radius2[:, 0], starts, margin_m, tolerance_m)
+    first = _lowest_short_strips(model, center2 - radius2, 2 * radius2, starts, margin_m, tolerance_m)
     candidates = np.concatenate([first[first < ends], (first + 1)[first + 1 < ends]])
     if candidates.size == 0:
         return out
@@ -190,13 +211,13 @@ def strip_bounds(
     tolerance_m: float,
     max_depth_s: int,
 ) -> np.ndarray:
-    """Per strip (centres, half widths (n, 2) [m], sorted by ``column``, W ascending within a
+    """Per strip (centres, half widths (n, k) [m], sorted by ``column``, W ascending within a
     column; ``floor_m`` its cell's clearance bound): the clearance bound, the endpoint-error
     bound and the infeasibility bound (+inf where not proven), as columns of an (n, 3) array
     [m]. Strips proven infeasible keep their cell's clearance bound (their status is settled
     unless that bound reaches the margin)."""
-    center2 = np.asarray(center_m, dtype=float).reshape(-1, 2)
-    radius2 = np.asarray(radius_m, dtype=float).reshape(-1, 2)
+    center2 = np.asarray(center_m, dtype=float).reshape(-1, model.k)
+    radius2 = np.asarray(radius_m, dtype=float).reshape(-1, model.k)
     floor = np.asarray(floor_m, dtype=float)
     out = np.empty((center2.shape[0], 3))
     out[:, 2] = strip_infeasibility_bounds(model, center2, radius2, column, margin_m, tolerance_m)

@@ -166,3 +166,24 @@ def _check_clearance_against_generator(coefficients, points: np.ndarray, arm) ->
         np.testing.assert_allclose(value, analytic_link_clearance(q, arm, answer.obstacle).min(), rtol=0, atol=1e-9)
         coal = float(CoalClearance(arm, answer.obstacle).link_clearance(q).min())
         np.testing.assert_allclose(value, coal, rtol=0, atol=COAL_DISTANCE_ERROR_M)
+
+
+@pytest.fixture(scope="session")
+def check_strips_gain():
+    """The function checking what strips along W add to a map (:func:`_check_strips_gain`)."""
+    return _check_strips_gain
+
+
+def _check_strips_gain(with_strips, without) -> np.ndarray:
+    """Cut cells give area to "infeasible" (and none is taken from "margin") that the uncut map
+    left below the margin, the fractions still add up, and some leaves are strips (cut along W
+    more often than along L); returns which leaves of ``with_strips`` are strips."""
+    fractions = [m.summary()["area_fraction"] for m in (with_strips, without)]
+    assert fractions[0]["infeasible"] > fractions[1]["infeasible"]
+    assert fractions[0]["margin"] >= fractions[1]["margin"]
+    assert fractions[0]["collision_free"] < fractions[1]["collision_free"]
+    assert sum(fractions[0].values()) == pytest.approx(1.0, abs=1e-12)
+    levels = with_strips.subpaving.levels
+    strips = levels[:, 1] > levels[:, 0]
+    assert np.count_nonzero(strips) > 0
+    return strips
