@@ -124,7 +124,7 @@ DEFAULT_STRIP_SPLIT = 3
 #: lifted to (L, W, x) near W = 0.12 m (cells of 1/16 of L in [0.2, 0.21] and W in [0.118, 0.12]),
 #: 0 of 64 candidate strips per task with x cells 25 um wide, where over (L, W) 17 of 30 are.
 DEFAULT_STRIP_SPLITS: Mapping[int, int] = MappingProxyType({2: DEFAULT_STRIP_SPLIT, 3: 0, 4: 0})
-#: Columns (i_L) of strips per task of the strips' bounds (fixed, so that the map does not depend
+#: Columns of strips per task of the strips' bounds (fixed, so that the map does not depend
 #: on the worker count).
 _STRIP_COLUMNS = 32
 
