@@ -51,7 +51,15 @@ from pipeline.certify.endpoints import (
 from pipeline.certify.leaf_merge import merge_leaves
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
-from pipeline.certify.search import SearchLeaves, SearchSettings, cell_boxes, initial_roots, node_boxes, search
+from pipeline.certify.search import (
+    SearchLeaves,
+    SearchSettings,
+    cell_boxes,
+    initial_roots,
+    node_boxes,
+    search,
+    strip_levels,
+)
 from pipeline.certify.strip_split import strip_bounds
 from pipeline.exceptions import InvalidParameterError
 from pipeline.io.executor import DaskScheduler, Executor, LocalPool, as_executor, map_tasks
@@ -413,10 +421,14 @@ def _witnessed(model: RangeModel, c: np.ndarray, r: np.ndarray, settings: Certif
     if c.shape[0] == 0:
         return np.zeros(0, dtype=bool)
     corner = c - r
-    x = None if model.x_column is None else c[:, model.x_column]
-    d = None if model.d_column is None else c[:, model.d_column]
     room = end_pose_room_m(
-        model, corner[:, 0], corner[:, 1], settings.endpoint_tolerance_m, x, _WITNESS_RINGS, _WITNESS_ANGLES, d
+        model,
+        corner[:, 0],
+        corner[:, 1],
+        settings.endpoint_tolerance_m,
+        rings=_WITNESS_RINGS,
+        angles=_WITNESS_ANGLES,
+        **model.obstacle_moves(c),
     )
     return room >= settings.margin_m + _WITNESS_SLACK_M
 
@@ -619,7 +631,7 @@ def split_strips(
         for a, b in zip(
             (levels, index, bound, endpoint, upper),
             (
-                _strip_levels(s_depth, model.k, e),
+                strip_levels(s_depth, model.k, e),
                 s_index,
                 s_bound,
                 s_endpoint,
@@ -629,13 +641,6 @@ def split_strips(
         )
     ]
     return joined[:3], joined[3], joined[4]
-
-
-def _strip_levels(depth: np.ndarray, k: int, e: int) -> np.ndarray:
-    """Levels (n, k) of strips of cells at ``depth`` (n,): W ``e`` halvings deeper."""
-    levels = np.repeat(depth[:, None], k, axis=1)
-    levels[:, 1] += e
-    return levels
 
 
 def _near_a_contour(

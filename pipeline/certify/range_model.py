@@ -216,6 +216,16 @@ class RangeModel:
         obstacle's far edge stays at the scene's ``top_y_m``, and P1, P5 at its ``y1_m``)."""
         return self.column("d")
 
+    def obstacle_moves(self, points_m: np.ndarray) -> dict[str, np.ndarray | None]:
+        """The obstacle's centre x and far edge d [m] at ``points_m`` (n, k) of the axes, as the
+        keywords ``centre_x_m`` and ``top_y_m`` of ``pipeline.certify.end_pose_room`` (None where
+        the coefficients do not vary them: the scene's)."""
+        x, d = self.x_column, self.d_column
+        return {
+            "centre_x_m": None if x is None else points_m[:, x],
+            "top_y_m": None if d is None else points_m[:, d],
+        }
+
     def free_jets(self, *axes: Jet) -> list[Jet]:
         """Jets of the family's free parameters (quadratics in the axes, the basis of
         :class:`pipeline.offline.variables.Variables`; for (L, W): 1, L, W, L^2, L W, W^2),

@@ -201,9 +201,15 @@ def node_boxes(
     index (n, k)); with ``split_w`` = e, of their strips along W (1 / 2^(depth + e) of the range
     in W, index[:, 1] counting the latter: ``pipeline.certify.strip_split``)."""
     depth = np.asarray(depth, dtype=np.int64).reshape(-1)
-    levels = np.repeat(depth[:, None], model.k, axis=1)
+    return cell_boxes(model, strip_levels(depth, model.k, split_w), index)
+
+
+def strip_levels(depth: np.ndarray, k: int, split_w: int = 0) -> np.ndarray:
+    """Levels (n, k) of nodes of one depth along every axis (``depth`` (n,)), W ``split_w``
+    halvings deeper (their strips along W: ``pipeline.certify.strip_split``)."""
+    levels = np.repeat(np.asarray(depth)[:, None], k, axis=1)
     levels[:, 1] += split_w
-    return cell_boxes(model, levels, index)
+    return levels
 
 
 def _bounds(model: RangeModel, nodes: _Nodes, node: np.ndarray, ds: np.ndarray, js: np.ndarray) -> tuple:

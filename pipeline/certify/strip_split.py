@@ -126,9 +126,8 @@ def _lower_edge_room_m(model: RangeModel, corner_m: np.ndarray, side_m: np.ndarr
         point = corner_m.copy()
         for axis, end in zip(others, ends, strict=True):
             point[:, axis] += end * side_m[:, axis]
-        x = None if model.x_column is None else point[:, model.x_column]
-        d = None if model.d_column is None else point[:, model.d_column]
-        room = np.maximum(room, end_pose_room_m(model, point[:, 0], point[:, 1], tolerance_m, x, top_y_m=d))
+        moves = model.obstacle_moves(point)
+        room = np.maximum(room, end_pose_room_m(model, point[:, 0], point[:, 1], tolerance_m, **moves))
     return room
 
 
