@@ -86,7 +86,7 @@ def _refit_config(
             extra_depth=0,
             strip_split=0,
             merge_spread_m=0.0,
-            second_order_endpoints=False,
+            second_order=False,
         ),
         final_certificate=map_config,
         endpoint=EndpointConstraint(

@@ -248,13 +248,8 @@ def endpoint_error_bounds(
 
 def _component_magnitude(point: Jet, box: Jet, radius: np.ndarray) -> np.ndarray:
     """max |e| [m] over each cell of one error component: the mean-value form's interval, cut
-    by the second-order Taylor form's where ``box`` carries a Hessian."""
+    by the second-order Taylor form's where ``box`` carries a Hessian (``interval.lower_bound``)."""
     lo, hi = lower_bound(point, box, radius), upper_bound(point, box, radius)
-    if box.hess is not None:
-        spread = np.sum(point.grad.mag() * radius, axis=-1) + 0.5 * np.einsum(
-            "ni,nij,nj->n", radius, box.hess.mag(), radius
-        )
-        lo, hi = np.maximum(lo, point.value.lo - spread), np.minimum(hi, point.value.hi + spread)
     return np.maximum(np.abs(lo), np.abs(hi))
 
 

@@ -303,14 +303,31 @@ class Jet:
 
 
 def lower_bound(point: Jet, box: Jet, radius: np.ndarray) -> np.ndarray:
-    """Mean-value lower bound of a smooth function over a box.
+    """Lower bound of a smooth function over a box: the mean-value form, and where ``box`` carries
+    a Hessian the tighter of it and the second-order Taylor form.
 
-    f(x) >= f(c) - sum_i max_box |df/dx_i| r_i, with ``point`` the jet at the centre c (its value
-    interval encloses f(c)) and ``box`` the jet over the box of half widths ``radius`` (..., k).
+    Mean-value form: f(x) >= f(c) - sum_i max_box |df/dx_i| r_i, with ``point`` the jet at the
+    centre c (its value and gradient intervals enclose f(c) and grad f(c)) and ``box`` the jet over
+    the box of half widths ``radius`` (..., k). Second-order form (Taylor with the Lagrange
+    remainder, f twice continuously differentiable on the box): f(x) = f(c) + grad f(c).(x - c) +
+    1/2 (x - c)^T H(xi) (x - c) with xi in the box, so f(x) >= f(c) - sum_i |df/dx_i(c)| r_i -
+    1/2 sum_ij max_box |H_ij| r_i r_j. Both hold everywhere on the box, so their maximum does.
     """
-    return point.value.lo - np.sum(box.grad.mag() * radius, axis=-1)
+    low = point.value.lo - np.sum(box.grad.mag() * radius, axis=-1)
+    if box.hess is None:
+        return low
+    return np.maximum(low, point.value.lo - _second_order_spread(point, box, radius))
 
 
 def upper_bound(point: Jet, box: Jet, radius: np.ndarray) -> np.ndarray:
-    """Mean-value upper bound, the mirror of :func:`lower_bound`."""
-    return point.value.hi + np.sum(box.grad.mag() * radius, axis=-1)
+    """Upper bound, the mirror of :func:`lower_bound`."""
+    high = point.value.hi + np.sum(box.grad.mag() * radius, axis=-1)
+    if box.hess is None:
+        return high
+    return np.minimum(high, point.value.hi + _second_order_spread(point, box, radius))
+
+
+def _second_order_spread(point: Jet, box: Jet, radius: np.ndarray) -> np.ndarray:
+    """sum_i |df/dx_i(c)| r_i + 1/2 sum_ij max_box |H_ij| r_i r_j (:func:`lower_bound`)."""
+    linear = np.sum(point.grad.mag() * radius, axis=-1)
+    return linear + 0.5 * np.einsum("ni,nij,nj->n", radius, box.hess.mag(), radius)

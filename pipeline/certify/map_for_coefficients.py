@@ -34,7 +34,7 @@ def default_config(
     boundary_cell: float | None = None,
     extra_depth: int | None = None,
     merge_spread_m: float | None = None,
-    second_order_endpoints: bool | None = None,
+    second_order: bool | None = None,
     jobs: int = 1,
     executor: Executor | None = None,
 ) -> RangeCertificateConfig:
@@ -52,7 +52,7 @@ def default_config(
         boundary_cell=None if boundary_cell is None else min(boundary_cell, 1.0),
         extra_depth=extra_depth,
         merge_spread_m=merge_spread_m,
-        second_order_endpoints=second_order_endpoints,
+        second_order=second_order,
         jobs=jobs,
         executor=executor,
     )

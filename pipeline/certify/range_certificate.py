@@ -93,11 +93,12 @@ DEFAULT_CELLS: Mapping[int, tuple[float, float, int]] = MappingProxyType(
 #: (``pipeline.certify.leaf_merge``), per number of axes; 0: none merged. Over (L, W) the map is
 #: small as it is and keeps every leaf's own bounds.
 DEFAULT_MERGE_SPREAD_M: Mapping[int, float] = MappingProxyType({2: 0.0, 3: 1e-4, 4: 1e-4})
-#: Default of ``RangeCertificateConfig.second_order_endpoints`` per number of axes. Over (L, W)
+#: Default of ``RangeCertificateConfig.second_order`` per number of axes. Over (L, W)
 #: the map's cells are small enough for the mean-value form and keep their bytes; over three and
 #: four axes the second-order form proves 2 mm on cubes of 1/32 where the mean-value form needs
-#: 1/64 and finer (python scripts/endpoint_gap.py, docs/results.md).
-DEFAULT_SECOND_ORDER_ENDPOINTS: Mapping[int, bool] = MappingProxyType({2: False, 3: True, 4: True})
+#: 1/64 and finer (python scripts/endpoint_gap.py, docs/results.md), and the margin on cells the
+#: mean-value form leaves below it.
+DEFAULT_SECOND_ORDER: Mapping[int, bool] = MappingProxyType({2: False, 3: True, 4: True})
 #: Leaves below the margin are cut (for the infeasibility certificate) while its upper bound is
 #: within this of the margin [m].
 _INFEASIBILITY_REFINE_M = 1e-3
@@ -162,9 +163,9 @@ class RangeCertificateConfig:
         merge_spread_m: Sibling leaves of one status whose clearance bounds, and endpoint bounds,
             differ by at most this are stored as their parent [m] (``pipeline.certify.leaf_merge``;
             0: none).
-        second_order_endpoints: Bound the endpoint errors by the tighter of the mean-value and
-            the second-order Taylor forms (``pipeline.certify.endpoints``); False: the mean-value
-            form alone.
+        second_order: Bound the clearance and the endpoint errors by the tighter of the
+            mean-value and the second-order Taylor forms (``pipeline.certify.clearance_bound``,
+            ``pipeline.certify.endpoints``); False: the mean-value form alone.
     """
 
     margin_m: float | None = None
@@ -178,7 +179,7 @@ class RangeCertificateConfig:
     max_boxes: int = 5_000_000
     strip_split: int = DEFAULT_STRIP_SPLIT
     merge_spread_m: float = 0.0
-    second_order_endpoints: bool = False
+    second_order: bool = False
 
     def __post_init__(self) -> None:
         if self.margin_m is not None:
@@ -198,14 +199,14 @@ class RangeCertificateConfig:
         check_positive_int("max_boxes", self.max_boxes)
         check_positive_int("strip_split", self.strip_split, minimum=0)
         check_non_negative("merge_spread_m", self.merge_spread_m)
-        check_bool("second_order_endpoints", self.second_order_endpoints)
+        check_bool("second_order", self.second_order)
         if self.strip_split > 6:
             raise InvalidParameterError("strip_split", self.strip_split, "0..6 halvings along W")
 
     @classmethod
     def for_axes(cls, k: int, **settings: Any) -> RangeCertificateConfig:
         """The default settings over ``k`` axes (cells :data:`DEFAULT_CELLS`, merging
-        :data:`DEFAULT_MERGE_SPREAD_M`, endpoint form :data:`DEFAULT_SECOND_ORDER_ENDPOINTS`, strips
+        :data:`DEFAULT_MERGE_SPREAD_M`, endpoint form :data:`DEFAULT_SECOND_ORDER`, strips
         :data:`DEFAULT_STRIP_SPLITS`),
         with ``settings`` that are not None in their place (names of this class's fields)."""
         min_cell, boundary_cell, extra_depth = DEFAULT_CELLS.get(k, DEFAULT_CELLS[3])
@@ -214,7 +215,7 @@ class RangeCertificateConfig:
             "boundary_cell": boundary_cell,
             "extra_depth": extra_depth,
             "merge_spread_m": DEFAULT_MERGE_SPREAD_M.get(k, DEFAULT_MERGE_SPREAD_M[3]),
-            "second_order_endpoints": DEFAULT_SECOND_ORDER_ENDPOINTS.get(k, True),
+            "second_order": DEFAULT_SECOND_ORDER.get(k, True),
             "strip_split": DEFAULT_STRIP_SPLITS.get(k, 0),
         }
         return cls(**{**defaults, **{name: value for name, value in settings.items() if value is not None}})
@@ -238,7 +239,7 @@ class RangeCertificateConfig:
             extra_depth=self.extra_depth,
             max_depth_s=self.max_depth_s,
             strip_split=self.strip_split,
-            second_order_endpoints=self.second_order_endpoints,
+            second_order=self.second_order,
             run_on=self.run_on,
         )
 
@@ -255,6 +256,7 @@ class RangeCertificateConfig:
             initial_depth_lw=min(3, depth),
             initial_depth_s=4,
             max_boxes=self.max_boxes,
+            second_order=self.second_order,
         )
 
 
@@ -530,7 +532,7 @@ def refine_leaves(
                 (c, r, need),
                 tolerance_m,
                 margin_m,
-                settings.second_order_endpoints,
+                settings.second_order,
                 progress=progress,
                 stage=PROGRESS_STAGES[1],
                 before=bounded,

@@ -43,7 +43,7 @@ from pipeline.certify.clearance_bound import box_clearance_bounds
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.subpaving import open_axes
 from pipeline.exceptions import InvalidParameterError
-from pipeline.validation import check_non_negative, check_positive, check_positive_int
+from pipeline.validation import check_bool, check_non_negative, check_positive, check_positive_int
 
 _CHUNK = 20_000
 
@@ -66,6 +66,8 @@ class SearchSettings:
         max_boxes: Budget of box evaluations (the search stops with valid, looser bounds).
         resolution_m: Where the margin is out of reach, boxes are cut until their bound is within
             this of the clearance at their centre [m] (so the map's minimum is close to the truth).
+        second_order: Bound each box's clearance with the second-order form as well
+            (``clearance_bound.box_clearance_bounds``).
     """
 
     margin_m: float = 0.01
@@ -77,6 +79,7 @@ class SearchSettings:
     initial_depth_s: int = 4
     max_boxes: int = 5_000_000
     resolution_m: float = 5e-4
+    second_order: bool = False
 
     def __post_init__(self) -> None:
         check_non_negative("margin_m", self.margin_m)
@@ -88,6 +91,7 @@ class SearchSettings:
         check_positive_int("initial_depth_s", self.initial_depth_s, minimum=0)
         check_positive_int("boundary_depth_lw", self.boundary_depth_lw, minimum=0)
         check_positive_int("max_boxes", self.max_boxes, minimum=1)
+        check_bool("second_order", self.second_order)
         if self.initial_depth_lw > self.max_depth_lw or self.initial_depth_s > self.max_depth_s:
             raise InvalidParameterError("initial_depth", (self.initial_depth_lw, self.initial_depth_s), "<= max depths")
         if self.max_depth_lw + self.extra_depth_lw > 20 or self.max_depth_s > 40:
@@ -212,15 +216,23 @@ def strip_levels(depth: np.ndarray, k: int, split_w: int = 0) -> np.ndarray:
     return levels
 
 
-def _bounds(model: RangeModel, nodes: _Nodes, node: np.ndarray, ds: np.ndarray, js: np.ndarray) -> tuple:
-    """The bound, centre clearance, split_s and axis gaps of the boxes (node, s interval), in chunks."""
+def _bounds(
+    model: RangeModel, nodes: _Nodes, node: np.ndarray, ds: np.ndarray, js: np.ndarray, second_order: bool
+) -> tuple:
+    """The bound, centre clearance, split_s and axis gaps of the boxes (node, s interval), in chunks
+    (the bound's form: ``SearchSettings.second_order``)."""
     bound, centre = np.empty(node.size), np.empty(node.size)
     split_s, gaps = np.empty(node.size, dtype=bool), np.empty((node.size, model.k))
     for start in range(0, node.size, _CHUNK):
         part = slice(start, start + _CHUNK)
         c, r = cell_boxes(model, nodes.level[node[part]], nodes.index[node[part]])
         hs = 0.5 / 2.0 ** ds[part].astype(float)
-        b = box_clearance_bounds(model, np.column_stack([c, (js[part] + 0.5) * 2 * hs]), np.column_stack([r, hs]))
+        b = box_clearance_bounds(
+            model,
+            np.column_stack([c, (js[part] + 0.5) * 2 * hs]),
+            np.column_stack([r, hs]),
+            second_order=second_order,
+        )
         bound[part], centre[part], split_s[part], gaps[part] = b.lower_m, b.center_m, b.split_s, b.axis_gap_m
     return bound, centre, split_s, gaps
 
@@ -263,7 +275,7 @@ def search(
     closed: list[tuple[np.ndarray, ...]] = []
     evaluations, round_ = 0, 0
     while node.size:
-        bound, centre, split_s, gaps = _bounds(model, nodes, node, ds, js)
+        bound, centre, split_s, gaps = _bounds(model, nodes, node, ds, js, settings.second_order)
         evaluations += node.size
         done, cut_s, cut_lw = _decide(settings, nodes, node, ds, bound, centre, split_s)
         if evaluations + 2 * np.count_nonzero(cut_s | cut_lw) > settings.max_boxes:

@@ -71,8 +71,8 @@ def _metres(text: str) -> float:
     return value
 
 
-#: ``--endpoint-form`` -> ``RangeCertificateConfig.second_order_endpoints``.
-ENDPOINT_FORMS = MappingProxyType({"mean-value": False, "second-order": True})
+#: ``--bound-form`` -> ``RangeCertificateConfig.second_order``.
+BOUND_FORMS = MappingProxyType({"mean-value": False, "second-order": True})
 
 
 def _add_cell_options(p: argparse.ArgumentParser) -> None:
@@ -104,11 +104,11 @@ def _add_cell_options(p: argparse.ArgumentParser) -> None:
         f"{DEFAULT_MERGE_SPREAD_M[3]} over more axes)",
     )
     p.add_argument(
-        "--endpoint-form",
-        choices=tuple(ENDPOINT_FORMS),
+        "--bound-form",
+        choices=tuple(BOUND_FORMS),
         default=None,
-        help="how the endpoint errors are bounded over a cell: the mean-value form alone, or intersected with the "
-        "second-order Taylor form (default: mean-value over (L, W), second-order over more axes)",
+        help="how the clearance and the endpoint errors are bounded over a box: the mean-value form alone, or "
+        "intersected with the second-order Taylor form (default: mean-value over (L, W), second-order over more axes)",
     )
     p.add_argument(
         "--boundary-cell",
@@ -226,7 +226,7 @@ def _work(args: argparse.Namespace) -> int:
         boundary_cell=args.boundary_cell,
         extra_depth=args.extra_depth,
         merge_spread_m=args.merge_spread,
-        second_order_endpoints=None if args.endpoint_form is None else ENDPOINT_FORMS[args.endpoint_form],
+        second_order=None if args.bound_form is None else BOUND_FORMS[args.bound_form],
         jobs=args.jobs,
         executor=executor,
     )

@@ -143,13 +143,13 @@ def test_the_hessians_enclose_finite_differences(lifted: Coefficients, random_ce
 
 
 def test_the_certificate_setting_reaches_the_leaves(lifted: Coefficients, monkeypatch: pytest.MonkeyPatch) -> None:
-    """``RangeCertificateConfig.second_order_endpoints`` (on by default over three and four axes)
+    """``RangeCertificateConfig.second_order`` (on by default over three and four axes)
     is the form the certificate's leaf bounds use, and its map needs no more leaves."""
     from pipeline.certify import range_certificate
     from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 
-    assert RangeCertificateConfig.for_axes(lifted.variables.k).second_order_endpoints
-    assert not RangeCertificateConfig.for_axes(2).second_order_endpoints
+    assert RangeCertificateConfig.for_axes(lifted.variables.k).second_order
+    assert not RangeCertificateConfig.for_axes(2).second_order
     seen = []
     bounds = range_certificate.endpoint_bounds_and_shares
 
@@ -162,22 +162,22 @@ def test_the_certificate_setting_reaches_the_leaves(lifted: Coefficients, monkey
     second = certify_range(lifted, coarse)
     assert seen and all(seen)
     seen.clear()
-    first = certify_range(lifted, replace(coarse, second_order_endpoints=False))
+    first = certify_range(lifted, replace(coarse, second_order=False))
     assert seen and not any(seen)
     assert second.size <= first.size
 
 
 def test_the_command_line_chooses_the_form(capsys: pytest.CaptureFixture[str]) -> None:
-    """``python -m pipeline.certify_range --endpoint-form``: either form by name, a bad one refused
+    """``python -m pipeline.certify_range --bound-form``: either form by name, a bad one refused
     in one line; default_config passes it on (None: the default of the number of axes)."""
     from pipeline.certify.map_for_coefficients import default_config
     from pipeline.commands import certify_range
 
-    args = certify_range.parser().parse_args(["paper", "--endpoint-form", "second-order"])
-    assert certify_range.ENDPOINT_FORMS[args.endpoint_form] is True
+    args = certify_range.parser().parse_args(["paper", "--bound-form", "second-order"])
+    assert certify_range.BOUND_FORMS[args.bound_form] is True
     eq9 = load_coefficients("paper")
-    assert default_config(eq9, second_order_endpoints=True).second_order_endpoints
-    assert not default_config(eq9).second_order_endpoints
-    assert certify_range.main(["paper", "--endpoint-form", "taylor"]) == 2
+    assert default_config(eq9, second_order=True).second_order
+    assert not default_config(eq9).second_order
+    assert certify_range.main(["paper", "--bound-form", "taylor"]) == 2
     err = capsys.readouterr().err
-    assert "--endpoint-form" in err and "Traceback" not in err
+    assert "--bound-form" in err and "Traceback" not in err
