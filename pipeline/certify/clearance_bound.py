@@ -65,9 +65,9 @@ with T smooth (``pipeline.certify.duration``), and the obstacle's vertices affin
 f also satisfies f(p) >= f(c) - sum_i |df/dp_i(c)| r_i - 1/2 sum_ij max_X |d2f/dp_i dp_j| r_i r_j
 (Taylor's theorem with the Lagrange remainder; the Hessian enclosed over X by jets of order 2,
 the gradient at c by the jets at the centre), and the larger of this and the mean-value form is
-kept (``pipeline.certify.interval.lower_bound``). The mean-value form's loss against the truth
-is about sum_ij |H_ij| r_i r_j (the gradient's spread over X times r), the second-order form's
-half of it: the same bound on a box about 1.4 times wider along every axis.
+kept (``pipeline.certify.interval.lower_bound``). The mean-value form loses the gradient's
+spread over X times r; the second-order form keeps the gradient at c and loses only the
+curvature term, which on small boxes is much smaller (``python scripts/clearance_gap.py``).
 
 Rounding: every bound is lowered by :data:`FLOAT_SLACK_M` (see ``pipeline.certify.interval``).
 """
@@ -201,7 +201,7 @@ def box_clearance_bounds(
         distance_error_m: Error bound of ``center_clearance_m`` [m] (Coal: COAL_DISTANCE_ERROR_M).
         second_order: Bound each function of (a) and (b) by the tighter of its mean-value and
             second-order Taylor forms (module docstring, "The second-order form"): tighter on
-            small boxes, about three times the work.
+            small boxes, at one to two times the time (``python scripts/clearance_gap.py``).
 
     Returns:
         The :class:`BoxBounds`.

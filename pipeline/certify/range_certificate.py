@@ -206,7 +206,7 @@ class RangeCertificateConfig:
     @classmethod
     def for_axes(cls, k: int, **settings: Any) -> RangeCertificateConfig:
         """The default settings over ``k`` axes (cells :data:`DEFAULT_CELLS`, merging
-        :data:`DEFAULT_MERGE_SPREAD_M`, endpoint form :data:`DEFAULT_SECOND_ORDER`, strips
+        :data:`DEFAULT_MERGE_SPREAD_M`, bound form :data:`DEFAULT_SECOND_ORDER`, strips
         :data:`DEFAULT_STRIP_SPLITS`),
         with ``settings`` that are not None in their place (names of this class's fields)."""
         min_cell, boundary_cell, extra_depth = DEFAULT_CELLS.get(k, DEFAULT_CELLS[3])

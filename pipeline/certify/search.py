@@ -47,7 +47,7 @@ from pipeline.validation import check_bool, check_non_negative, check_positive, 
 
 _CHUNK = 20_000
 #: How many times smaller than the mean-value form's gap the second-order form's is assumed to be
-#: when choosing the boxes to bound with it (:func:`_undecided`); measured 15 to 40 at the median
+#: when choosing the boxes to bound with it (:func:`_worth_second_order`); measured 15 to 40 at the median
 #: on boxes of 1/16 to 1/128 (``python scripts/clearance_gap.py``).
 _SECOND_ORDER_GAIN = 4.0
 
@@ -225,7 +225,7 @@ def _bounds(
     model: RangeModel, nodes: _Nodes, node: np.ndarray, ds: np.ndarray, js: np.ndarray, settings: SearchSettings
 ) -> tuple:
     """The bound, centre clearance, split_s and axis gaps of the boxes (node, s interval), in chunks.
-    With ``settings.second_order`` the boxes the mean-value form leaves open (:func:`_undecided`)
+    With ``settings.second_order`` the boxes the mean-value form leaves open (:func:`_worth_second_order`)
     are bounded again with the second-order form too, and the larger bound kept (both hold)."""
     bound, centre = np.empty(node.size), np.empty(node.size)
     split_s, gaps = np.empty(node.size, dtype=bool), np.empty((node.size, model.k))
@@ -236,7 +236,7 @@ def _bounds(
         center, radius = np.column_stack([c, (js[part] + 0.5) * 2 * hs]), np.column_stack([r, hs])
         b = box_clearance_bounds(model, center, radius)
         lower = b.lower_m
-        rows = np.flatnonzero(_undecided(settings, lower, b.center_m)) if settings.second_order else []
+        rows = np.flatnonzero(_worth_second_order(settings, lower, b.center_m)) if settings.second_order else []
         if len(rows):
             tighter = box_clearance_bounds(model, center[rows], radius[rows], second_order=True).lower_m
             lower[rows] = np.maximum(lower[rows], tighter)
@@ -244,7 +244,7 @@ def _bounds(
     return bound, centre, split_s, gaps
 
 
-def _undecided(settings: SearchSettings, bound: np.ndarray, centre: np.ndarray) -> np.ndarray:
+def _worth_second_order(settings: SearchSettings, bound: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """The boxes the mean-value bound leaves open (:func:`_decide`) that a bound
     :data:`_SECOND_ORDER_GAIN` times closer to the centre's clearance would close: below the
     margin with the centre above it by more than that smaller gap, or with the margin out of reach
