@@ -7,9 +7,10 @@ resident memory.
 RESULTS is a results folder or a coefficients file (with its region map beside it). Each of
 ``--repeat`` runs is a new interpreter (``sys.executable -c ...``) that imports ``pipeline``,
 loads RESULTS, and asks for the trajectory at the centre of the fitted box
-(``g(L, W, x=..., d=...)`` over the axes the coefficients vary); it reports its three wall times
-and ``resource.getrusage``'s peak resident size. The script prints each run and the median of
-each column. A measurement, not part of the test suite.
+(``g(L, W, x=..., d=...)`` over the axes the coefficients vary), then loads RESULTS again and
+asks the same query (what a running process pays for a map once the package has started); it
+reports the four wall times and ``resource.getrusage``'s peak resident size. The script prints
+each run and the median of each column. A measurement, not part of the test suite.
 """
 
 from __future__ import annotations
@@ -33,14 +34,18 @@ centre = {n: 0.5 * sum(g.coefficients.fitted_range_m[n]) for n in names}
 moves = {n: centre[n] for n in ("x", "d") if n in names}
 answer = g(centre["L"], centre["W"], **moves)
 answered = time.perf_counter()
+again = pipeline.load(sys.argv[1])
+again(centre["L"], centre["W"], **moves)
+reloaded = time.perf_counter()
 print(json.dumps({
     "import_s": imported - started, "load_s": loaded - imported, "first_query_s": answered - loaded,
+    "reload_and_query_s": reloaded - answered,
     "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
     "leaves": int(getattr(g.coefficients.region_map, "size", 0) or 0),
 }))
 """
 
-COLUMNS = ("import_s", "load_s", "first_query_s", "peak_rss_mb")
+COLUMNS = ("import_s", "load_s", "first_query_s", "reload_and_query_s", "peak_rss_mb")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -80,7 +80,8 @@ import numpy as np
 
 from pipeline.certify.interval import FLOAT_SLACK_M, Jet, lower_bound, upper_bound
 from pipeline.certify.range_model import RangeModel
-from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, COAL_DISTANCE_ERROR_M, segment_rectangle_distance
+from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, COAL_DISTANCE_ERROR_M
+from pipeline.geometry.segment_distance import segment_rectangle_distance
 
 __all__ = ["COAL_DISTANCE_ERROR_M", "FLOAT_SLACK_M", "BoxBounds", "box_clearance_bounds", "obstacle_motion_m"]
 

@@ -177,7 +177,8 @@ from pipeline.certify.clearance_bound import FLOAT_SLACK_M
 from pipeline.certify.interval import Jet, lower_bound, upper_bound
 from pipeline.certify.range_model import RangeModel
 from pipeline.exceptions import InvalidParameterError
-from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, link_segments, segment_rectangle_distance
+from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, link_segments
+from pipeline.geometry.segment_distance import segment_rectangle_distance
 
 #: Cap on the polar sub-boxes alive at once in :func:`endpoint_clearance_upper_bounds`.
 _MAX_SUB_BOXES = 400_000

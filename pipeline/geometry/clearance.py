@@ -33,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from pipeline.exceptions import InvalidParameterError, RobotModelError
+from pipeline.geometry.segment_distance import segment_rectangle_distance
 from pipeline.model.arm import PlanarArm
 from pipeline.model.obstacle import Obstacle
 
@@ -292,62 +293,6 @@ class PinocchioCoalClearance:
                 out[row, link] = min(out[row, link], distance)
         self.queries += batch.shape[0] * len(self._pair_link)
         return out[0] if q.ndim == 1 else out
-
-
-# The planar helpers below spell out their two components (x[..., 0] + x[..., 1] where
-# np.sum(..., axis=-1) would reduce over an axis of length 2): the same floating-point result,
-# without a reduction's overhead per call (it took half the infeasibility certificate's time).
-
-
-def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Row-wise dot product of planar vectors (..., 2)."""
-    return u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1]
-
-
-def _point_rectangle_distance(p: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """Distance from points p (..., 2) to the origin-centred rectangle of half extents ``half``."""
-    excess = np.maximum(np.abs(p) - half, 0.0)
-    return np.sqrt(_dot(excess, excess))
-
-
-def _point_segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from point(s) c (2,) to segments a -> b (..., 2)."""
-    ab = b - a
-    length2 = _dot(ab, ab)
-    s = np.clip(_dot(c - a, ab) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
-    offset = c - (a + s[..., None] * ab)
-    return np.sqrt(_dot(offset, offset))
-
-
-def _segment_hits_rectangle(a: np.ndarray, b: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """True where segment a -> b (..., 2) meets the origin-centred rectangle (slab test)."""
-    direction = b - a
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / direction
-        t1 = (-half - a) * inv
-        t2 = (half - a) * inv
-    lo = np.where(direction == 0.0, np.where(np.abs(a) <= half, -np.inf, np.inf), np.minimum(t1, t2))
-    hi = np.where(direction == 0.0, np.where(np.abs(a) <= half, np.inf, -np.inf), np.maximum(t1, t2))
-    enter = np.maximum(np.maximum(lo[..., 0], lo[..., 1]), 0.0)
-    leave = np.minimum(np.minimum(hi[..., 0], hi[..., 1]), 1.0)
-    return enter <= leave
-
-
-def segment_rectangle_distance(a: np.ndarray, b: np.ndarray, center: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """Planar distance [m] between segments a -> b (..., 2) and an axis-aligned rectangle.
-
-    Zero where they meet. Otherwise the minimum is attained at a vertex of one of the two
-    convex sets: a segment endpoint against the rectangle, or a rectangle corner against
-    the segment.
-    """
-    a = np.asarray(a, dtype=float) - center
-    b = np.asarray(b, dtype=float) - center
-    half = np.asarray(half, dtype=float)
-    best = np.minimum(_point_rectangle_distance(a, half), _point_rectangle_distance(b, half))
-    for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-        corner = half * np.array([sx, sy])
-        best = np.minimum(best, _point_segment_distance(corner, a, b))
-    return np.where(_segment_hits_rectangle(a, b, half), 0.0, best)
 
 
 def link_segments(q: np.ndarray, link_lengths_m: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
