@@ -1,5 +1,5 @@
-"""The C allocator's mmap threshold in a Dask worker: why the build's tasks ran 2.7x slower per
-core there, and the one call that restores their speed.
+"""The C allocator's mmap threshold in a Dask worker: why the build's tasks ran slower per core
+there, and the one call that restores their speed.
 
 A Dask nanny starts its worker with ``MALLOC_TRIM_THRESHOLD_=65536`` (its default
 ``distributed.nanny.pre-spawn-environ``), so that freed memory goes back to the system. Setting
@@ -8,10 +8,10 @@ by environment or by ``mallopt``, turns off glibc's *dynamic* mmap threshold: th
 at its initial 128 KiB instead of rising to the size of the largest block freed. Every NumPy
 array above 128 KiB is then a fresh ``mmap`` whose pages fault in on first touch and go back to
 the system on ``free``. The range certificate's interval arithmetic makes many temporaries of a
-few hundred KiB, so in such a worker the same task took 2.7x the time (one search task over
-(L, W, x, d) at cells of 1/8: 10.9 s against 4.0 s in a process without the variable, and
-3.6 s with the variable and a 32 MiB threshold; ``MALLOC_TRIM_THRESHOLD_=65536`` alone in a
-plain process reproduces the 10.9 s).
+few hundred KiB, so such a process takes longer for the same work: the default build's map,
+``python -m pipeline.certify_range results/coefficients.json`` in one process, took 64.4 s with
+``MALLOC_TRIM_THRESHOLD_=65536`` in its environment against 50.8 s without it, the two run side by
+side.
 
 :func:`raise_mmap_threshold` sets ``M_MMAP_THRESHOLD`` to :data:`MMAP_THRESHOLD_BYTES` (glibc's
 largest, 32 MiB on 64-bit): blocks below it come from the heap, whose top is still trimmed at

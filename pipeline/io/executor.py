@@ -38,7 +38,7 @@ timeout), submits the chunks, collects them with ``distributed.as_completed``, a
 client; an error or Ctrl-C cancels the chunks not yet done. The workers must have this package
 installed (the same version): they import ``function`` by name. Each chunk on a worker first
 raises the C allocator's mmap threshold (:mod:`pipeline.io.allocator`: under the nanny's
-``MALLOC_TRIM_THRESHOLD_`` the certificate's tasks ran 2.7x slower per core). :func:`check_executor` makes the
+``MALLOC_TRIM_THRESHOLD_`` the certificate's tasks ran slower per core). :func:`check_executor` makes the
 connection and worker test on its own, so that a command can fail before any work.
 """
 
@@ -268,7 +268,7 @@ def _run_chunk(function: Callable[[Task], Result], chunk: Sequence[Task]) -> lis
 def _run_dask_chunk(function: Callable[[Task], Result], chunk: Sequence[Task]) -> list[Result]:
     """:func:`_run_chunk` on a Dask worker, after restoring the allocator's speed for NumPy
     temporaries there (:func:`pipeline.io.allocator.raise_mmap_threshold`: the nanny's
-    ``MALLOC_TRIM_THRESHOLD_`` made the certificate's tasks 2.7x slower per core)."""
+    ``MALLOC_TRIM_THRESHOLD_`` made the certificate's tasks slower per core)."""
     raise_mmap_threshold()
     return _run_chunk(function, chunk)
 
