@@ -26,8 +26,7 @@ observable that tells the two thresholds apart (the tests use it).
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
-import platform
+import os
 
 __all__ = ["MMAP_THRESHOLD_BYTES", "mmapped_bytes", "raise_mmap_threshold"]
 
@@ -48,12 +47,16 @@ class _MallInfo2(ctypes.Structure):
 
 
 def _glibc() -> ctypes.CDLL | None:
-    """The process's C library if it is glibc, else None."""
-    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
-        return None
-    name = ctypes.util.find_library("c")
+    """This process's global symbols (``dlopen(NULL)``, which hold the C library's) if the C
+    library is glibc, else None. Cheap enough for every chunk: no library search, no file read."""
     try:
-        return ctypes.CDLL(name) if name else None
+        version = os.confstr("CS_GNU_LIBC_VERSION")
+    except (AttributeError, ValueError, OSError):  # no confstr, or no such name on this platform
+        return None
+    if not version or not version.startswith("glibc"):
+        return None
+    try:
+        return ctypes.CDLL(None)
     except OSError:
         return None
 
