@@ -179,11 +179,11 @@ class LimitViolation:
             relation = ">" if side == "upper" else "<"
             return (
                 f"joint {self.joint} angle bound {self.bound:.4f} {self.unit} {relation} {side} limit "
-                f"{self.limit:.4f} {self.unit} (by {abs(self.bound - self.limit):.4f} {self.unit})"
+                f"{self.limit:.4f} {self.unit} (by {abs(self.bound - self.limit):.3g} {self.unit})"
             )
         return (
             f"joint {self.joint} {self.quantity} bound {self.bound:.4f} {self.unit} > limit {self.limit:.4f} "
-            f"{self.unit} (by {self.bound - self.limit:.4f} {self.unit})"
+            f"{self.unit} (by {self.bound - self.limit:.3g} {self.unit})"
         )
 
 

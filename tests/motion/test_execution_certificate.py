@@ -120,3 +120,13 @@ def test_the_shortest_rest_to_rest_timing_keeps_the_limits_and_shortens_as_they_
         assert np.all(sampled["dq"] <= speed) and np.all(sampled["ddq"] <= 1.0) and np.all(sampled["tau"] <= 0.05)
         durations.append(timing.duration_s)
     assert durations == sorted(durations, reverse=True) and durations[0] > trajectory.duration_s
+
+
+def test_limit_violation_names_a_tiny_excess_not_a_rounded_zero():
+    """A bound above its limit by a few micro-units still says by how much (not "by 0.0000")."""
+    from pipeline.motion.execution_certificate import LimitViolation
+
+    speed = str(LimitViolation("speed", 1, 3.0000021, 3.0, "rad/s"))
+    assert speed == "joint 1 speed bound 3.0000 rad/s > limit 3.0000 rad/s (by 2.1e-06 rad/s)"
+    angle = str(LimitViolation("angle", 2, -3.1416, -3.14159, "rad"))
+    assert angle.startswith("joint 2 angle bound -3.1416 rad < lower limit -3.1416 rad (by 1e-05 rad)")
