@@ -63,15 +63,11 @@ import numpy as np
 
 from pipeline.certify.lookup import NO_TABLES, bounds_of, leaf_of
 
-__all__ = ["FINITE", "NO_TABLES", "PARAMETERS", "compiled_entry", "plan_numbers", "query_core", "query_core_entry"]
+__all__ = ["NO_TABLES", "compiled_entry", "plan_numbers", "query_core", "query_core_entry"]
 
 #: Where the plan's numbers start (:func:`plan_numbers`): the scene's and the reach's seven, then
 #: the fitted range's (lo, hi) of each of the k variables, then the regression, then the rule.
 _RANGES = 7
-#: Where :func:`query_core`'s result holds the regression's eight columns (one tuple), and whether all
-#: are finite (the fields before them are named in its docstring, in order).
-PARAMETERS = 8
-FINITE = 9
 
 
 def plan_numbers(
