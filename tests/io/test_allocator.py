@@ -34,15 +34,15 @@ def mapped_by_one_array(_task: object = None) -> int:
 
 @glibc
 def test_under_a_trim_threshold_a_mebibyte_array_is_mmapped_until_the_threshold_is_raised() -> None:
+    # This module's own probe, run in a process started with the variable set.
     script = (
-        "import numpy as np\n"
-        "from pipeline.io.allocator import mmapped_bytes, raise_mmap_threshold as r\n"
-        "def m():\n"
-        f"    before = mmapped_bytes(); a = np.ones({PROBE_BYTES // 8}); return mmapped_bytes() - before\n"
+        "import runpy, sys\n"
+        "from pipeline.io.allocator import raise_mmap_threshold as r\n"
+        "m = runpy.run_path(sys.argv[1])['mapped_by_one_array']\n"
         "print(m(), m(), r(), m(), m())\n"
     )
     env = {**os.environ, "MALLOC_TRIM_THRESHOLD_": "65536"}
-    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", script, __file__], env=env, capture_output=True, text=True, check=True)
     before_1, before_2, accepted, after_1, after_2 = out.stdout.split()
     assert int(before_1) >= PROBE_BYTES and int(before_2) >= PROBE_BYTES  # the slow path, every time
     assert accepted == "True"
