@@ -9,8 +9,10 @@ RESULTS is a results folder or a coefficients file (with its region map beside i
 loads RESULTS, and asks for the trajectory at the centre of the fitted box
 (``g(L, W, x=..., d=...)`` over the axes the coefficients vary), then loads RESULTS again and
 asks the same query (what a running process pays for a map once the package has started); it
-reports the four wall times and ``resource.getrusage``'s peak resident size. The script prints
-each run and the median of each column. A measurement, not part of the test suite.
+reports the four wall times, ``resource.getrusage``'s peak resident size and which machine code
+answered (the extension module compiled with the package, or Numba's JIT: ``pipeline.native``).
+The script prints each run and the median of each column. A measurement, not part of the test
+suite.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ print(json.dumps({
     "reload_and_query_s": reloaded - answered,
     "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
     "leaves": int(getattr(g.coefficients.region_map, "size", 0) or 0),
+    "ahead_of_time": __import__("pipeline.online.kernel").online.kernel.NATIVE.load().ahead_of_time,
 }))
 """
 
@@ -62,7 +65,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"python scripts/load_time.py: error: {child.stderr.strip().splitlines()[-1]}", file=sys.stderr)
             return 2
         runs.append(json.loads(child.stdout.strip().splitlines()[-1]))
-        print("  ".join(f"{c} {runs[-1][c]:.3f}" for c in COLUMNS) + f"  leaves {runs[-1]['leaves']}", flush=True)
+        tail = f"  leaves {runs[-1]['leaves']}  core {'ahead of time' if runs[-1]['ahead_of_time'] else 'JIT'}"
+        print("  ".join(f"{c} {runs[-1][c]:.3f}" for c in COLUMNS) + tail, flush=True)
     medians = {c: statistics.median(run[c] for run in runs) for c in COLUMNS}
     print("median: " + "  ".join(f"{c} {v:.3f}" for c, v in medians.items()))
     print(f"median load + first query: {medians['load_s'] + medians['first_query_s']:.3f} s")

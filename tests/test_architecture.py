@@ -21,7 +21,7 @@ PACKAGES = ("pipeline", "verify")
 #: A module belongs to the layer of the longest prefix that names it (``pipeline.io.jsonio`` ->
 #: ``pipeline.io``); ``pipeline.certify`` has its place even before the package exists.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("base", ("pipeline.exceptions", "pipeline.validation", "pipeline.io")),
+    ("base", ("pipeline.exceptions", "pipeline.validation", "pipeline.native", "pipeline.io")),
     ("model", ("pipeline.model",)),
     ("motion", ("pipeline.motion",)),
     ("geometry", ("pipeline.geometry",)),

@@ -41,6 +41,9 @@ def test_the_wheel_holds_every_runtime_file(wheel: Path) -> None:
     }
     assert not sources - names, sorted(sources - names)
     assert not [n for n in names if n.startswith(("tests/", "scripts/", "urdf/"))]
+    # The query's machine code, compiled ahead of time (pipeline.native; this machine has a C compiler).
+    for module in ("pipeline/online/kernel_native.", "pipeline/certify/lookup_native."):
+        assert [n for n in names if n.startswith(module) and n.endswith((".so", ".pyd"))], f"{module}* not in the wheel"
 
 
 def test_an_installed_wheel_finds_its_files_from_an_empty_folder(wheel: Path, tmp_path: Path) -> None:
@@ -63,7 +66,8 @@ def test_an_installed_wheel_finds_its_files_from_an_empty_folder(wheel: Path, tm
         "assert DEFAULT_URDF.is_file() and paper_data_path('paper_table2_doe.json').is_file()\n"
         "arm = pipeline.load_planar_arm()\n"
         "answer = pipeline.generate(pipeline.load_coefficients('paper'), 0.27, 0.09)\n"
-        "print(*(round(v, 9) for v in arm.link_lengths_m), round(answer.duration_s, 3))\n"
+        "from pipeline.online.kernel import NATIVE\n"
+        "print(*(round(v, 9) for v in arm.link_lengths_m), round(answer.duration_s, 3), NATIVE.load().ahead_of_time)\n"
     )
     environment = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     environment["PYTHONPATH"] = str(site)
@@ -72,3 +76,4 @@ def test_an_installed_wheel_finds_its_files_from_an_empty_folder(wheel: Path, tm
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.split()[:2] == ["0.3", "0.35"]
+    assert done.stdout.split()[3] == "True"  # the installed core is the wheel's compiled module

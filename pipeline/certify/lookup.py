@@ -12,9 +12,12 @@ two, a truncation; the subpaving's module docstring), so it finds the same leaf,
 them: one scalar lookup; :func:`leaves_of` runs it over a batch (the map's ``leaf_indices``).
 Nothing here knows what an axis means: axes are numbered.
 
-All are compiled with Numba for their one signature when this module is imported, and cached on
-disk (``cache=True``). The lookup's arrays are writable copies because Numba's dispatch of a
-read-only array costs twice as much; do not modify them.
+All are Numba functions. The three lookups have one signature each and are loaded when this
+module is imported (:data:`COMPILED`): compiled ahead of time into an extension module when the
+package was built, else compiled by Numba's JIT and cached on disk (``cache=True``;
+:mod:`pipeline.native`). :func:`build_tree` is compiled on its first call. The lookup's arrays
+are writable copies because Numba's dispatch of a read-only array costs twice as much; do not
+modify them.
 """
 
 from __future__ import annotations
@@ -24,9 +27,13 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from pipeline.native import Export, NativeModule
+
 __all__ = [
+    "COMPILED",
     "LOOKUP_HEADER",
     "LOOKUP_TREE",
+    "NATIVE",
     "NO_MAP",
     "NO_TABLES",
     "TREE_GAP",
@@ -69,7 +76,7 @@ class LookupTables(NamedTuple):
     def leaf_bounds(self, axes: int, leaf: int) -> tuple[float, float, int]:
         """(clearance bound [m], endpoint-error bound [m], status index) of ``leaf`` of a map over
         ``axes`` axes (:func:`bounds_of`)."""
-        return bounds_of(self.bounds, axes, leaf)
+        return COMPILED["bounds_of"](self.bounds, axes, leaf)
 
 
 def _no_tables() -> LookupTables:
@@ -83,7 +90,7 @@ def _no_tables() -> LookupTables:
 NO_TABLES = _no_tables()
 
 
-@numba.njit("Tuple((float64, float64, int64))(float64[::1], int64, int64)", cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True)
 def bounds_of(bounds: np.ndarray, axes: int, leaf: int) -> tuple[float, float, int]:
     """(clearance bound [m], endpoint-error bound [m], status index) of ``leaf``, read from
     ``LookupTables.bounds`` of a map over ``axes`` axes."""
@@ -91,13 +98,13 @@ def bounds_of(bounds: np.ndarray, axes: int, leaf: int) -> tuple[float, float, i
     return bounds[at], bounds[at + 1], int(bounds[at + 2])
 
 
-@numba.njit("int64(float64, float64, float64, int64)", cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True)
 def _cell(value: float, lo: float, hi: float, n: int) -> int:
     """The cell (0 .. n - 1) of ``value`` in [lo, hi] cut into n, as Subpaving.leaf_indices finds it."""
     return min(int((value - lo) / (hi - lo) * n), n - 1)
 
 
-@numba.njit("int64(int32[::1], float64[::1], int64, float64, float64, float64, float64)", cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True)
 def leaf_of(index: np.ndarray, bounds: np.ndarray, axes: int, v0: float, v1: float, v2: float, v3: float) -> int:
     """The leaf holding the point (v0, ..., v_(axes - 1)) (the map's axes in order; the values
     past ``axes`` are not read), as :meth:`Subpaving.leaf_indices` finds it; -1 outside the fitted
@@ -123,7 +130,7 @@ def leaf_of(index: np.ndarray, bounds: np.ndarray, axes: int, v0: float, v1: flo
     return -1 - node
 
 
-@numba.njit("int64[::1](int32[::1], float64[::1], int64, float64[:, ::1])", cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True)
 def leaves_of(index: np.ndarray, bounds: np.ndarray, axes: int, points: np.ndarray) -> np.ndarray:
     """:func:`leaf_of` of every row of ``points`` (m, 4) (the map's axes first, the rest not
     read): the batch lookup's compiled route."""
@@ -131,6 +138,22 @@ def leaves_of(index: np.ndarray, bounds: np.ndarray, axes: int, points: np.ndarr
     for row in range(points.shape[0]):
         out[row] = leaf_of(index, bounds, axes, points[row, 0], points[row, 1], points[row, 2], points[row, 3])
     return out
+
+
+#: The scalar and batch lookups' machine code (:mod:`pipeline.native`): compiled ahead of time
+#: into ``pipeline.certify.lookup_native`` when the package is built, else by the JIT.
+NATIVE = NativeModule(
+    "pipeline.certify.lookup_native",
+    (
+        Export("bounds_of", bounds_of, "Tuple((float64, float64, int64))(float64[::1], int64, int64)"),
+        Export("leaf_of", leaf_of, "int64(int32[::1], float64[::1], int64, float64, float64, float64, float64)"),
+        Export("leaves_of", leaves_of, "int64[::1](int32[::1], float64[::1], int64, float64[:, ::1])"),
+    ),
+    (__file__,),
+)
+#: The lookups' callables, loaded when this module is imported (:meth:`NativeModule.load`); for
+#: callers whose arrays are C-contiguous and of the signatures' dtypes.
+COMPILED = NATIVE.load()
 
 
 @numba.njit(cache=True, nogil=True)

@@ -201,13 +201,13 @@ class RegionMap:
             InvalidParameterError: not one value (array) per axis (the message names the axis
                 missing, or the values beyond the map's axes).
         """
-        from pipeline.certify.lookup import leaves_of  # Numba: imported on the first lookup
+        from pipeline.certify.lookup import COMPILED  # machine code: loaded on the first lookup
 
         points = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in self._values(values)))
         table = np.zeros((points[0].size, 4))
         for a, value in enumerate(points):
             table[:, a] = value.ravel()
-        return leaves_of(*self.lookup_tables, len(self.axes), table).reshape(points[0].shape)
+        return COMPILED["leaves_of"](*self.lookup_tables, len(self.axes), table).reshape(points[0].shape)
 
     def cells_at(self, *values) -> dict[str, np.ndarray]:
         """Batch lookup: per point (one value per axis, in ``axes`` order), the leaf, its
@@ -273,9 +273,10 @@ class RegionMap:
 
     def _leaf_of(self, values: tuple) -> int:
         """Leaf of the point ``values`` (one per axis), -1 outside the fitted box."""
-        from pipeline.certify.lookup import leaf_of  # Numba: imported on the first scalar lookup
+        from pipeline.certify.lookup import COMPILED  # machine code: loaded on the first scalar lookup
 
         padded = (*values, 0.0, 0.0, 0.0)
+        leaf_of = COMPILED["leaf_of"]
         return int(leaf_of(*self.lookup_tables, len(self.axes), padded[0], padded[1], padded[2], padded[3]))
 
     def _values(self, values: tuple) -> tuple:

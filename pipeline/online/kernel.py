@@ -48,10 +48,12 @@ past its first two (the obstacle's size), their count, and three flat arrays: th
 coefficients (:func:`plan_numbers`) and the map's two lookup arrays
 (:class:`pipeline.certify.lookup.LookupTables`; :data:`NO_TABLES` without a map). The cost of a
 Numba call grows with the number of arrays it is given, so they are few and packed; the core
-allocates nothing, so its time is its arithmetic. It is compiled for its one signature when this
-module is imported, and Numba caches the machine code on disk (``cache=True``): importing it
-loads the cache (or, the first time, compiles, a few seconds), so no query compiles. The first
-query with a coefficients object and its map builds their arrays once. Every array is
+allocates nothing, so its time is its arithmetic. Its machine code is loaded when this module is
+imported (:data:`query_core_entry`), so no query compiles: the extension module compiled from
+this source when the package was built (under a millisecond), else Numba's JIT compilation for
+its one signature, cached on disk (``cache=True``; loading it starts Numba's compiler target,
+about half a second, and the first compilation takes a few seconds; :mod:`pipeline.native`). The
+first query with a coefficients object and its map builds their arrays once. Every array is
 C-contiguous and writable (Numba's dispatch of a read-only array costs twice as much)."""
 
 from __future__ import annotations
@@ -61,9 +63,11 @@ import math
 import numba
 import numpy as np
 
+from pipeline.certify import lookup
 from pipeline.certify.lookup import NO_TABLES, bounds_of, leaf_of
+from pipeline.native import Export, NativeModule
 
-__all__ = ["NO_TABLES", "compiled_entry", "plan_numbers", "query_core", "query_core_entry"]
+__all__ = ["NATIVE", "NO_TABLES", "plan_numbers", "query_core", "query_core_entry"]
 
 #: Where the plan's numbers start (:func:`plan_numbers`): the scene's and the reach's seven, then
 #: the fitted range's (lo, hi) of each of the k variables, then the regression, then the rule.
@@ -143,12 +147,7 @@ def _duration(plan: np.ndarray, k: int, x1: float, x2: float, y2: float, y3: flo
     return 2.0 * x1 * total / speed
 
 
-@numba.njit(
-    "Tuple((int64, float64, float64, boolean, int64, float64, float64, int64, UniTuple(float64, 8), boolean))"
-    "(float64, float64, float64, float64, float64, float64, float64, int64, float64[::1], int32[::1], float64[::1])",
-    cache=True,
-    nogil=True,
-)
+@numba.njit(cache=True, nogil=True)
 def query_core(
     length_m: float, width_m: float, centre_x_m: float, top_y_m: float, start_y_m: float, v2: float, v3: float,
     k: int, plan: np.ndarray, index: np.ndarray, bounds: np.ndarray,
@@ -220,22 +219,23 @@ def query_core(
     return unreachable, radius, duration, inside, leaf, clearance, endpoint, status, p, finite
 
 
-def compiled_entry(dispatcher):
-    """The Python entry of the machine code of a function compiled for one signature. Called
-    directly, it skips the dispatcher's matching of the arguments' types against its signatures
-    (about a quarter of a microsecond a call) and gives the dispatcher's answer for the signature's
-    types. A number is converted as the dispatcher converts it and an array of another dtype is
-    refused with a TypeError, but an array's layout is not checked (a strided array would be read
-    as if contiguous): every array given must be C-contiguous, as the plan (:func:`plan_numbers`)
-    and a map's lookup arrays are. The dispatcher itself where there is no such entry (e.g. with
-    ``NUMBA_DISABLE_JIT``)."""
-    try:
-        (signature,) = dispatcher.signatures
-        return dispatcher.overloads[signature].entry_point
-    except (AttributeError, KeyError, TypeError, ValueError):
-        return dispatcher
-
-
-#: :func:`query_core`'s compiled entry (:func:`compiled_entry`): for callers that have checked the
-#: types of its arguments, as :func:`pipeline.online.generator.generate` does.
-query_core_entry = compiled_entry(query_core)
+#: The core's machine code (:mod:`pipeline.native`): compiled ahead of time into
+#: ``pipeline.online.kernel_native`` when the package is built, else by the JIT. Its code is this
+#: module's and the lookup's.
+NATIVE = NativeModule(
+    "pipeline.online.kernel_native",
+    (
+        Export(
+            "query_core",
+            query_core,
+            "Tuple((int64, float64, float64, boolean, int64, float64, float64, int64, UniTuple(float64, 8), boolean))"
+            "(float64, float64, float64, float64, float64, float64, float64, int64, float64[::1], int32[::1],"
+            " float64[::1])",
+        ),
+    ),
+    (__file__, lookup.__file__),
+)
+#: :func:`query_core`'s callable, loaded when this module is imported (:meth:`NativeModule.load`):
+#: for callers that have checked the types of its arguments and give C-contiguous arrays, as
+#: :func:`pipeline.online.generator.generate` does.
+query_core_entry = NATIVE.load()["query_core"]
