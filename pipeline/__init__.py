@@ -43,7 +43,7 @@ from pipeline.exceptions import (
 from pipeline.online.loading import load_coefficients
 
 #: Public names imported on first access: those whose modules need Pinocchio or Coal, and the
-#: generator's, whose compiled core (Numba) loads in about a second.
+#: online object's and the generator's.
 _LAZY = MappingProxyType(
     {
         "GeneratedTrajectory": "pipeline.online.generator",
