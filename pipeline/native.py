@@ -19,10 +19,15 @@ callable of every export:
 * else the dispatcher compiled for the signature by Numba's JIT (loaded from its disk cache, or
   compiled the first time), through the entry point of that compilation. Called directly, it
   skips the dispatcher's matching of the arguments' types against its signatures (about a
-  quarter of a microsecond a call); a number is converted as the dispatcher converts it and an
-  array of another dtype is refused with a TypeError, but an array's layout is not checked.
+  quarter of a microsecond a call).
 
-Neither route checks an array's layout: every array given to an export must be C-contiguous.
+**What a caller must give.** Both routes convert a number to the signature's type and refuse a
+non-number with a TypeError (the extension module also converts a numeric string, as ``float``
+does), but neither checks an array's layout, and the extension module does not check its dtype
+either: an array of another dtype is read as if it were of the signature's, past its end if its
+items are smaller. Every caller therefore gives arrays it made itself, of the signature's dtypes
+and C-contiguous (the plan, a map's lookup tables, a batch's points), and checks a user's values
+before the call.
 
 Both are Numba's compilation of the same Python functions for the same argument types, without
 ``fastmath``, so LLVM may neither reorder a floating-point operation nor fuse one into another:

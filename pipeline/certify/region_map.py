@@ -34,6 +34,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import numbers
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -253,7 +254,7 @@ class RegionMap:
         generator's lookup (no cell object built).
 
         Raises:
-            InvalidParameterError: not one value per axis.
+            InvalidParameterError: not one real number per axis.
         """
         leaf = self.leaf_at(*values)
         if leaf is None:
@@ -266,7 +267,7 @@ class RegionMap:
         fitted box (scalar lookup: :func:`pipeline.certify.lookup.leaf_of`).
 
         Raises:
-            InvalidParameterError: not one value per axis.
+            InvalidParameterError: not one real number per axis.
         """
         leaf = self._leaf_of(self._values(values))
         return None if leaf < 0 else leaf
@@ -275,6 +276,9 @@ class RegionMap:
         """Leaf of the point ``values`` (one per axis), -1 outside the fitted box."""
         from pipeline.certify.lookup import COMPILED  # machine code: loaded on the first scalar lookup
 
+        for name, value in zip(self.axes, values, strict=True):
+            if not isinstance(value, numbers.Real):
+                raise InvalidParameterError(name, value, "a real number [m]")
         padded = (*values, 0.0, 0.0, 0.0)
         leaf_of = COMPILED["leaf_of"]
         return int(leaf_of(*self.lookup_tables, len(self.axes), padded[0], padded[1], padded[2], padded[3]))
@@ -305,7 +309,8 @@ class RegionMap:
         index = self.subpaving.lookup_index(LOOKUP_TREE, LOOKUP_HEADER)
         leaves = np.column_stack([self.clearance_bound_m, self.endpoint_bound_m, self.status.astype(float)])
         bounds = np.concatenate([np.array(self.ranges_m, dtype=float).reshape(-1), leaves.reshape(-1)])
-        return LookupTables(index, bounds)
+        # The compiled lookups read them as these dtypes, C-contiguous (pipeline.native).
+        return LookupTables(np.ascontiguousarray(index, dtype=np.int32), np.ascontiguousarray(bounds, dtype=np.float64))
 
     # ------------------------------------------------------------------ summary
 

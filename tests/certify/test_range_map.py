@@ -56,6 +56,9 @@ def test_cell_at_and_batch_lookup_agree(small_map: RegionMap) -> None:
     assert small_map.bounds_at(0.31, 0.1) is None
     top = small_map.bounds_at(0.3, 0.12)  # the range's far corner belongs to the last leaf
     assert top is not None and top[0] == small_map.cell_at(0.3, 0.12).clearance_bound_m
+    for value in ("0.25", None, np.array([0.25, 0.26])):  # not read as a number by the compiled lookup
+        with pytest.raises(InvalidParameterError, match="W = "):
+            small_map.bounds_at(0.25, value)
 
 
 def test_json_round_trip_and_hash_link(small_map: RegionMap, tmp_path) -> None:
