@@ -128,11 +128,13 @@ class NativeModule:
 
     def load(self) -> CompiledFunctions:
         """Every export's callable: the extension module's if it imports and its digest is the
-        sources' (module docstring), else the JIT's (compiled for its signature now)."""
+        sources' (module docstring), else the JIT's (compiled for its signature now). Sources
+        that cannot be read (e.g. a package shipped without its ``.py`` files) cannot vouch for
+        the module: the JIT's too."""
         try:
             native = importlib.import_module(self.name)
             fresh = native.source_digest() == self.source_digest()
-        except (ImportError, AttributeError):
+        except (ImportError, AttributeError, OSError):
             fresh = False
         if fresh:
             functions = {e.name: getattr(native, e.name) for e in self.exports}

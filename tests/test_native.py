@@ -123,6 +123,12 @@ def test_a_stale_module_is_not_loaded_and_the_jit_answers(tmp_path: Path, monkey
         sys.modules.pop(name, None)
 
 
+def test_unreadable_sources_do_not_vouch_for_a_module(tmp_path: Path) -> None:
+    (export,) = kernel.NATIVE.exports
+    unreadable = NativeModule(kernel.NATIVE.name, (export,), (str(tmp_path / "missing.py"),))
+    assert not unreadable.load().ahead_of_time
+
+
 def test_without_its_module_the_jit_answers(small_map) -> None:
     (export,) = (e for e in lookup.NATIVE.exports if e.name == "leaf_of")
     missing = NativeModule("pipeline.certify.no_such_native", (export,), (lookup.__file__,))
