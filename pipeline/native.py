@@ -118,6 +118,11 @@ class NativeModule:
         if not self.sources:
             raise InvalidParameterError(f"{self.name} sources", self.sources, "one or more source files")
 
+    @property
+    def _exports_module(self) -> str:
+        """The name of the module that defines the exports (``numba.pycc`` compiles from it)."""
+        return self.exports[0].dispatcher.py_func.__module__
+
     def source_digest(self) -> int:
         """The first 7 bytes of the sha256 of the source files' bytes, in order, as a
         non-negative int64."""
@@ -148,7 +153,7 @@ class NativeModule:
         Imports ``numba.pycc``, a dependency of the build, not of a query."""
         from numba.pycc import CC
 
-        compiler = CC(self.name.rpartition(".")[2], source_module=self.exports[0].dispatcher.py_func.__module__)
+        compiler = CC(self.name.rpartition(".")[2], source_module=self._exports_module)
         if output_dir is not None:
             compiler.output_dir = output_dir
         for export in self.exports:
@@ -163,9 +168,10 @@ class NativeModule:
         Raises:
             InvalidParameterError: the module is not in the package of its exports' module.
         """
-        source_module = self.exports[0].dispatcher.py_func.__module__
-        if source_module.rpartition(".")[0] != self.name.rpartition(".")[0]:
-            raise InvalidParameterError("native module name", self.name, f"a module of the package of {source_module}")
+        if self._exports_module.rpartition(".")[0] != self.name.rpartition(".")[0]:
+            raise InvalidParameterError(
+                "native module name", self.name, f"a module of the package of {self._exports_module}"
+            )
         return self.compiler().distutils_extension(optional=True)
 
 

@@ -67,7 +67,7 @@ from pipeline.certify import lookup
 from pipeline.certify.lookup import NO_TABLES, bounds_of, leaf_of
 from pipeline.native import Export, NativeModule
 
-__all__ = ["NATIVE", "NO_TABLES", "plan_numbers", "query_core", "query_core_entry"]
+__all__ = ["COMPILED", "NATIVE", "NO_TABLES", "plan_numbers", "query_core", "query_core_entry"]
 
 #: Where the plan's numbers start (:func:`plan_numbers`): the scene's and the reach's seven, then
 #: the fitted range's (lo, hi) of each of the k variables, then the regression, then the rule.
@@ -235,7 +235,8 @@ NATIVE = NativeModule(
     ),
     (__file__, lookup.__file__),
 )
-#: :func:`query_core`'s callable, loaded when this module is imported (:meth:`NativeModule.load`):
-#: for callers that have checked the types of its arguments and give C-contiguous arrays, as
-#: :func:`pipeline.online.generator.generate` does.
-query_core_entry = NATIVE.load()["query_core"]
+#: The core's callables, loaded when this module is imported (:meth:`NativeModule.load`).
+COMPILED = NATIVE.load()
+#: :func:`query_core`'s callable: for callers that have checked the types of its arguments and give
+#: C-contiguous arrays, as :func:`pipeline.online.generator.generate` does.
+query_core_entry = COMPILED["query_core"]
