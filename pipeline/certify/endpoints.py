@@ -164,6 +164,45 @@ and spans [d0, d1] (d0 + d1 = 2 d_c, d1 - d0 = 2 h_d); without an x axis read x 
   top and bottom sides of O* lie h_d inside those of the obstacle at d_c). Each sub-cell halves
   the axis with the largest of h_L, 2 h_x and 2 h_d (the first on ties: L, then x, then d), and
   a sub-cell counts as beyond help above margin + 4 (h_L + 2 h_x + 2 h_d).
+
+In the end's frame
+==================
+
+With an x axis, the bound above loses the cell's whole extent along u = x - L / 2 (at P5;
+x + L / 2 at P1) twice over: the disc grows by h_L / 2 + h_x, and the near side of O* lies at the
+largest u of the cell while a tip may sit at the end point of the smallest. Yet the end point and
+the obstacle's near side move together: P5 = (u - dx1, y1) and the near side of O(L, W, x) is at
+u, so what changes across the cell is only where the arm's base sits relative to them. So each end
+is bounded over the cell in its own frame, on a cell that keeps one coordinate per end instead of
+two (``end_frame_cells``):
+
+* P5 of a point of the cell is (u - dx1, y1) with u in [u0, u1] = [x0 - L1 / 2, x1 - L0 / 2], of
+  centre u_c = x_c - L_c / 2 and half width h_u = h_x + h_L / 2. The frame cell is the cell of
+  length L0 (no extent), width W0 (no extent), centre x'_c = u_c + L0 / 2 and half width h_u, and
+  the cell's d interval: its P5, x' - (L0 / 2 + dx1) for x' in [x'_c - h_u, x'_c + h_u], is
+  exactly the cell's set of P5 (and its d the same), so its disc holds every tip the cell's poses
+  at P5 may have.
+* Its obstacle O* (the bound above, on the frame cell) has the x extent
+  [x'_c - L0 / 2 + h_u, x'_c + L0 / 2 - h_u] = [u1, u0 + L0]. Every obstacle of the cell has the
+  x extent [u, u + L] with u <= u1 and u + L >= u0 + L0 (u >= u0, L >= L0), so it contains that
+  extent; its y extent contains O*'s as in the section on d, and W >= W0. So every obstacle of the
+  cell contains O*, and the bound on the frame cell bounds U(P5) over the cell. Only the obstacle's
+  far side (at u0 + L0, not at the cell's x0 + L0 / 2) is given up, which the pose at P5 does not
+  approach.
+* At P1 the same with v = x + L / 2 in [x0 + L0 / 2, x1 + L1 / 2]: the frame cell has centre
+  x'_c = v_c - L0 / 2 and half width h_u, its O* the x extent [v1 - L0, v0] (within every
+  [v - L, v] of the cell).
+* The sub-cells then halve x' (or d) alone: each halving halves the extent along u that costs the
+  bound, where cutting the cell along L and x halved one of its two terms.
+* The frame cell is formed from the cell's centre and half widths in floating point, a few ulps
+  (1e-17 m) from the exact interval; the float slack covers it, as for O*.
+* A witness on the frame cell sits at the frame's corner (length L0, centre x'_0), which need not
+  be a point of the cell: there it only stops the search (the end is then not proven), and the
+  cell is never called feasible because of it.
+* The cell is proven infeasible where one end's frame bound is below the margin. Unlike the
+  sub-cells above, which take the smaller of the two ends per sub-cell, the frame does not
+  combine P1 on part of the cell with P5 on the rest: over the (L, W, x) range the room at P1 is
+  some 80 mm, so only P5 proves.
 """
 
 from __future__ import annotations
@@ -189,6 +228,7 @@ _MAX_SUB_BOXES = 400_000
 _POLAR_RESOLUTION_M = 1e-6
 
 __all__ = [
+    "end_frame_cells",
     "endpoint_bounds_and_shares",
     "endpoint_clearance_upper_bounds",
     "endpoint_error_bounds",
@@ -611,11 +651,12 @@ def infeasibility_upper_bounds(
     levels: int = 5,
     polar_depth: int = 9,
 ) -> np.ndarray:
-    """Upper bounds [m] on min(U(P1), U(P5)) over cells by sub-cells of their length (and, with
-    an x or d axis, of their x or d extent) (module docstring), shape (N,); +inf where the cell is
-    not proven infeasible (a sub-cell at or above the margin after ``levels`` halvings, or one
-    that clears the margin by more than its own length (and x and d extents) could explain:
-    splitting it further would not help).
+    """Upper bounds [m] on min(U(P1), U(P5)) over cells by sub-cells (module docstring), shape
+    (N,); +inf where the cell is not proven infeasible (a sub-cell at or above the margin after
+    ``levels`` halvings, or one that clears the margin by more than its extents could explain:
+    splitting it further would not help). Without an x axis the sub-cells halve the cell's length
+    (and its d extent); with one, each end is bounded over the cell in its own frame (module
+    docstring, "In the end's frame") and the cell is proven where one end is.
 
     Args:
         model: The coefficients' range model.
@@ -627,48 +668,90 @@ def infeasibility_upper_bounds(
         polar_depth: Depth of the polar branch and bound of each sub-cell
             (:func:`endpoint_clearance_upper_bounds`' ``max_depth``) [count].
     """
-    k = model.k
     center2, radius2 = _cells(model, np.atleast_2d(center_m), np.atleast_2d(radius_m))
-    # The axes beyond L that move the obstacle (x, d), each weighing 2 h against h_L (module docstring).
-    moving = [column for column in (model.x_column, model.d_column) if column is not None]
-    n = center2.shape[0]
-    worst = np.full(n, -np.inf)
-    alive = np.ones(n, dtype=bool)
-    owner, centre, radius = np.arange(n), center2, radius2
-    halves = np.array([[-0.5, 0.0], [0.5, 0.0]])
-    for _ in range(levels):
-        owner = np.repeat(owner, 2)
-        if not moving:
-            centre = (centre[:, None, :] + halves[None] * radius[:, None, :]).reshape(-1, 2)
-            radius = np.repeat(radius * np.array([0.5, 1.0]), 2, axis=0)
-        else:  # halve the axis with the largest of h_L, 2 h_x, 2 h_d, the first on ties (module docstring)
-            rows = np.arange(centre.shape[0])
-            weighed = np.column_stack([radius[:, 0], *(2.0 * radius[:, column] for column in moving)])
-            axis = np.array([0, *moving])[np.argmax(weighed, axis=1)]
-            step = np.zeros_like(radius)
-            step[rows, axis] = radius[rows, axis] / 2
-            centre = np.stack([centre - step, centre + step], 1).reshape(-1, k)
-            radius = np.repeat(radius - step, 2, axis=0)
-        bounds, witnessed = _upper_bounds_and_witnesses(model, centre, radius, tolerance_m, margin_m, polar_depth)
-        upper = np.min(bounds, axis=1)
-        proven = upper < margin_m
-        np.maximum.at(worst, owner[proven], upper[proven])
-        # A sub-cell above the margin by more than its length terms (the disc's growth h_L / 2 and
-        # the end point's motion h_L, module docstring, with room to spare) has feasible poses
-        # within reach, and one with a witness at both ends has a point (its corner) where both
-        # end poses clear the margin: the cell is not infeasible, and no cut can prove it so.
-        if not moving:
-            beyond = upper >= margin_m + 4.0 * radius[:, 0]
-        else:  # the x and d terms too; a sub-cell without a bound (no O*) is split further
-            terms = radius[:, 0]
-            for column in moving:
-                terms = terms + 2.0 * radius[:, column]
-            beyond = np.isfinite(upper) & (upper >= margin_m + 4.0 * terms)
-        hopeless = ~proven & (beyond | np.all(witnessed, axis=1))
-        alive[owner[hopeless]] = False
-        keep = ~proven & alive[owner]
-        owner, centre, radius = owner[keep], centre[keep], radius[keep]
-        if owner.size == 0:
-            break
-    alive[owner] = False  # sub-cells still unproven after the last level
-    return np.where(alive, worst, np.inf)
+    search = _SubCellSearch(model, (tolerance_m, margin_m), levels, polar_depth)
+    if model.x_column is None:
+        return search.run(center2, radius2, (0, 1))
+    bounds = [search.run(*end_frame_cells(model, center2, radius2, side), (column,)) for column, side in _ENDS]
+    return np.minimum(*bounds)
+
+
+#: The ends as (column of the bounds, side): P1 at +(L / 2 + dx1), P5 at -(L / 2 + dx1).
+_ENDS = ((0, 1.0), (1, -1.0))
+
+
+def end_frame_cells(
+    model: RangeModel, center: np.ndarray, radius: np.ndarray, side: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The cells (centres, half widths (n, k) [m]) of the end on ``side`` (+1: P1, -1: P5) in its
+    own frame (module docstring, "In the end's frame"): length L0 and width W0 with no extent, x
+    centred so that x +- L0 / 2 is the cell's centre of u = x +- L / 2, with half width h_x + h_L / 2;
+    d as it is. Needs an x axis."""
+    xi = model.x_column
+    length = center[:, 0] - radius[:, 0]
+    frame_c, frame_r = center.copy(), radius.copy()
+    frame_c[:, 0], frame_r[:, 0] = length, 0.0
+    frame_c[:, 1], frame_r[:, 1] = center[:, 1] - radius[:, 1], 0.0
+    frame_c[:, xi] = center[:, xi] + side * (center[:, 0] - length) / 2
+    frame_r[:, xi] = radius[:, xi] + radius[:, 0] / 2
+    return frame_c, frame_r
+
+
+@dataclass(frozen=True)
+class _SubCellSearch:
+    """The sub-cells of :func:`infeasibility_upper_bounds`: ``limits`` (endpoint tolerance,
+    margin) [m], ``levels`` halvings, each sub-cell bounded by the polar branch and bound
+    ``polar_depth`` deep."""
+
+    model: RangeModel
+    limits: tuple[float, float]
+    levels: int
+    polar_depth: int
+
+    def run(self, center: np.ndarray, radius: np.ndarray, columns: tuple[int, ...]) -> np.ndarray:
+        """Upper bounds [m] over the cells (centres, half widths (n, k)) of the smaller of the ends
+        ``columns`` (0: P1, 1: P5) per sub-cell; +inf where not proven."""
+        tolerance_m, margin_m = self.limits
+        model = self.model
+        # The axes beyond L that move the obstacle (x, d), each weighing 2 h against h_L (module docstring).
+        moving = [column for column in (model.x_column, model.d_column) if column is not None]
+        n = center.shape[0]
+        worst = np.full(n, -np.inf)
+        alive = np.ones(n, dtype=bool)
+        owner = np.arange(n)
+        for _ in range(self.levels):
+            owner = np.repeat(owner, 2)
+            center, radius = _halved(center, radius, moving)
+            bounds, witnessed = _upper_bounds_and_witnesses(
+                model, center, radius, tolerance_m, margin_m, self.polar_depth
+            )
+            upper = np.min(bounds[:, columns], axis=1)
+            proven = upper < margin_m
+            np.maximum.at(worst, owner[proven], upper[proven])
+            # A sub-cell above the margin by more than its length terms (the disc's growth h_L / 2 and
+            # the end point's motion h_L, module docstring, with room to spare) has feasible poses
+            # within reach, and one with a witness at every end bounded has a point (its corner) where
+            # those end poses clear the margin: the cell is not infeasible, and no cut can prove it so.
+            terms = radius[:, 0] + sum(2.0 * radius[:, column] for column in moving)
+            beyond = np.isfinite(upper) & (upper >= margin_m + 4.0 * terms)  # no bound (no O*): split further
+            hopeless = ~proven & (beyond | np.all(witnessed[:, columns], axis=1))
+            alive[owner[hopeless]] = False
+            keep = ~proven & alive[owner]
+            owner, center, radius = owner[keep], center[keep], radius[keep]
+            if owner.size == 0:
+                break
+        alive[owner] = False  # sub-cells still unproven after the last level
+        return np.where(alive, worst, np.inf)
+
+
+def _halved(center: np.ndarray, radius: np.ndarray, moving: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Each cell (centres, half widths (n, k) [m]) cut in two along its length, or, with the axes
+    ``moving`` (x, d), along the one with the largest of h_L, 2 h_x, 2 h_d, the first on ties
+    (module docstring): the halves' centres and half widths (2n, k), each cell's two in a row."""
+    k = center.shape[1]
+    rows = np.arange(center.shape[0])
+    weighed = np.column_stack([radius[:, 0], *(2.0 * radius[:, column] for column in moving)])
+    axis = np.array([0, *moving])[np.argmax(weighed, axis=1)]
+    step = np.zeros_like(radius)
+    step[rows, axis] = radius[rows, axis] / 2
+    return np.stack([center - step, center + step], 1).reshape(-1, k), np.repeat(radius - step, 2, axis=0)

@@ -13,7 +13,9 @@ import pytest
 
 from pipeline import load_coefficients
 from pipeline.certify.endpoints import (
+    _SubCellSearch,
     _upper_bounds_and_witnesses,
+    end_frame_cells,
     endpoint_clearance_upper_bounds,
     endpoint_error_bounds,
     infeasibility_upper_bounds,
@@ -87,7 +89,8 @@ def test_endpoint_error_bound_is_tight_on_small_cells_and_follows_x(eq9_x: Coeff
 
 def test_with_x_fixed_at_zero_the_bounds_are_those_over_length_and_width(eq9: Coefficients, over_x) -> None:
     """Coefficients constant in x, cells of x = 0 with no x extent: the (L, W, x) bounds equal the
-    (L, W) ones (the end-pose certificate depends on the geometry alone: to the bit)."""
+    (L, W) ones (the end-pose certificate depends on the geometry alone: the endpoint errors to
+    the bit, the infeasibility, bounded in each end's frame over (L, W, x), to rounding)."""
     model2 = RangeModel.from_coefficients(eq9)
     model3 = RangeModel.from_coefficients(over_x(eq9, scale=0.0))
     half = np.array([0.1, 0.04]) / 512
@@ -102,7 +105,11 @@ def test_with_x_fixed_at_zero_the_bounds_are_those_over_length_and_width(eq9: Co
     upper2 = infeasibility_upper_bounds(model2, center2, radius2, TOLERANCE_M, MARGIN_M)
     upper3 = infeasibility_upper_bounds(model3, center3, radius3, TOLERANCE_M, MARGIN_M)
     assert np.any(np.isfinite(upper2))
-    assert np.array_equal(upper2, upper3)
+    # Over (L, W, x) each end is bounded in its own frame (cells formed in floating point): the
+    # same cells proven, the bounds equal to rounding.
+    assert np.array_equal(np.isfinite(upper2), np.isfinite(upper3))
+    finite = np.isfinite(upper2)
+    np.testing.assert_allclose(upper3[finite], upper2[finite], rtol=0, atol=1e-15)
 
 
 def test_cells_are_refused_with_the_wrong_number_of_axes(eq9_x: Coefficients) -> None:
@@ -154,6 +161,42 @@ def test_infeasibility_bound_holds_against_sampled_end_poses(
                 assert sampled.min() <= refined[k] + 1e-12
             checked += 1
     assert checked > 100
+
+
+def test_an_ends_frame_cell_holds_its_end_points_and_an_obstacle_inside_every_obstacle(
+    eq9_x: Coefficients, random_cells, points_in
+) -> None:
+    """At the corners, centre and random points of random cells: P1 (P5) lies within h_x + h_L / 2
+    of the frame cell's P1 (P5) at its centre, along x, and the frame cell's O* (length
+    L0 - 2 (h_x + h_L / 2), centre x'_c) lies inside the point's own obstacle [x - L / 2, x + L / 2]."""
+    model = RangeModel.from_coefficients(eq9_x)
+    center, radius = random_cells(model, 60, np.random.default_rng(11), depths=(0, 2, 5, 8))
+    dx1 = eq9_x.scene.start_dx_m
+    rng = np.random.default_rng(12)
+    for side in (1.0, -1.0):
+        frame_c, frame_r = end_frame_cells(model, center, radius, side)
+        assert np.all(frame_r[:, :2] == 0.0) and np.allclose(frame_r[:, 2], radius[:, 2] + radius[:, 0] / 2)
+        L0, xc, hu = frame_c[:, 0], frame_c[:, 2], frame_r[:, 2]
+        p_centre = xc + side * (L0 / 2 + dx1)
+        near, far = xc - L0 / 2 + hu, xc + L0 / 2 - hu  # O*'s x extent
+        for k in range(center.shape[0]):
+            assert frame_c[k, 1] == center[k, 1] - radius[k, 1]
+            for L, _W, x in points_in(center[k], radius[k], rng, 3):
+                assert abs(x + side * (L / 2 + dx1) - p_centre[k]) <= hu[k] + 1e-15
+                assert x - L / 2 <= near[k] + 1e-15 and far[k] <= x + L / 2 + 1e-15
+
+
+def test_the_ends_frame_proves_band_cells_the_cells_own_sub_cells_do_not(eq9_x: Coefficients) -> None:
+    """On cells of the top band with an x extent, bounding each end in its frame proves cells that
+    halving the cell along L and x (both ends per sub-cell, the bound without the frame) leaves open,
+    and none of those."""
+    model = RangeModel.from_coefficients(eq9_x)
+    center, radius = _band_cells(model, (-0.02, 0.0, 0.025), 0.06 / 512)
+    framed = np.isfinite(infeasibility_upper_bounds(model, center, radius, TOLERANCE_M, MARGIN_M))
+    search = _SubCellSearch(model, (TOLERANCE_M, MARGIN_M), levels=5, polar_depth=9)
+    nested = np.isfinite(search.run(center, radius, (0, 1)))
+    assert np.count_nonzero(framed & ~nested) >= 3
+    assert not np.any(nested & ~framed)
 
 
 def test_infeasibility_bound_holds_over_random_cells(
