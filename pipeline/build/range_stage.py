@@ -77,14 +77,16 @@ def _refit_config(
     config: BuildConfig, coefficients: Coefficients, map_config: RangeCertificateConfig
 ) -> CertifiableFitConfig:
     """The certifiable regression's settings: its rounds but the last only pick constraint points
-    (coarser cells, no extra depth, strips or merging, the mean-value endpoint form, so that the
-    coefficients do not depend on the map's endpoint form); the last round's certificate is the map's."""
+    (coarser cells, no extra depth, strips, cuts at the infeasibility contour or merging, the
+    mean-value endpoint form, so that the coefficients do not depend on the map's endpoint form);
+    the last round's certificate is the map's."""
     return CertifiableFitConfig(
         certificate=replace(
             map_config,
             min_cell=max(map_config.min_cell, REFIT_MIN_CELLS[coefficients.variables.k]),
             extra_depth=0,
             strip_split=0,
+            infeasibility_cuts=0,
             merge_spread_m=0.0,
             second_order=False,
         ),

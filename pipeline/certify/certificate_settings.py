@@ -29,6 +29,9 @@ class CertificateSettings:
         max_depth_s: Deepest cut of s = t / T (intervals of 1 / 2^depth).
         strip_split: Halvings along W of the smallest cells that miss the margin without being
             proven infeasible (0: none; ``pipeline.certify.strip_split``).
+        infeasibility_cuts: Levels along W (2^cuts of them) at which a leaf still close to being
+            proven infeasible may be cut, its part above proven (0: none;
+            ``pipeline.certify.infeasibility_cuts``).
         second_order: Bound the clearance and the endpoint errors by the tighter of the
             mean-value and the second-order Taylor forms (``pipeline.certify.clearance_bound``,
             ``pipeline.certify.endpoints``); False: the mean-value form.
@@ -42,6 +45,7 @@ class CertificateSettings:
     extra_depth: int = 0
     max_depth_s: int = 16
     strip_split: int = 0
+    infeasibility_cuts: int = 0
     second_order: bool = False
     run_on: Executor = field(default_factory=LocalPool)
 
@@ -52,6 +56,7 @@ class CertificateSettings:
         check_positive_int("extra_depth", self.extra_depth, minimum=0)
         check_positive_int("max_depth_s", self.max_depth_s, minimum=1)
         check_positive_int("strip_split", self.strip_split, minimum=0)
+        check_positive_int("infeasibility_cuts", self.infeasibility_cuts, minimum=0)
         check_bool("second_order", self.second_order)
         if not isinstance(self.run_on, LocalPool | DaskScheduler):
             raise InvalidParameterError("run_on", self.run_on, "a LocalPool or a DaskScheduler")
