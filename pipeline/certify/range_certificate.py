@@ -19,9 +19,10 @@ whose docstrings carry the derivations; this module only combines them:
   below the margin, not yet proven infeasible and close to being so, along its widest axis
   (its lowest level), down to the smallest cell.
   Smallest cells still close to being proven infeasible get the sub-cell bound of
-  ``endpoints.infeasibility_upper_bounds`` (the lower of the two valid upper bounds is kept), or,
-  with ``infeasibility_cuts``, are cut along W where the part above a level is proven
-  (``pipeline.certify.infeasibility_cuts``; the whole cell is its lowest part);
+  ``endpoints.infeasibility_upper_bounds`` (the lower of the two valid upper bounds is kept);
+  with ``infeasibility_cuts`` instead, every leaf below the margin and not proven infeasible is cut
+  along W where the part above a level is proven (``pipeline.certify.infeasibility_cuts``; the
+  whole leaf is its lowest part);
 * smallest cells certified collision-free that still miss the margin without being proven
   infeasible are cut into 2^``strip_split`` strips along W, each proven on its own
   (``pipeline.certify.strip_split``, which derives why W and why that is sound, over any axes);
@@ -138,10 +139,9 @@ DEFAULT_STRIP_SPLIT = 3
 DEFAULT_STRIP_SPLITS: Mapping[int, int] = MappingProxyType({2: DEFAULT_STRIP_SPLIT, 3: 0, 4: 0})
 #: Default levels along W at which a leaf still close to being proven infeasible may be cut, 2^cuts
 #: of them (``pipeline.certify.infeasibility_cuts``), per number of axes. Over (L, W) the strips do
-#: it. Over (L, W, x) the cells of 1/256 are thin enough already: on 2,048 of the default build's
-#: 220,196 leaves close to infeasible, 2^5 levels proved 0.08 % of the box more infeasible at
-#: about 7 times the sub-cells' time (some 500 s more on 2 cores), so none. Over (L, W, x, d), on
-#: cells of 1/32 (1.25 mm of W), 2^7 levels (10 um).
+#: it; over (L, W, x) the cells of 1/256 (0.16 mm of W) lie within a few times the bound's own gap
+#: of the contour, and the cuts' bounds cost more of the build's time than they gain; over
+#: (L, W, x, d), on cells of 1/32 (1.25 mm of W), 2^7 levels (10 um).
 DEFAULT_INFEASIBILITY_CUTS: Mapping[int, int] = MappingProxyType({2: 0, 3: 0, 4: 7})
 #: Columns of strips per task of the strips' bounds (fixed, so that the map does not depend
 #: on the worker count).
@@ -612,14 +612,15 @@ def cut_at_infeasibility(
     settings: CertificateSettings,
     progress: ProgressCallback | None = None,
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """Cut the leaves below the margin that are still close to being proven infeasible along W,
-    at the lowest of 2^``settings.infeasibility_cuts`` levels above which the part is proven
-    (``pipeline.certify.infeasibility_cuts``). ``leaves`` = [levels (n, k), index (n, k), *columns
+    """Cut the leaves below the margin that are not proven infeasible along W, at the lowest of
+    2^``settings.infeasibility_cuts`` levels above which the part is proven
+    (``pipeline.certify.infeasibility_cuts``, whose sampled end poses spare the leaves with room at
+    their top the bounds). ``leaves`` = [levels (n, k), index (n, k), *columns
     the pieces inherit]; returns the leaves (the same columns), their endpoint bounds and their
     infeasibility bounds (the proven parts': theirs). ``progress`` gets "range map: W cuts" in leaves."""
     e, margin_m = settings.infeasibility_cuts, settings.margin_m
     bound = leaves[2]
-    rows = np.flatnonzero((bound < margin_m) & (upper >= margin_m) & (upper < margin_m + _INFEASIBILITY_REFINE_M))
+    rows = np.flatnonzero((bound < margin_m) & (upper >= margin_m))
     if e == 0 or rows.size == 0:
         return leaves, endpoint, upper
     c, r = cell_boxes(model, leaves[0][rows], leaves[1][rows])
