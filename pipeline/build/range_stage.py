@@ -73,6 +73,15 @@ def as_written(coefficients: Coefficients, source: str) -> tuple[Coefficients, s
     return coefficients_from_json(json.loads(text), source, digest), text
 
 
+def _refit_endpoint(config: BuildConfig, coefficients: Coefficients) -> EndpointConstraint:
+    """The refit's endpoint constraint: the first fit's grids over the coefficients' variables, with
+    the refit's headroom of their number (:data:`REFIT_ENDPOINT_HEADROOM`; the largest beyond it)."""
+    k = coefficients.variables.k
+    headroom = REFIT_ENDPOINT_HEADROOM.get(k, max(REFIT_ENDPOINT_HEADROOM.values()))
+    constraint = EndpointConstraint(tolerance_m=config.regression.endpoint_tolerance_m, headroom=headroom)
+    return replace(constraint.for_variables(coefficients.variables), headroom=headroom)
+
+
 def _refit_config(
     config: BuildConfig, coefficients: Coefficients, map_config: RangeCertificateConfig
 ) -> CertifiableFitConfig:
@@ -91,9 +100,7 @@ def _refit_config(
             second_order=False,
         ),
         final_certificate=map_config,
-        endpoint=EndpointConstraint(
-            tolerance_m=config.regression.endpoint_tolerance_m, headroom=REFIT_ENDPOINT_HEADROOM
-        ).for_variables(coefficients.variables),
+        endpoint=_refit_endpoint(config, coefficients),
         max_rounds=config.regression.clearance_rounds,
     )
 

@@ -27,7 +27,7 @@ there the family cannot keep the margin at all with that tolerance, or only just
 remains a closed-form quadratic in its variables; its certificate is the last map, so nothing here
 needs trusting beyond ``certify_range``. Paper family only (all 8 parameters regressed).
 
-The refit holds the endpoint errors to tolerance (1 - ``REFIT_ENDPOINT_HEADROOM``) and
+The refit holds the endpoint errors to tolerance (1 - ``REFIT_ENDPOINT_HEADROOM[k]``) and
 constrains every leaf whose end poses leave room for the margin (``feasible_slack_m`` = 0). Both
 settings act on a band near W = 0.12 m, some 20-50 um of W wide, where the end poses' room reaches
 the margin and the regression's clearance does not: narrower than the cells of the refit's own
@@ -85,14 +85,19 @@ _CLEARANCE_SCALE = 100.0
 #: unconstrained and widens the band where the end poses keep the margin and the regression does
 #: not (``python scripts/margin_gap.py``, last line; figures in docs/results.md).
 _DEFAULT_FEASIBLE_SLACK_M = 0.0
-#: Headroom of the refit's endpoint constraint (``python -m pipeline.build``'s refit holds the
-#: endpoint errors to tolerance (1 - this) at its grid and targets; the first fit keeps
-#: ``EndpointConstraint``'s default, 0.03). Each 0.01 of headroom costs the end poses about
-#: 0.0145 mm of room in the strip near W = 0.12 m (0.72 mm of clearance per mm of tolerance
-#: there), so less headroom lets the refit keep the margin closer to the infeasibility contour;
-#: but the errors between the 21 x 21 grid points must stay within the tolerance for the range
-#: certificate to prove it, which 0.005 does and 0.0025 does not (docs/results.md).
-REFIT_ENDPOINT_HEADROOM = 0.005
+#: Headroom of the refit's endpoint constraint per number of variables (``python -m
+#: pipeline.build``'s refit holds the endpoint errors to tolerance (1 - this) at its grid and
+#: targets; the first fit keeps ``EndpointConstraint``'s). Over (L, W): each 0.01 of headroom costs
+#: the end poses about 0.0145 mm of room in the strip near W = 0.12 m (0.72 mm of clearance per mm
+#: of tolerance there), so less headroom lets the refit keep the margin closer to the
+#: infeasibility contour; but the errors between the 21 x 21 grid points must stay within the
+#: tolerance for the range certificate to prove it, which 0.005 does and 0.0025 does not. Over
+#: (L, W, x) and (L, W, x, d) the first fit's (``K_ENDPOINT_HEADROOM``): over (L, W, x, d) a refit
+#: at 0.1 keeps the margin on 90.24 % of the box against 90.14 %, but its endpoint bound exceeds
+#: the tolerance on 1.20 % of the box (up to 2.195 mm) at the map's smallest cells (1/32).
+REFIT_ENDPOINT_HEADROOM: Mapping[int, float] = MappingProxyType({2: 0.005, 3: 0.05, 4: 0.35})
+
+
 #: If a refit does not converge, it is tried again without the points whose end poses keep less
 #: than margin + each of these in turn (:func:`end_pose_room_m`) [m]; the last keeps about the
 #: leaves whose infeasibility bound U is at least margin + 1 mm.
