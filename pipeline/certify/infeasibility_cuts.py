@@ -36,6 +36,7 @@ import itertools
 
 import numpy as np
 
+from pipeline.certify.bisection import lowest_true
 from pipeline.certify.end_pose_room import end_pose_room_m
 from pipeline.certify.endpoints import infeasibility_upper_bounds
 from pipeline.certify.range_model import RangeModel
@@ -99,13 +100,9 @@ def _lowest_short(
     lo, hi = np.zeros(n, dtype=np.int64), np.full(n, top)
     roomy = _face_room(model, center, radius, hi, cuts, tolerance_m) >= below_m
     lo[roomy] = hi[roomy] = top + 1  # most cells: even the top part has such a pose
-    while np.any(lo < hi):
-        active = np.flatnonzero(lo < hi)
-        mid = (lo[active] + hi[active]) // 2
-        short = _face_room(model, center[active], radius[active], mid, cuts, tolerance_m) < below_m
-        hi[active[short]] = mid[short]
-        lo[active[~short]] = mid[~short] + 1
-    return lo
+    return lowest_true(
+        lo, hi, lambda rows, j: _face_room(model, center[rows], radius[rows], j, cuts, tolerance_m) < below_m
+    )
 
 
 def lowest_infeasible_cuts(

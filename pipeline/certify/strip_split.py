@@ -53,6 +53,7 @@ import itertools
 
 import numpy as np
 
+from pipeline.certify.bisection import lowest_true
 from pipeline.certify.clearance_bound import box_clearance_bounds
 from pipeline.certify.end_pose_room import end_pose_room_m
 from pipeline.certify.endpoints import endpoint_error_bounds, infeasibility_upper_bounds
@@ -143,14 +144,10 @@ def _lowest_short_strips(
     lowest strip whose sampled room at its lower edge (:func:`_lower_edge_room_m`) is below
     margin - :data:`ROOM_SLACK_M`; the column's end if none. By bisection: that room is
     non-increasing in W (module docstring)."""
-    lo, hi = starts[:-1].copy(), starts[1:].copy()
-    while np.any(lo < hi):
-        active = np.flatnonzero(lo < hi)
-        mid = (lo[active] + hi[active]) // 2
-        short = _lower_edge_room_m(model, corner_m[mid], side_m[mid], tolerance_m) < margin_m - ROOM_SLACK_M
-        hi[active[short]] = mid[short]
-        lo[active[~short]] = mid[~short] + 1
-    return lo
+    floor_m = margin_m - ROOM_SLACK_M
+    return lowest_true(
+        starts[:-1], starts[1:], lambda _, j: _lower_edge_room_m(model, corner_m[j], side_m[j], tolerance_m) < floor_m
+    )
 
 
 def strip_infeasibility_bounds(
