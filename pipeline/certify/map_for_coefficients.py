@@ -35,6 +35,8 @@ def default_config(
     extra_depth: int | None = None,
     merge_spread_m: float | None = None,
     second_order: bool | None = None,
+    strip_split: int | None = None,
+    infeasibility_cuts: int | None = None,
     jobs: int = 1,
     executor: Executor | None = None,
 ) -> RangeCertificateConfig:
@@ -53,6 +55,8 @@ def default_config(
         extra_depth=extra_depth,
         merge_spread_m=merge_spread_m,
         second_order=second_order,
+        strip_split=strip_split,
+        infeasibility_cuts=infeasibility_cuts,
         jobs=jobs,
         executor=executor,
     )

@@ -699,6 +699,7 @@ def split_strips(
         margin_m,
         settings.endpoint_tolerance_m,
         settings.max_depth_s,
+        settings.second_order,
         progress=progress,
         stage=PROGRESS_STAGES[4],
     )

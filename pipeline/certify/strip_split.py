@@ -88,10 +88,14 @@ def strip_clearance_bounds(
     floor_m: np.ndarray,
     margin_m: float,
     max_depth_s: int,
+    *,
+    second_order: bool = False,
 ) -> np.ndarray:
     """Lower bounds [m] on the clearance of both links over cells (centres, half widths (n, k))
     times all of s in [0, 1] (module docstring), each at least ``floor_m`` (a valid bound known
-    beforehand), shape (n,)."""
+    beforehand), shape (n,). With ``second_order`` a box the mean-value form leaves below the
+    margin while its centre keeps it is bounded by the second-order form too, the larger bound
+    kept (both hold: ``clearance_bound``)."""
     center2 = np.asarray(center_m, dtype=float).reshape(-1, model.k)
     radius2 = np.asarray(radius_m, dtype=float).reshape(-1, model.k)
     n = center2.shape[0]
@@ -106,6 +110,10 @@ def strip_clearance_bounds(
         center = np.column_stack([center2[owner], (2 * index_s + 1) * half_s])
         radius = np.column_stack([radius2[owner], half_s])
         bounds = box_clearance_bounds(model, center, radius)
+        if second_order:
+            rows = np.flatnonzero((bounds.lower_m < margin_m) & (bounds.center_m >= margin_m))
+            tighter = box_clearance_bounds(model, center[rows], radius[rows], second_order=True).lower_m
+            bounds.lower_m[rows] = np.maximum(bounds.lower_m[rows], tighter)
         hopeful[owner[bounds.center_m < margin_m]] = False
         # Closed too: boxes whose gap is dominated by the strip's extent in (L, W), which cutting s cannot help.
         done = (bounds.lower_m >= margin_m) | (depth_s >= max_depth_s) | ~hopeful[owner] | ~bounds.split_s
@@ -206,12 +214,14 @@ def strip_bounds(
     margin_m: float,
     tolerance_m: float,
     max_depth_s: int,
+    second_order: bool = False,
 ) -> np.ndarray:
     """Per strip (centres, half widths (n, k) [m], sorted by ``column``, W ascending within a
-    column; ``floor_m`` its cell's clearance bound): the clearance bound, the endpoint-error
-    bound and the infeasibility bound (+inf where not proven), as columns of an (n, 3) array
-    [m]. Strips proven infeasible keep their cell's clearance bound (their status is settled
-    unless that bound reaches the margin)."""
+    column; ``floor_m`` its cell's clearance bound): the clearance bound (with ``second_order``
+    the tighter of both forms, :func:`strip_clearance_bounds`), the endpoint-error bound and the
+    infeasibility bound (+inf where not proven), as columns of an (n, 3) array [m]. Strips proven
+    infeasible keep their cell's clearance bound (their status is settled unless that bound
+    reaches the margin)."""
     center2 = np.asarray(center_m, dtype=float).reshape(-1, model.k)
     radius2 = np.asarray(radius_m, dtype=float).reshape(-1, model.k)
     floor = np.asarray(floor_m, dtype=float)
@@ -222,6 +232,6 @@ def strip_bounds(
     open_ = out[:, 2] >= margin_m
     if np.any(open_):
         out[open_, 0] = strip_clearance_bounds(
-            model, center2[open_], radius2[open_], floor[open_], margin_m, max_depth_s
+            model, center2[open_], radius2[open_], floor[open_], margin_m, max_depth_s, second_order=second_order
         )
     return out

@@ -23,8 +23,10 @@ from pipeline.certify.range_certificate import (
     DEFAULT_BOUNDARY_CELL,
     DEFAULT_CELLS,
     DEFAULT_ENDPOINT_TOLERANCE_M,
+    DEFAULT_INFEASIBILITY_CUTS,
     DEFAULT_MERGE_SPREAD_M,
     DEFAULT_MIN_CELL,
+    DEFAULT_STRIP_SPLITS,
     certify_range,
 )
 from pipeline.certify.reachability import witness_lines, witnesses_for_map
@@ -109,6 +111,25 @@ def _add_cell_options(p: argparse.ArgumentParser) -> None:
         default=None,
         help="how the clearance and the endpoint errors are bounded over a box: the mean-value form alone, or "
         "intersected with the second-order Taylor form (default: mean-value over (L, W), second-order over more axes)",
+    )
+    p.add_argument(
+        "--strip-split",
+        type=count_argument,
+        default=None,
+        metavar="E",
+        help="cut the smallest cells that miss the margin without being proven infeasible into 2^E strips along W, "
+        "each bounded on its own (pipeline.certify.strip_split), 0..6 [count] (default: "
+        f"{DEFAULT_STRIP_SPLITS[2]} over (L, W), {DEFAULT_STRIP_SPLITS[3]} over more axes)",
+    )
+    p.add_argument(
+        "--infeasibility-cuts",
+        type=count_argument,
+        default=None,
+        metavar="E",
+        help="cut a leaf below the margin and not proven infeasible along W at the lowest of 2^E levels above which "
+        "the part is proven infeasible (pipeline.certify.infeasibility_cuts), 0..8 [count] (default: "
+        f"{DEFAULT_INFEASIBILITY_CUTS[2]} over (L, W) and (L, W, x), {DEFAULT_INFEASIBILITY_CUTS[4]} over "
+        "(L, W, x, d))",
     )
     p.add_argument(
         "--boundary-cell",
@@ -227,6 +248,8 @@ def _work(args: argparse.Namespace) -> int:
         extra_depth=args.extra_depth,
         merge_spread_m=args.merge_spread,
         second_order=None if args.bound_form is None else BOUND_FORMS[args.bound_form],
+        strip_split=args.strip_split,
+        infeasibility_cuts=args.infeasibility_cuts,
         jobs=args.jobs,
         executor=executor,
     )

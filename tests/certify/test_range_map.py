@@ -110,6 +110,22 @@ def test_cli_writes_map_and_summary(tmp_path, capsys) -> None:
     assert "range certificate: margin" in printed and " s\n" in printed
 
 
+def test_cli_passes_the_cuts_along_w_to_the_certificate(tmp_path) -> None:
+    """--strip-split and --infeasibility-cuts reach the map's settings (its details), and without
+    strips the coarse map of Eq. 9 has no leaf deeper along W than along L, where with them it has."""
+    halvings = {}
+    for strips in ("0", "2"):
+        out = tmp_path / f"map{strips}.json"
+        argv = ["paper", "-o", str(out), "--min-cell", "0.0625", "--boundary-cell", "0.125", "--no-progress"]
+        assert main([*argv, "--strip-split", strips, "--infeasibility-cuts", "1"]) == 0
+        region_map = load_region_map(out)
+        assert region_map.details["config"]["strip_split"] == int(strips)
+        assert region_map.details["config"]["infeasibility_cuts"] == 1
+        levels = region_map.subpaving.levels
+        halvings[strips] = int(np.max(levels[:, 1] - levels[:, 0]))
+    assert halvings["0"] <= 1 < halvings["2"]
+
+
 @pytest.mark.parametrize(
     "argv",
     [
@@ -121,6 +137,8 @@ def test_cli_writes_map_and_summary(tmp_path, capsys) -> None:
         ["paper", "--extra-depth", "7"],
         ["paper", "--extra-depth", "-1"],
         ["paper", "--merge-spread", "-1e-4"],
+        ["paper", "--strip-split", "7"],
+        ["paper", "--infeasibility-cuts", "9"],
         ["/nonexistent/coefficients.json"],
     ],
 )

@@ -103,6 +103,23 @@ def test_strip_clearance_bound_is_the_floor_or_better_and_tightens(top: Coeffici
     assert np.all(high == 0.3)
 
 
+def test_second_order_strip_bounds_prove_closer_to_the_sampled_minimum(top: Coefficients, arm: PlanarArm) -> None:
+    """Four strips, each asked for its own sampled minimum less 25 um: the mean-value form alone
+    proves none of them, the tighter of both forms proves every one, and no bound exceeds the
+    sampled minimum."""
+    model = RangeModel.from_coefficients(top)
+    c, r = node_boxes(model, np.full(4, 4), np.array([[1, 10], [5, 41], [9, 72], [13, 103]]), split_w=3)
+    for k in range(4):
+        answer = generate(top, *c[k], out_of_range="ignore")
+        q = answer.q(np.linspace(0.0, answer.duration_s, 4001))
+        lowest = float(analytic_link_clearance(q, arm, answer.obstacle).min())
+        margin = lowest - 2.5e-5
+        box = (model, c[k : k + 1], r[k : k + 1], np.full(1, -1.0), margin, 16)
+        mean_value = strip_clearance_bounds(*box)[0]
+        tighter = strip_clearance_bounds(*box, second_order=True)[0]
+        assert mean_value < margin <= tighter <= lowest + 1e-12
+
+
 def test_infeasible_strips_hold_no_feasible_end_poses(top: Coefficients, maps, arm: PlanarArm) -> None:
     """Every strip proven infeasible, including those above the one proven in their column (by
     monotonicity alone), has at its roomiest points (W0, both ends of L) no sampled Coal pose
