@@ -110,8 +110,8 @@ def strip_clearance_bounds(
         center = np.column_stack([center2[owner], (2 * index_s + 1) * half_s])
         radius = np.column_stack([radius2[owner], half_s])
         bounds = box_clearance_bounds(model, center, radius)
-        if second_order:
-            rows = np.flatnonzero((bounds.lower_m < margin_m) & (bounds.center_m >= margin_m))
+        rows = np.flatnonzero((bounds.lower_m < margin_m) & (bounds.center_m >= margin_m)) if second_order else []
+        if len(rows):
             tighter = box_clearance_bounds(model, center[rows], radius[rows], second_order=True).lower_m
             bounds.lower_m[rows] = np.maximum(bounds.lower_m[rows], tighter)
         hopeful[owner[bounds.center_m < margin_m]] = False

@@ -119,7 +119,8 @@ def _add_cell_options(p: argparse.ArgumentParser) -> None:
         metavar="E",
         help="cut the smallest cells that miss the margin without being proven infeasible into 2^E strips along W, "
         "each bounded on its own (pipeline.certify.strip_split), 0..6 [count] (default: "
-        f"{DEFAULT_STRIP_SPLITS[2]} over (L, W), {DEFAULT_STRIP_SPLITS[3]} over more axes)",
+        f"{DEFAULT_STRIP_SPLITS[2]} over (L, W), {DEFAULT_STRIP_SPLITS[3]} over (L, W, x), {DEFAULT_STRIP_SPLITS[4]} "
+        "over (L, W, x, d))",
     )
     p.add_argument(
         "--infeasibility-cuts",
@@ -128,8 +129,8 @@ def _add_cell_options(p: argparse.ArgumentParser) -> None:
         metavar="E",
         help="cut a leaf below the margin and not proven infeasible along W at the lowest of 2^E levels above which "
         "the part is proven infeasible (pipeline.certify.infeasibility_cuts), 0..8 [count] (default: "
-        f"{DEFAULT_INFEASIBILITY_CUTS[2]} over (L, W) and (L, W, x), {DEFAULT_INFEASIBILITY_CUTS[4]} over "
-        "(L, W, x, d))",
+        f"{DEFAULT_INFEASIBILITY_CUTS[2]} over (L, W), {DEFAULT_INFEASIBILITY_CUTS[3]} over (L, W, x), "
+        f"{DEFAULT_INFEASIBILITY_CUTS[4]} over (L, W, x, d))",
     )
     p.add_argument(
         "--boundary-cell",
