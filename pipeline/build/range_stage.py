@@ -16,6 +16,7 @@ from pipeline.build.config import BuildConfig
 from pipeline.certify.certifiable_regression import (
     REFIT_ENDPOINT_HEADROOM,
     REFIT_MIN_CELLS,
+    REFIT_POINTS_PER_ROUND,
     CertifiableFitConfig,
     refit_for_clearance,
 )
@@ -102,6 +103,7 @@ def _refit_config(
         final_certificate=map_config,
         endpoint=_refit_endpoint(config, coefficients),
         max_rounds=config.regression.clearance_rounds,
+        points_per_round=REFIT_POINTS_PER_ROUND[coefficients.variables.k],
     )
 
 

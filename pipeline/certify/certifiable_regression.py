@@ -108,6 +108,13 @@ DEFAULT_CLEARANCE_ROUNDS = 1
 #: number of variables; the last round, whose map the build writes, uses the build's (finer)
 #: cells. The coarser cells keep the refit's points on the leaves that matter and the rounds fast.
 REFIT_MIN_CELLS: Mapping[int, float] = MappingProxyType({2: 1.0 / 256, 3: 1.0 / 32, 4: 1.0 / 16})
+#: Clearance points (and endpoint targets) each refit round adds, per number of variables
+#: (``CertifiableFitConfig.points_per_round`` of the build's refit). Over (L, W, x) the band where
+#: the regression's clearance crosses the margin is a surface across L and x, not a line along L:
+#: 400 points spread over it leave the regression below the margin between them on 0.18 % of the
+#: box where the end poses leave room for it, 1200 on 0.02 % (``python scripts/margin_band.py``),
+#: for about 45 s more refit; figures in docs/results.md.
+REFIT_POINTS_PER_ROUND: Mapping[int, int] = MappingProxyType({2: 400, 3: 1200, 4: 400})
 #: The variables the certifiable regression covers: its constraint points move the obstacle by
 #: x and d (:func:`_moved`; P1 and P5 with it, y1 = d), as the range certificate's axes do
 #: (``pipeline.build.config.BuildConfig.certifiable_refit``).

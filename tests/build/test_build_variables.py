@@ -11,7 +11,9 @@ from pathlib import Path
 import pytest
 
 from pipeline import BuildConfig, generate, load_coefficients
-from pipeline.build import doe_fit
+from pipeline.build import doe_fit, range_stage
+from pipeline.certify.certifiable_regression import REFIT_POINTS_PER_ROUND
+from pipeline.certify.map_for_coefficients import default_config
 from pipeline.commands import build, regress
 from pipeline.exceptions import InvalidParameterError, PipelineError
 from pipeline.model.scene import Scene
@@ -138,3 +140,16 @@ def test_tiny_build_over_L_W_x(tmp_path: Path, capsys: pytest.CaptureFixture) ->
     again = json.loads(refit.read_text())
     assert again["variables"] == ["L", "W", "x"] and again["fitted_range"]["x"] == [-0.03, 0.03]
     assert len(again["basis"]) == 10 and len(again["parameters"]["A1"]) == 10
+
+
+def test_refit_points_per_round_follow_the_number_of_variables(over_x) -> None:
+    """The build's certifiable regression adds REFIT_POINTS_PER_ROUND[k] points per round: 400 over
+    (L, W), which the default build's coefficients depend on, more over (L, W, x), whose band below
+    the margin is a surface across L and x."""
+    paper = load_coefficients("paper")
+    for coefficients, vary in ((paper, ()), (over_x(paper), (("x", -0.03, 0.03),))):
+        config = BuildConfig.from_settings(vary=vary)
+        map_config = default_config(coefficients)
+        refit = range_stage._refit_config(config, coefficients, map_config)
+        assert refit.points_per_round == REFIT_POINTS_PER_ROUND[coefficients.variables.k]
+    assert REFIT_POINTS_PER_ROUND[2] == 400 and REFIT_POINTS_PER_ROUND[3] > REFIT_POINTS_PER_ROUND[2]

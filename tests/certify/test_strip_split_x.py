@@ -2,8 +2,9 @@
 independent references: the online generator's motions (analytic clearance, itself shown equal to
 Coal in test_range_certificate) for the strips' clearance bounds, and a dense sampling of the end
 poses near the moved P1 and P5 for their infeasibility bounds, including the strips proven by
-monotonicity alone. The band of x is narrow: wider, the strips' infeasibility bound proves none
-(why the default cuts no strips over three axes)."""
+monotonicity alone, and a map whose bytes do not depend on how many columns of strips a task
+holds. The band of x is narrow, so that the strips' infeasibility bound proves some on Eq. 9's
+coefficients."""
 
 from __future__ import annotations
 
@@ -13,6 +14,8 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.certify import range_certificate
+from pipeline.certify.map_files import region_map_files
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import STATUSES, RegionMap
 from pipeline.geometry.clearance import analytic_link_clearance
@@ -22,7 +25,7 @@ from pipeline.offline.coefficients import Coefficients
 from pipeline.online.generator import generate
 
 #: The top strip of Eq. 9's range, where its end poses lose the margin, over a band of x narrow
-#: enough for the strips' infeasibility bound to prove some (range_certificate.DEFAULT_STRIP_SPLITS).
+#: enough for the strips' infeasibility bound to prove some.
 TOP = {"L": (0.2, 0.21), "W": (0.118, 0.12), "x": (-1e-5, 1e-5)}
 CONFIG = RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8, strip_split=3)
 
@@ -90,3 +93,14 @@ def test_infeasible_strips_hold_no_feasible_end_poses(
             scene = dataclasses.replace(top.scene, centre_x_m=float(x))
             room = end_pose_clearance(top, arm, Obstacle.in_scene(L, W, scene), scene, tolerance).min()
             assert room <= cell.endpoint_clearance_upper_m + 1e-9
+
+
+def test_the_map_does_not_depend_on_how_many_columns_a_task_holds(
+    top: Coefficients, maps: tuple[RegionMap, RegionMap], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A strip's bounds depend on its column alone: with one column per task (a task per column)
+    the map's bytes are those of the default tasks."""
+    monkeypatch.setattr(range_certificate, "_STRIP_COLUMNS", 1)
+    one_per_task = certify_range(top, CONFIG)
+    assert region_map_files(one_per_task) == region_map_files(maps[0])
+    assert np.count_nonzero(_halvings(maps[0]) > 0) > range_certificate._STRIP_COLUMNS  # more than one task
