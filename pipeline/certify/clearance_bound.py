@@ -83,7 +83,14 @@ from pipeline.certify.range_model import RangeModel
 from pipeline.geometry.clearance import ANALYTIC_DISTANCE_ERROR_M, COAL_DISTANCE_ERROR_M
 from pipeline.geometry.segment_distance import segment_rectangle_distance
 
-__all__ = ["COAL_DISTANCE_ERROR_M", "FLOAT_SLACK_M", "BoxBounds", "box_clearance_bounds", "obstacle_motion_m"]
+__all__ = [
+    "COAL_DISTANCE_ERROR_M",
+    "FLOAT_SLACK_M",
+    "BoxBounds",
+    "box_clearance_bounds",
+    "obstacle_motion_m",
+    "tightened_lower_m",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -243,6 +250,18 @@ def box_clearance_bounds(
         split_s=_split_s(model, box, radius, hausdorff),
         axis_gap_m=_axis_gaps(model, box, radius),
     )
+
+
+def tightened_lower_m(
+    model: RangeModel, center: np.ndarray, radius: np.ndarray, lower_m: np.ndarray, rows: np.ndarray
+) -> np.ndarray:
+    """``lower_m`` (the mean-value form's bounds of the boxes ``center``, ``radius``, as
+    :func:`box_clearance_bounds` gives them) with the boxes ``rows`` bounded by the second-order
+    form too and the larger bound kept (both hold), in place; returned."""
+    if len(rows):
+        tighter = box_clearance_bounds(model, center[rows], radius[rows], second_order=True).lower_m
+        lower_m[rows] = np.maximum(lower_m[rows], tighter)
+    return lower_m
 
 
 def _core_rectangle(model: RangeModel, center: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

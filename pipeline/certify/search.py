@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.certify.clearance_bound import box_clearance_bounds
+from pipeline.certify.clearance_bound import box_clearance_bounds, tightened_lower_m
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.subpaving import open_axes
 from pipeline.exceptions import InvalidParameterError
@@ -235,11 +235,8 @@ def _bounds(
         hs = 0.5 / 2.0 ** ds[part].astype(float)
         center, radius = np.column_stack([c, (js[part] + 0.5) * 2 * hs]), np.column_stack([r, hs])
         b = box_clearance_bounds(model, center, radius)
-        lower = b.lower_m
-        rows = np.flatnonzero(_worth_second_order(settings, lower, b.center_m)) if settings.second_order else []
-        if len(rows):
-            tighter = box_clearance_bounds(model, center[rows], radius[rows], second_order=True).lower_m
-            lower[rows] = np.maximum(lower[rows], tighter)
+        rows = np.flatnonzero(_worth_second_order(settings, b.lower_m, b.center_m)) if settings.second_order else []
+        lower = tightened_lower_m(model, center, radius, b.lower_m, rows)
         bound[part], centre[part], split_s[part], gaps[part] = lower, b.center_m, b.split_s, b.axis_gap_m
     return bound, centre, split_s, gaps
 

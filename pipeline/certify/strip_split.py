@@ -54,7 +54,7 @@ import itertools
 import numpy as np
 
 from pipeline.certify.bisection import lowest_true
-from pipeline.certify.clearance_bound import box_clearance_bounds
+from pipeline.certify.clearance_bound import box_clearance_bounds, tightened_lower_m
 from pipeline.certify.end_pose_room import end_pose_room_m
 from pipeline.certify.endpoints import endpoint_error_bounds, infeasibility_upper_bounds
 from pipeline.certify.range_model import RangeModel
@@ -111,9 +111,7 @@ def strip_clearance_bounds(
         radius = np.column_stack([radius2[owner], half_s])
         bounds = box_clearance_bounds(model, center, radius)
         rows = np.flatnonzero((bounds.lower_m < margin_m) & (bounds.center_m >= margin_m)) if second_order else []
-        if len(rows):
-            tighter = box_clearance_bounds(model, center[rows], radius[rows], second_order=True).lower_m
-            bounds.lower_m[rows] = np.maximum(bounds.lower_m[rows], tighter)
+        tightened_lower_m(model, center, radius, bounds.lower_m, rows)
         hopeful[owner[bounds.center_m < margin_m]] = False
         # Closed too: boxes whose gap is dominated by the strip's extent in (L, W), which cutting s cannot help.
         done = (bounds.lower_m >= margin_m) | (depth_s >= max_depth_s) | ~hopeful[owner] | ~bounds.split_s
