@@ -50,7 +50,7 @@ _ROOM_SLACK_M = 1e-6
 #: search tries first; a choice of work).
 _BOUND_GAP_M = 3e-5
 
-__all__ = ["cut_leaves", "dyadic_pieces", "lowest_infeasible_cuts"]
+__all__ = ["cut_leaves", "dyadic_pieces", "lowest_infeasible_cuts", "tilt_axes"]
 
 
 def _upper_parts(center: np.ndarray, radius: np.ndarray, j: np.ndarray, cuts: int) -> tuple[np.ndarray, np.ndarray]:
@@ -120,7 +120,7 @@ def lowest_infeasible_cuts(
     center = np.asarray(center_m, dtype=float).reshape(-1, model.k)
     radius = np.asarray(radius_m, dtype=float).reshape(-1, model.k)
     n, top = center.shape[0], 2**cuts - 1
-    out = np.column_stack([np.full(n, float(top + 1)), np.full(n, np.inf)])
+    out = np.column_stack([np.full(n, float(top + 1)), np.full(n, np.inf), np.full(n, float(top + 1))])
     if n == 0:
         return out
 
@@ -130,10 +130,11 @@ def lowest_infeasible_cuts(
         part_c, part_r = _upper_parts(center[rows], radius[rows], j, cuts)
         bound = infeasibility_upper_bounds(model, part_c, part_r, tolerance_m, margin_m)
         ok = bound < margin_m
-        out[rows[ok]] = np.column_stack([j[ok], bound[ok]])
+        out[rows[ok], :2] = np.column_stack([j[ok], bound[ok]])
         return ok
 
     floor = _lowest_short(model, center, radius, cuts, tolerance_m, margin_m + _ROOM_SLACK_M)
+    out[:, 2] = floor
     tried = np.flatnonzero(floor <= top)
     tried = tried[~proven(tried, floor[tried])]  # proven at the floor: the lowest level there can be
     # Then the lowest level whose sampled room is _BOUND_GAP_M below the margin, and once more
@@ -149,6 +150,35 @@ def lowest_infeasible_cuts(
     higher = (guess[~ok] + top + 1) // 2
     proven(tried[~ok][higher > guess[~ok]], higher[higher > guess[~ok]])
     return out
+
+
+def tilt_axes(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """Per cell (centres, half widths (n, k) [m]), the axis other than W across which the sampled
+    room of the end poses changes most between the cell's two faces (the other axes at the
+    centre): the axis that tilts the infeasibility contour across the cell, whose halves a cut
+    along W resolves best. A choice of work (module docstring); k = 2: L."""
+    center = np.asarray(center_m, dtype=float).reshape(-1, model.k)
+    radius = np.asarray(radius_m, dtype=float).reshape(-1, model.k)
+    others = [axis for axis in range(model.k) if axis != 1]
+    change = np.zeros((center.shape[0], len(others)))
+    for column, axis in enumerate(others):
+        rooms = []
+        for sign in (-1.0, 1.0):
+            point = center.copy()
+            point[:, axis] += sign * radius[:, axis]
+            rooms.append(
+                end_pose_room_m(
+                    model,
+                    point[:, 0],
+                    point[:, 1],
+                    tolerance_m,
+                    rings=_ROOM_RINGS,
+                    angles=_ROOM_ANGLES,
+                    **model.obstacle_moves(point),
+                )
+            )
+        change[:, column] = np.abs(rooms[1] - rooms[0])
+    return np.asarray(others, dtype=np.int64)[np.argmax(change, axis=1)]
 
 
 def dyadic_pieces(start: int, stop: int, cuts: int) -> list[tuple[int, int]]:

@@ -37,6 +37,7 @@ def default_config(
     second_order: bool | None = None,
     strip_split: int | None = None,
     infeasibility_cuts: int | None = None,
+    tilt_cuts: int | None = None,
     jobs: int = 1,
     executor: Executor | None = None,
 ) -> RangeCertificateConfig:
@@ -57,6 +58,7 @@ def default_config(
         second_order=second_order,
         strip_split=strip_split,
         infeasibility_cuts=infeasibility_cuts,
+        tilt_cuts=tilt_cuts,
         jobs=jobs,
         executor=executor,
     )

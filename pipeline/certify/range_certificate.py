@@ -51,7 +51,7 @@ from pipeline.certify.endpoints import (
     endpoint_error_bounds,
     infeasibility_upper_bounds,
 )
-from pipeline.certify.infeasibility_cuts import cut_leaves, lowest_infeasible_cuts
+from pipeline.certify.infeasibility_cuts import cut_leaves, lowest_infeasible_cuts, tilt_axes
 from pipeline.certify.leaf_merge import merge_leaves
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap, source_name
@@ -142,6 +142,9 @@ DEFAULT_STRIP_SPLITS: Mapping[int, int] = MappingProxyType({2: DEFAULT_STRIP_SPL
 #: of the contour, and the cuts' bounds cost more of the build's time than they gain; over
 #: (L, W, x, d), on cells of 1/32 (1.25 mm of W), 2^7 levels (10 um).
 DEFAULT_INFEASIBILITY_CUTS: Mapping[int, int] = MappingProxyType({2: 0, 3: 0, 4: 7})
+#: Default halvings of a leaf the infeasibility contour crosses, along the axis that tilts the
+#: contour across it, before its cut along W (``cut_at_infeasibility``), per number of axes.
+DEFAULT_TILT_CUTS: Mapping[int, int] = MappingProxyType({2: 0, 3: 0, 4: 2})
 #: Columns of strips per task of the strips' bounds (fixed, so that the tasks do not depend on
 #: the worker count; a strip's bounds depend on its column alone, so neither does the map). The
 #: strips' interval bounds cost about as much per call as per row at a few hundred rows, so larger
@@ -175,6 +178,9 @@ class RangeCertificateConfig:
         infeasibility_cuts: Levels along W (2^cuts of them) at which a leaf still close to being
             proven infeasible may be cut, its part above proven (0: none;
             ``pipeline.certify.infeasibility_cuts``).
+        tilt_cuts: Halvings of a leaf the infeasibility contour crosses, along the axis that tilts
+            the contour across it (``infeasibility_cuts.tilt_axes``), before its cut along W, each
+            half cut on its own (0: none; with ``infeasibility_cuts`` only).
         merge_spread_m: Sibling leaves of one status whose clearance bounds, and endpoint bounds,
             differ by at most this are stored as their parent [m] (``pipeline.certify.leaf_merge``;
             0: none).
@@ -194,6 +200,7 @@ class RangeCertificateConfig:
     max_boxes: int = 5_000_000
     strip_split: int = DEFAULT_STRIP_SPLIT
     infeasibility_cuts: int = 0
+    tilt_cuts: int = 0
     merge_spread_m: float = 0.0
     second_order: bool = False
 
@@ -221,13 +228,16 @@ class RangeCertificateConfig:
         check_positive_int("infeasibility_cuts", self.infeasibility_cuts, minimum=0)
         if self.infeasibility_cuts > 8:
             raise InvalidParameterError("infeasibility_cuts", self.infeasibility_cuts, "0..8 halvings along W")
+        check_positive_int("tilt_cuts", self.tilt_cuts, minimum=0)
+        if self.tilt_cuts > 6:
+            raise InvalidParameterError("tilt_cuts", self.tilt_cuts, "0..6 halvings across the contour")
 
     @classmethod
     def for_axes(cls, k: int, **settings: Any) -> RangeCertificateConfig:
         """The default settings over ``k`` axes (cells :data:`DEFAULT_CELLS`, merging
         :data:`DEFAULT_MERGE_SPREAD_M`, bound form :data:`DEFAULT_SECOND_ORDER`, strips
         :data:`DEFAULT_STRIP_SPLITS`, cuts at the infeasibility contour
-        :data:`DEFAULT_INFEASIBILITY_CUTS`),
+        :data:`DEFAULT_INFEASIBILITY_CUTS`, tilted by :data:`DEFAULT_TILT_CUTS`),
         with ``settings`` that are not None in their place (names of this class's fields)."""
         min_cell, boundary_cell, extra_depth = DEFAULT_CELLS.get(k, DEFAULT_CELLS[3])
         defaults = {
@@ -238,6 +248,7 @@ class RangeCertificateConfig:
             "second_order": DEFAULT_SECOND_ORDER.get(k, True),
             "strip_split": DEFAULT_STRIP_SPLITS.get(k, 0),
             "infeasibility_cuts": DEFAULT_INFEASIBILITY_CUTS.get(k, DEFAULT_INFEASIBILITY_CUTS[4]),
+            "tilt_cuts": DEFAULT_TILT_CUTS.get(k, DEFAULT_TILT_CUTS[4]),
         }
         return cls(**{**defaults, **{name: value for name, value in settings.items() if value is not None}})
 
@@ -261,6 +272,7 @@ class RangeCertificateConfig:
             max_depth_s=self.max_depth_s,
             strip_split=self.strip_split,
             infeasibility_cuts=self.infeasibility_cuts,
+            tilt_cuts=self.tilt_cuts,
             second_order=self.second_order,
             run_on=self.run_on,
         )
@@ -617,39 +629,77 @@ def cut_at_infeasibility(
     """Cut the leaves below the margin that are not proven infeasible along W, at the lowest of
     2^``settings.infeasibility_cuts`` levels above which the part is proven
     (``pipeline.certify.infeasibility_cuts``, whose sampled end poses spare the leaves with room at
-    their top the bounds). ``leaves`` = [levels (n, k), index (n, k), *columns
-    the pieces inherit]; returns the leaves (the same columns), their endpoint bounds and their
-    infeasibility bounds (the proven parts': theirs). ``progress`` gets "range map: W cuts" in leaves."""
+    their top the bounds). A leaf the contour crosses (its top part lacks room, yet the whole is
+    not proven) is first halved, up to ``settings.tilt_cuts`` times, along the axis that tilts the
+    contour across it (``infeasibility_cuts.tilt_axes``), each half searched again: a cut along W
+    leaves the wedge between the tilted contour and the level proven, which halves with the leaf.
+    ``leaves`` = [levels (n, k), index (n, k), *columns the pieces inherit]; returns the leaves (the
+    same columns), their endpoint bounds and their infeasibility bounds (the proven parts': theirs).
+    ``progress`` gets "range map: W cuts" in leaves."""
     e, margin_m = settings.infeasibility_cuts, settings.margin_m
-    bound = leaves[2]
-    rows = np.flatnonzero((bound < margin_m) & (upper >= margin_m))
-    if e == 0 or rows.size == 0:
+    if e == 0:
         return leaves, endpoint, upper
-    c, r = cell_boxes(model, leaves[0][rows], leaves[1][rows])
-    parts = _in_chunks(
-        lowest_infeasible_cuts,
-        _SUB_CELL_CHUNK,
-        settings.run_on,
-        model,
-        (c, r),
-        e,
-        settings.endpoint_tolerance_m,
-        margin_m,
-        progress=progress,
-        stage=PROGRESS_STAGES[3],
-    )
-    found = np.concatenate(parts)
-    cut = found[:, 0] < 2**e
-    if not np.any(cut):
+    n, top = leaves[0].shape[0], 2**e
+    todo = (leaves[2] < margin_m) & (upper >= margin_m)
+    level, level_bound = np.full(n, float(top)), np.full(n, np.inf)
+    arrays = [*leaves, endpoint, upper, level, level_bound, todo]
+    for tilt_round in range(settings.tilt_cuts + 1):
+        rows = np.flatnonzero(arrays[-1])
+        if rows.size == 0:
+            break
+        c, r = cell_boxes(model, arrays[0][rows], arrays[1][rows])
+        found = np.concatenate(
+            _in_chunks(
+                lowest_infeasible_cuts,
+                _SUB_CELL_CHUNK,
+                settings.run_on,
+                model,
+                (c, r),
+                e,
+                settings.endpoint_tolerance_m,
+                margin_m,
+                progress=progress,
+                stage=PROGRESS_STAGES[3],
+            )
+        )
+        arrays[-3][rows], arrays[-2][rows] = found[:, 0], found[:, 1]
+        arrays[-1][:] = False
+        tilted = (found[:, 0] > 0) & (found[:, 2] < top)  # the contour crosses it, the whole not proven
+        if tilt_round == settings.tilt_cuts or not np.any(tilted):
+            break
+        tolerance_m = settings.endpoint_tolerance_m
+        axes = np.concatenate(
+            _in_chunks(tilt_axes, _SUB_CELL_CHUNK, settings.run_on, model, (c[tilted], r[tilted]), tolerance_m)
+        )
+        split = np.zeros(arrays[0].shape[0], dtype=bool)
+        split[rows[tilted]] = True
+        arrays = _split(arrays, split, axes)
+        arrays[-1][-2 * axes.size :] = True
+        arrays[-3][-2 * axes.size :], arrays[-2][-2 * axes.size :] = top, np.inf
+    return _cut_pieces(arrays[:-5], arrays[-5], arrays[-4], arrays[-3].astype(np.int64), arrays[-2], e)
+
+
+def _cut_pieces(
+    leaves: list[np.ndarray],
+    endpoint: np.ndarray,
+    upper: np.ndarray,
+    level: np.ndarray,
+    level_bound: np.ndarray,
+    e: int,
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """The leaves with each one proven above its ``level`` (< 2^e) replaced by its dyadic pieces
+    along W (``infeasibility_cuts.cut_leaves``): the pieces above get ``level_bound``, the others
+    keep the leaf's bounds."""
+    cut_rows = np.flatnonzero(level < 2**e)
+    if cut_rows.size == 0:
         return leaves, endpoint, upper
-    cut_rows = rows[cut]
-    owner, piece_levels, piece_index, above = cut_leaves(leaves[0][cut_rows], leaves[1][cut_rows], found[cut, 0], e)
+    owner, piece_levels, piece_index, above = cut_leaves(leaves[0][cut_rows], leaves[1][cut_rows], level[cut_rows], e)
     parent = cut_rows[owner]
-    keep = np.ones(bound.size, dtype=bool)
+    keep = np.ones(endpoint.size, dtype=bool)
     keep[cut_rows] = False
     pieces = [piece_levels, piece_index, *(column[parent] for column in leaves[2:])]
     joined = [np.concatenate([column[keep], piece]) for column, piece in zip(leaves, pieces, strict=True)]
-    piece_upper = np.where(above, found[cut, 1][owner], upper[parent])
+    piece_upper = np.where(above, level_bound[parent], upper[parent])
     return joined, np.concatenate([endpoint[keep], endpoint[parent]]), np.concatenate([upper[keep], piece_upper])
 
 

@@ -27,6 +27,7 @@ from pipeline.certify.range_certificate import (
     DEFAULT_MERGE_SPREAD_M,
     DEFAULT_MIN_CELL,
     DEFAULT_STRIP_SPLITS,
+    DEFAULT_TILT_CUTS,
     certify_range,
 )
 from pipeline.certify.reachability import witness_lines, witnesses_for_map
@@ -131,6 +132,16 @@ def _add_cell_options(p: argparse.ArgumentParser) -> None:
         "the part is proven infeasible (pipeline.certify.infeasibility_cuts), 0..8 [count] (default: "
         f"{DEFAULT_INFEASIBILITY_CUTS[2]} over (L, W), {DEFAULT_INFEASIBILITY_CUTS[3]} over (L, W, x), "
         f"{DEFAULT_INFEASIBILITY_CUTS[4]} over (L, W, x, d))",
+    )
+    p.add_argument(
+        "--tilt-cuts",
+        type=count_argument,
+        default=None,
+        metavar="T",
+        help="with --infeasibility-cuts: first halve a leaf the infeasibility contour crosses up to T times along the "
+        "axis that tilts the contour across it, 0..6 [count] (default: "
+        f"{DEFAULT_TILT_CUTS[2]} over (L, W), {DEFAULT_TILT_CUTS[3]} over (L, W, x), {DEFAULT_TILT_CUTS[4]} over "
+        "(L, W, x, d))",
     )
     p.add_argument(
         "--boundary-cell",
@@ -251,6 +262,7 @@ def _work(args: argparse.Namespace) -> int:
         second_order=None if args.bound_form is None else BOUND_FORMS[args.bound_form],
         strip_split=args.strip_split,
         infeasibility_cuts=args.infeasibility_cuts,
+        tilt_cuts=args.tilt_cuts,
         jobs=args.jobs,
         executor=executor,
     )

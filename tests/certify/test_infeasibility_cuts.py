@@ -6,6 +6,7 @@ map with the cuts gains infeasible volume where the map without them leaves it b
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pipeline import load_coefficients
-from pipeline.certify.infeasibility_cuts import cut_leaves, dyadic_pieces, lowest_infeasible_cuts
+from pipeline.certify.infeasibility_cuts import cut_leaves, dyadic_pieces, lowest_infeasible_cuts, tilt_axes
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.region_map import STATUSES, RegionMap
@@ -136,3 +137,86 @@ def test_the_setting_is_checked() -> None:
     assert RangeCertificateConfig.for_axes(2).infeasibility_cuts == 0
     assert RangeCertificateConfig.for_axes(3).infeasibility_cuts == 0
     assert RangeCertificateConfig.for_axes(4).infeasibility_cuts == 7
+
+
+#: The top of W over (L, W, x, d), where the contour where the end poses' room crosses the margin
+#: tilts across d as much as across W (the room depends on the obstacle's near edge d - W).
+TOP_XD = {**TOP, "d": (0.557, 0.561)}
+XD_CONFIG = RangeCertificateConfig(min_cell=1 / 4, boundary_cell=1 / 4, infeasibility_cuts=5)
+
+
+@pytest.fixture(scope="module")
+def tilted_maps(over_xd) -> tuple[RegionMap, RegionMap]:
+    """The (L, W, x, d) top band's map with the cuts along W after 2 halvings across the
+    contour's tilt, and with the cuts alone."""
+    band = dataclasses.replace(over_xd(load_coefficients("paper")), fitted_range_m=TOP_XD)
+    tilted = dataclasses.replace(XD_CONFIG, tilt_cuts=2)
+    return certify_range(band, tilted), certify_range(band, XD_CONFIG)
+
+
+def test_halving_across_the_tilt_gains_infeasible_volume_and_keeps_the_margin(tilted_maps) -> None:
+    tilted, straight = (m.summary()["area_fraction"] for m in tilted_maps)
+    assert tilted["infeasible"] > straight["infeasible"] + 0.05
+    assert tilted["margin"] == straight["margin"]
+    assert sum(tilted.values()) == pytest.approx(1.0, abs=1e-12)
+    levels = tilted_maps[0].subpaving.levels
+    assert np.any(np.delete(levels, 1, axis=1) > 2)  # halved beyond the smallest cell across W
+
+
+def test_tilted_pieces_hold_no_end_pose_that_clears_their_bound(
+    over_xd, tilted_maps, arm: PlanarArm, end_pose_clearance
+) -> None:
+    """Every infeasible leaf halved across the tilt has, at the 8 corners of its roomiest face
+    (its lowest W) over (L, x, d) and two random points of it, no end pose of the dense sampling
+    near the moved P1 or P5 that clears its bound."""
+    band = dataclasses.replace(over_xd(load_coefficients("paper")), fitted_range_m=TOP_XD)
+    region_map = tilted_maps[0]
+    levels = region_map.subpaving.levels
+    halved = np.any(np.delete(levels, 1, axis=1) > 2, axis=1)
+    pieces = np.flatnonzero(halved & (region_map.status == STATUSES.index("infeasible")))
+    assert pieces.size > 0
+    rng = np.random.default_rng(7)
+    for k in pieces[:: max(1, pieces.size // 10)]:
+        cell = region_map.cell(int(k))
+        ranges = [cell.range_of(name) for name in ("L", "x", "d")]
+        W = cell.range_of("W")[0]
+        points = [*itertools.product(*ranges), *zip(*(rng.uniform(lo, hi, 2) for lo, hi in ranges), strict=True)]
+        for L, x, d in points:
+            scene = dataclasses.replace(band.scene, centre_x_m=float(x), top_y_m=float(d))
+            room = end_pose_clearance(band, arm, Obstacle.in_scene(L, W, scene), scene, TOLERANCE_M).min()
+            assert room <= cell.endpoint_clearance_upper_m + 1e-12 < MARGIN_M
+
+
+def test_the_tilt_axis_is_the_one_across_which_the_room_changes_most(
+    over_xd, arm: PlanarArm, end_pose_clearance
+) -> None:
+    """On cells of the band, the axis ``tilt_axes`` picks changes the densely sampled room between
+    its two faces by at least as much as every other axis but W, within the sampling's spread."""
+    band = dataclasses.replace(over_xd(load_coefficients("paper")), fitted_range_m=TOP_XD)
+    model = RangeModel.from_coefficients(band)
+    rng = np.random.default_rng(11)
+    radius = np.tile(model.range_size / 8, (6, 1))  # cells of 1/4
+    centre = model.range_lo + radius * (2 * rng.integers(0, 4, (6, 4)) + 1)
+    chosen = tilt_axes(model, centre, radius, TOLERANCE_M)
+    assert np.all(chosen != 1)
+
+    def room(point: np.ndarray) -> float:
+        L, W, x, d = point
+        scene = dataclasses.replace(band.scene, centre_x_m=float(x), top_y_m=float(d))
+        return float(end_pose_clearance(band, arm, Obstacle.in_scene(L, W, scene), scene, TOLERANCE_M).min())
+
+    for row in range(centre.shape[0]):
+        change = {}
+        for axis in (0, 2, 3):
+            step = np.zeros(4)
+            step[axis] = radius[row, axis]
+            change[axis] = abs(room(centre[row] + step) - room(centre[row] - step))
+        assert change[int(chosen[row])] >= max(change.values()) - 5e-5
+
+
+def test_the_tilt_setting_is_checked() -> None:
+    with pytest.raises(InvalidParameterError, match="tilt_cuts"):
+        RangeCertificateConfig(tilt_cuts=7)
+    with pytest.raises(InvalidParameterError, match="tilt_cuts"):
+        RangeCertificateConfig(tilt_cuts=-1)
+    assert [RangeCertificateConfig.for_axes(k).tilt_cuts for k in (2, 3, 4)] == [0, 0, 2]
