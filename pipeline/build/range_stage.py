@@ -97,6 +97,7 @@ def _refit_config(
             extra_depth=0,
             strip_split=0,
             infeasibility_cuts=0,
+            clearance_cuts=0,
             merge_spread_m=0.0,
             second_order=False,
         ),

@@ -34,6 +34,8 @@ class CertificateSettings:
             ``pipeline.certify.infeasibility_cuts``).
         tilt_cuts: Halvings of a leaf the infeasibility contour crosses, along the axis that tilts
             the contour across it, before it is cut along W (0: none).
+        clearance_cuts: Rounds of halving the leaves that miss the margin where their boxes'
+            centres keep it (0: none; ``pipeline.certify.clearance_cuts``).
         second_order: Bound the clearance and the endpoint errors by the tighter of the
             mean-value and the second-order Taylor forms (``pipeline.certify.clearance_bound``,
             ``pipeline.certify.endpoints``); False: the mean-value form.
@@ -49,6 +51,7 @@ class CertificateSettings:
     strip_split: int = 0
     infeasibility_cuts: int = 0
     tilt_cuts: int = 0
+    clearance_cuts: int = 0
     second_order: bool = False
     run_on: Executor = field(default_factory=LocalPool)
 
@@ -61,6 +64,7 @@ class CertificateSettings:
         check_positive_int("strip_split", self.strip_split, minimum=0)
         check_positive_int("infeasibility_cuts", self.infeasibility_cuts, minimum=0)
         check_positive_int("tilt_cuts", self.tilt_cuts, minimum=0)
+        check_positive_int("clearance_cuts", self.clearance_cuts, minimum=0)
         check_bool("second_order", self.second_order)
         if not isinstance(self.run_on, LocalPool | DaskScheduler):
             raise InvalidParameterError("run_on", self.run_on, "a LocalPool or a DaskScheduler")

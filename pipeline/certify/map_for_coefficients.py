@@ -38,6 +38,7 @@ def default_config(
     strip_split: int | None = None,
     infeasibility_cuts: int | None = None,
     tilt_cuts: int | None = None,
+    clearance_cuts: int | None = None,
     jobs: int = 1,
     executor: Executor | None = None,
 ) -> RangeCertificateConfig:
@@ -59,6 +60,7 @@ def default_config(
         strip_split=strip_split,
         infeasibility_cuts=infeasibility_cuts,
         tilt_cuts=tilt_cuts,
+        clearance_cuts=clearance_cuts,
         jobs=jobs,
         executor=executor,
     )

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.certify.certificate_settings import CertificateSettings
+from pipeline.certify.clearance_cuts import coarsest_axes, half_clearance_bounds
 from pipeline.certify.end_pose_room import end_pose_room_m
 from pipeline.certify.endpoints import (
     endpoint_bounds_and_shares,
@@ -145,12 +146,19 @@ DEFAULT_INFEASIBILITY_CUTS: Mapping[int, int] = MappingProxyType({2: 0, 3: 0, 4:
 #: Default halvings of a leaf the infeasibility contour crosses, along the axis that tilts the
 #: contour across it, before its cut along W (``cut_at_infeasibility``), per number of axes.
 DEFAULT_TILT_CUTS: Mapping[int, int] = MappingProxyType({2: 0, 3: 0, 4: 2})
+#: Default rounds of halving the leaves that miss the margin where their boxes' centres keep it
+#: (``pipeline.certify.clearance_cuts``), per number of axes: over (L, W) and (L, W, x) the cells
+#: are small enough, over (L, W, x, d) every axis halved once.
+DEFAULT_CLEARANCE_CUTS: Mapping[int, int] = MappingProxyType({2: 0, 3: 0, 4: 4})
 #: Columns of strips per task of the strips' bounds (fixed, so that the tasks do not depend on
 #: the worker count; a strip's bounds depend on its column alone, so neither does the map). The
 #: strips' interval bounds cost about as much per call as per row at a few hundred rows, so larger
 #: tasks are faster: on a sub-box of the default (L, W, x) build, 256 columns per task took the
 #: strips 2.3 times less time than 32 (and 1024 columns 3.2 times).
 _STRIP_COLUMNS = 512
+#: Halves per task of the clearance cuts (fixed, so that the map does not depend on the worker
+#: count; a half's bound depends on the half alone).
+_HALF_CHUNK = 512
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -181,6 +189,9 @@ class RangeCertificateConfig:
         tilt_cuts: Halvings of a leaf the infeasibility contour crosses, along the axis that tilts
             the contour across it (``infeasibility_cuts.tilt_axes``), before its cut along W, each
             half cut on its own (0: none; with ``infeasibility_cuts`` only).
+        clearance_cuts: Rounds of halving the leaves that miss the margin where their boxes'
+            centres keep it, along their coarsest axis, each half bounded on its own (0: none;
+            ``pipeline.certify.clearance_cuts``).
         merge_spread_m: Sibling leaves of one status whose clearance bounds, and endpoint bounds,
             differ by at most this are stored as their parent [m] (``pipeline.certify.leaf_merge``;
             0: none).
@@ -201,6 +212,7 @@ class RangeCertificateConfig:
     strip_split: int = DEFAULT_STRIP_SPLIT
     infeasibility_cuts: int = 0
     tilt_cuts: int = 0
+    clearance_cuts: int = 0
     merge_spread_m: float = 0.0
     second_order: bool = False
 
@@ -231,13 +243,17 @@ class RangeCertificateConfig:
         check_positive_int("tilt_cuts", self.tilt_cuts, minimum=0)
         if self.tilt_cuts > 6:
             raise InvalidParameterError("tilt_cuts", self.tilt_cuts, "0..6 halvings across the contour")
+        check_positive_int("clearance_cuts", self.clearance_cuts, minimum=0)
+        if self.clearance_cuts > 8:
+            raise InvalidParameterError("clearance_cuts", self.clearance_cuts, "0..8 rounds of halving")
 
     @classmethod
     def for_axes(cls, k: int, **settings: Any) -> RangeCertificateConfig:
         """The default settings over ``k`` axes (cells :data:`DEFAULT_CELLS`, merging
         :data:`DEFAULT_MERGE_SPREAD_M`, bound form :data:`DEFAULT_SECOND_ORDER`, strips
         :data:`DEFAULT_STRIP_SPLITS`, cuts at the infeasibility contour
-        :data:`DEFAULT_INFEASIBILITY_CUTS`, tilted by :data:`DEFAULT_TILT_CUTS`),
+        :data:`DEFAULT_INFEASIBILITY_CUTS`, tilted by :data:`DEFAULT_TILT_CUTS`, cuts for the
+        clearance :data:`DEFAULT_CLEARANCE_CUTS`),
         with ``settings`` that are not None in their place (names of this class's fields)."""
         min_cell, boundary_cell, extra_depth = DEFAULT_CELLS.get(k, DEFAULT_CELLS[3])
         defaults = {
@@ -249,6 +265,7 @@ class RangeCertificateConfig:
             "strip_split": DEFAULT_STRIP_SPLITS.get(k, 0),
             "infeasibility_cuts": DEFAULT_INFEASIBILITY_CUTS.get(k, DEFAULT_INFEASIBILITY_CUTS[4]),
             "tilt_cuts": DEFAULT_TILT_CUTS.get(k, DEFAULT_TILT_CUTS[4]),
+            "clearance_cuts": DEFAULT_CLEARANCE_CUTS.get(k, DEFAULT_CLEARANCE_CUTS[4]),
         }
         return cls(**{**defaults, **{name: value for name, value in settings.items() if value is not None}})
 
@@ -273,6 +290,7 @@ class RangeCertificateConfig:
             strip_split=self.strip_split,
             infeasibility_cuts=self.infeasibility_cuts,
             tilt_cuts=self.tilt_cuts,
+            clearance_cuts=self.clearance_cuts,
             second_order=self.second_order,
             run_on=self.run_on,
         )
@@ -297,12 +315,13 @@ class RangeCertificateConfig:
 #: Stages reported to a :data:`pipeline.io.progress.ProgressCallback` by :func:`certify_range`, in
 #: order: the branch and bound (its tasks), the endpoint bounds (leaves: the total grows as leaves
 #: are cut), the infeasibility certificate's sub-cells (leaves), its cuts along W (leaves) and the
-#: strips (strips).
+#: clearance cuts (halves) and the strips (strips).
 PROGRESS_STAGES = (
     "range map: search",
     "range map: refine",
     "range map: sub-cells",
     "range map: W cuts",
+    "range map: clearance cuts",
     "range map: strips",
 )
 
@@ -643,6 +662,7 @@ def cut_at_infeasibility(
     todo = (leaves[2] < margin_m) & (upper >= margin_m)
     level, level_bound = np.full(n, float(top)), np.full(n, np.inf)
     arrays = [*leaves, endpoint, upper, level, level_bound, todo]
+    searched = 0  # leaves searched, over the rounds
     for tilt_round in range(settings.tilt_cuts + 1):
         rows = np.flatnonzero(arrays[-1])
         if rows.size == 0:
@@ -660,8 +680,10 @@ def cut_at_infeasibility(
                 margin_m,
                 progress=progress,
                 stage=PROGRESS_STAGES[3],
+                before=searched,
             )
         )
+        searched += rows.size
         arrays[-3][rows], arrays[-2][rows] = found[:, 0], found[:, 1]
         arrays[-1][:] = False
         tilted = (found[:, 0] > 0) & (found[:, 2] < top)  # the contour crosses it, the whole not proven
@@ -701,6 +723,57 @@ def _cut_pieces(
     joined = [np.concatenate([column[keep], piece]) for column, piece in zip(leaves, pieces, strict=True)]
     piece_upper = np.where(above, level_bound[parent], upper[parent])
     return joined, np.concatenate([endpoint[keep], endpoint[parent]]), np.concatenate([upper[keep], piece_upper])
+
+
+def cut_for_clearance(
+    model: RangeModel,
+    leaves: list[np.ndarray],
+    endpoint: np.ndarray,
+    upper: np.ndarray,
+    settings: CertificateSettings,
+    progress: ProgressCallback | None = None,
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """Halve the leaves below the margin, not proven infeasible, whose boxes' centres keep the
+    margin, along their coarsest axis, for ``settings.clearance_cuts`` rounds, each half bounded on
+    its own (``pipeline.certify.clearance_cuts``, which derives why that is sound). ``leaves`` =
+    [levels (n, k), index (n, k), clearance bound, centre clearance, *further columns the halves
+    inherit]; returns the leaves (the same columns; a half's centre clearance is its leaf's, or
+    -inf where one of its boxes' centres missed the margin), their endpoint bounds and their
+    infeasibility bounds (inherited). ``progress`` gets "range map: clearance cuts" in halves."""
+    margin_m = settings.margin_m
+    todo = (leaves[2] < margin_m) & (upper >= margin_m) & (leaves[3] >= margin_m)
+    arrays = [*leaves, endpoint, upper, todo]
+    bounded = 0  # halves bounded, over the rounds
+    for _ in range(settings.clearance_cuts):
+        rows = arrays[-1]
+        count = int(np.count_nonzero(rows))
+        if count == 0:
+            break
+        arrays = _split(arrays, rows, coarsest_axes(arrays[0][rows]))
+        halves = slice(arrays[0].shape[0] - 2 * count, None)
+        c, r = cell_boxes(model, arrays[0][halves], arrays[1][halves])
+        found = np.concatenate(
+            _in_chunks(
+                half_clearance_bounds,
+                _HALF_CHUNK,
+                settings.run_on,
+                model,
+                (c, r, arrays[2][halves]),
+                margin_m,
+                settings.max_depth_s,
+                settings.second_order,
+                progress=progress,
+                stage=PROGRESS_STAGES[4],
+                before=bounded,
+            )
+        )
+        bounded += 2 * count
+        hopeful = found[:, 1] > 0.0
+        arrays[2][halves] = found[:, 0]
+        arrays[3][halves] = np.where(hopeful, arrays[3][halves], -np.inf)
+        arrays[-1][:] = False
+        arrays[-1][halves] = (found[:, 0] < margin_m) & hopeful
+    return arrays[:-3], arrays[-3], arrays[-2]
 
 
 def split_strips(
@@ -827,6 +900,7 @@ def certify_range(
     leaves = [found.levels, found.index, found.bound_m, found.center_clearance_m]
     leaves, endpoint, upper = refine_leaves(model, leaves, settings, progress)
     leaves, endpoint, upper = cut_at_infeasibility(model, leaves, endpoint, upper, settings, progress)
+    leaves, endpoint, upper = cut_for_clearance(model, leaves, endpoint, upper, settings, progress)
     (levels, index, bound), endpoint, upper = split_strips(model, leaves, endpoint, upper, settings, progress)
     if config.merge_spread_m > 0.0:
         status = statuses(bound, upper, margin)

@@ -75,6 +75,7 @@ __all__ = [
     "POLAR_DEPTH",
     "ROOM_SLACK_M",
     "SUB_CELL_LEVELS",
+    "cell_clearance_bounds",
     "strip_bounds",
     "strip_clearance_bounds",
     "strip_infeasibility_bounds",
@@ -96,6 +97,24 @@ def strip_clearance_bounds(
     beforehand), shape (n,). With ``second_order`` a box the mean-value form leaves below the
     margin while its centre keeps it is bounded by the second-order form too, the larger bound
     kept (both hold: ``clearance_bound``)."""
+    return cell_clearance_bounds(model, center_m, radius_m, floor_m, margin_m, max_depth_s, second_order=second_order)[
+        0
+    ]
+
+
+def cell_clearance_bounds(
+    model: RangeModel,
+    center_m: np.ndarray,
+    radius_m: np.ndarray,
+    floor_m: np.ndarray,
+    margin_m: float,
+    max_depth_s: int,
+    *,
+    second_order: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`strip_clearance_bounds`, and per cell whether the clearance at the centre of every
+    box bounded kept the margin (False: the cell holds a point below the margin, no cut of it
+    can be proven at the margin everywhere)."""
     center2 = np.asarray(center_m, dtype=float).reshape(-1, model.k)
     radius2 = np.asarray(radius_m, dtype=float).reshape(-1, model.k)
     n = center2.shape[0]
@@ -120,7 +139,7 @@ def strip_clearance_bounds(
         owner = np.repeat(owner[keep], 2)
         depth_s = np.repeat(depth_s[keep] + 1, 2)
         index_s = (2 * index_s[keep][:, None] + np.array([0, 1])).ravel()
-    return np.maximum(worst, np.asarray(floor_m, dtype=float))
+    return np.maximum(worst, np.asarray(floor_m, dtype=float)), hopeful
 
 
 def _lower_edge_room_m(model: RangeModel, corner_m: np.ndarray, side_m: np.ndarray, tolerance_m: float) -> np.ndarray:

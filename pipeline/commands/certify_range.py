@@ -22,6 +22,7 @@ from pipeline.certify.map_for_coefficients import default_config, summary_lines,
 from pipeline.certify.range_certificate import (
     DEFAULT_BOUNDARY_CELL,
     DEFAULT_CELLS,
+    DEFAULT_CLEARANCE_CUTS,
     DEFAULT_ENDPOINT_TOLERANCE_M,
     DEFAULT_INFEASIBILITY_CUTS,
     DEFAULT_MERGE_SPREAD_M,
@@ -144,6 +145,16 @@ def _add_cell_options(p: argparse.ArgumentParser) -> None:
         "(L, W, x, d))",
     )
     p.add_argument(
+        "--clearance-cuts",
+        type=count_argument,
+        default=None,
+        metavar="R",
+        help="halve the leaves that miss the margin where the clearance at their boxes' centres keeps it along their "
+        "coarsest axis, R rounds, each half bounded on its own (pipeline.certify.clearance_cuts), 0..8 [count] "
+        f"(default: {DEFAULT_CLEARANCE_CUTS[2]} over (L, W), {DEFAULT_CLEARANCE_CUTS[3]} over (L, W, x), "
+        f"{DEFAULT_CLEARANCE_CUTS[4]} over (L, W, x, d))",
+    )
+    p.add_argument(
         "--boundary-cell",
         type=_fraction,
         default=None,
@@ -263,6 +274,7 @@ def _work(args: argparse.Namespace) -> int:
         strip_split=args.strip_split,
         infeasibility_cuts=args.infeasibility_cuts,
         tilt_cuts=args.tilt_cuts,
+        clearance_cuts=args.clearance_cuts,
         jobs=args.jobs,
         executor=executor,
     )

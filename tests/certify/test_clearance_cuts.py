@@ -1,0 +1,96 @@
+"""Cuts for the clearance (pipeline.certify.clearance_cuts) over (L, W, x, d): the coarsest axis is
+the one halved, the cuts raise the margin's volume of a coarse map and change nothing else, and
+every halved leaf's clearance bound lies below the clearance sampled densely inside it, along
+motions built from the definitions (the regression at the point, the moved path's T, the moved
+obstacle, analytic distance and Coal)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from pipeline import load_coefficients
+from pipeline.certify.clearance_cuts import coarsest_axes
+from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.region_map import STATUSES, RegionMap
+from pipeline.exceptions import InvalidParameterError
+from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
+from pipeline.model.arm import PlanarArm
+from pipeline.model.obstacle import Obstacle
+from pipeline.motion.path import desired_path
+from pipeline.motion.trajectory import JointTrajectory
+from pipeline.offline.coefficients import Coefficients
+
+#: Cubes of 1/4 over (L, W, x, d), in the second-order form: the search leaves every cube below the
+#: margin, the cuts prove part of them.
+COARSE = RangeCertificateConfig(min_cell=1 / 4, boundary_cell=1 / 4, second_order=True, strip_split=0)
+
+
+@pytest.fixture(scope="module")
+def eq9_xd(over_xd) -> Coefficients:
+    return over_xd(load_coefficients("paper"), d_range_m=(0.55, 0.57), scale=0.2)
+
+
+@pytest.fixture(scope="module")
+def maps(eq9_xd: Coefficients) -> tuple[RegionMap, RegionMap]:
+    """The coarse map with 4 rounds of cuts for the clearance, and without."""
+    return certify_range(eq9_xd, dataclasses.replace(COARSE, clearance_cuts=4)), certify_range(eq9_xd, COARSE)
+
+
+def test_the_coarsest_axis_is_halved_first() -> None:
+    levels = np.array([[5, 5, 5, 5], [6, 5, 5, 5], [6, 6, 6, 5], [7, 12, 6, 6]])
+    assert coarsest_axes(levels).tolist() == [0, 1, 3, 2]
+
+
+def test_cuts_raise_the_margin_and_change_nothing_else(maps: tuple[RegionMap, RegionMap]) -> None:
+    cut, plain = maps
+    with_cuts, without = cut.summary()["area_fraction"], plain.summary()["area_fraction"]
+    assert with_cuts["margin"] > without["margin"] + 0.2
+    assert with_cuts["infeasible"] == without["infeasible"]
+    assert sum(with_cuts.values()) == pytest.approx(1.0, abs=1e-12)
+    assert cut.summary()["endpoint_bound_max_m"] <= plain.summary()["endpoint_bound_max_m"]
+    assert int(cut.subpaving.levels.max()) <= 2 + 1  # 4 rounds over 4 axes: each axis halved once
+
+
+def _clearance(coefficients: Coefficients, arm: PlanarArm, point: np.ndarray, s: np.ndarray) -> tuple:
+    """Analytic and Coal clearance of both links along s at the point (L, W, x, d)."""
+    L, W, x, d = (float(v) for v in point)
+    scene = dataclasses.replace(coefficients.scene, centre_x_m=x, top_y_m=d)
+    obstacle = Obstacle.in_scene(L, W, scene)
+    parameters = coefficients.family.expand(coefficients.predict_free(L, W, x=x, d=d), None)
+    trajectory = JointTrajectory.trusted(tuple(float(p) for p in parameters), desired_path(obstacle, scene).duration_s)
+    q = trajectory.q(s * trajectory.duration_s)
+    coal = CoalClearance(arm, obstacle)
+    return analytic_link_clearance(q, arm, obstacle).min(), min(coal.link_clearance(row).min() for row in q)
+
+
+def test_halved_leaves_bound_the_clearance_sampled_inside_them(
+    eq9_xd: Coefficients, maps: tuple[RegionMap, RegionMap], arm: PlanarArm
+) -> None:
+    """12 halved leaves (the margin's and the others), 6 random points each and the centre, 81
+    times: every sampled clearance at least the leaf's bound (Coal within its distance error)."""
+    region_map = maps[0]
+    halved = np.flatnonzero(region_map.subpaving.levels.max(axis=1) > 2)
+    kept = halved[region_map.status[halved] == STATUSES.index("margin")]
+    assert kept.size > 0
+    rng = np.random.default_rng(4)
+    chosen = np.unique(np.concatenate([rng.choice(kept, 6, replace=False), rng.choice(halved, 6, replace=False)]))
+    centres, sizes = region_map.leaf_centres_m()[chosen], region_map.leaf_sizes_m()[chosen]
+    s = np.linspace(0.0, 1.0, 81)
+    for row, leaf in enumerate(chosen):
+        bound = float(region_map.clearance_bound_m[leaf])
+        points = [centres[row], *(centres[row] + sizes[row] * rng.uniform(-0.5, 0.5, (6, 4)))]
+        for point in points:
+            analytic, coal = _clearance(eq9_xd, arm, point, s)
+            assert analytic >= bound - 1e-12
+            assert coal >= bound - COAL_DISTANCE_ERROR_M
+
+
+def test_the_setting_is_checked() -> None:
+    with pytest.raises(InvalidParameterError, match="clearance_cuts"):
+        RangeCertificateConfig(clearance_cuts=9)
+    with pytest.raises(InvalidParameterError, match="clearance_cuts"):
+        RangeCertificateConfig(clearance_cuts=-1)
+    assert [RangeCertificateConfig.for_axes(k).clearance_cuts for k in (2, 3, 4)] == [0, 0, 4]
