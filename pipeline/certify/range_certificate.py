@@ -145,7 +145,7 @@ DEFAULT_STRIP_SPLITS: Mapping[int, int] = MappingProxyType({2: DEFAULT_STRIP_SPL
 DEFAULT_INFEASIBILITY_CUTS: Mapping[int, int] = MappingProxyType({2: 0, 3: 0, 4: 7})
 #: Default halvings of a leaf the infeasibility contour crosses, along the axis that tilts the
 #: contour across it, before its cut along W (``cut_at_infeasibility``), per number of axes.
-DEFAULT_TILT_CUTS: Mapping[int, int] = MappingProxyType({2: 0, 3: 0, 4: 2})
+DEFAULT_TILT_CUTS: Mapping[int, int] = MappingProxyType({2: 0, 3: 0, 4: 1})
 #: Default rounds of halving the leaves that miss the margin where their boxes' centres keep it
 #: (``pipeline.certify.clearance_cuts``), per number of axes: over (L, W) and (L, W, x) the cells
 #: are small enough, over (L, W, x, d) every axis halved once.

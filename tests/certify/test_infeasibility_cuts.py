@@ -219,4 +219,4 @@ def test_the_tilt_setting_is_checked() -> None:
         RangeCertificateConfig(tilt_cuts=7)
     with pytest.raises(InvalidParameterError, match="tilt_cuts"):
         RangeCertificateConfig(tilt_cuts=-1)
-    assert [RangeCertificateConfig.for_axes(k).tilt_cuts for k in (2, 3, 4)] == [0, 0, 2]
+    assert [RangeCertificateConfig.for_axes(k).tilt_cuts for k in (2, 3, 4)] == [0, 0, 1]
