@@ -4,7 +4,9 @@ infeasibility, whose is the gap: the certificate's, the end poses' or the regres
     python scripts/margin_band.py results-x/coefficients.json [--map MAP] [--n 600] [--seed 0]
 
 It draws ``--n`` of the map's ``collision_free`` leaves (certified collision-free, below the
-margin; ``numpy.random.default_rng(seed)``) and samples at each leaf's centre
+margin; ``numpy.random.default_rng(seed)``), each draw with a probability in proportion to the leaf's volume
+(with replacement, so that every share below is a share of the volume, whatever the leaves' sizes), and samples at
+each leaf's centre
 
 * the regression's clearance along [0, T] at 401 times (analytic distance, the certifiable
   regression's ``clearance_at``, against the obstacle moved by x where the map has x);
@@ -65,7 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     if below.size == 0:
         print("no leaf below the margin that is not proven infeasible")
         return 0
-    drawn = np.sort(np.random.default_rng(args.seed).choice(below, min(args.n, below.size), replace=False))
+    weight = volume[below] / volume[below].sum()
+    drawn = np.sort(np.random.default_rng(args.seed).choice(below, args.n, replace=True, p=weight))
     centres = region_map.leaf_centres_m()[drawn]
     b = np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
     s = np.linspace(0.0, 1.0, SAMPLES_S)

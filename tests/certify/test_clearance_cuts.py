@@ -14,7 +14,7 @@ import pytest
 from pipeline import load_coefficients
 from pipeline.certify.clearance_cuts import coarsest_axes
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
-from pipeline.certify.region_map import STATUSES, RegionMap
+from pipeline.certify.region_map import STATUSES, RegionMap, region_map_text
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
 from pipeline.model.arm import PlanarArm
@@ -86,6 +86,14 @@ def test_halved_leaves_bound_the_clearance_sampled_inside_them(
             analytic, coal = _clearance(eq9_xd, arm, point, s)
             assert analytic >= bound - 1e-12
             assert coal >= bound - COAL_DISTANCE_ERROR_M
+
+
+def test_the_cuts_give_the_same_bytes_on_two_workers(eq9_xd: Coefficients) -> None:
+    """The cuts for the clearance and across the infeasibility contour's tilt run in fixed tasks:
+    two worker processes write the map one process writes."""
+    config = dataclasses.replace(COARSE, clearance_cuts=4, infeasibility_cuts=5, tilt_cuts=1)
+    one, two = (region_map_text(certify_range(eq9_xd, dataclasses.replace(config, jobs=jobs))) for jobs in (1, 2))
+    assert one == two
 
 
 def test_the_setting_is_checked() -> None:
