@@ -1,11 +1,12 @@
 """Where a region map over any axes ((L, W), (L, W, x), (L, W, x, d)) misses the margin without proving
 infeasibility, whose is the gap: the certificate's, the end poses' or the regression's?
 
-    python scripts/margin_band.py results-x/coefficients.json [--map MAP] [--n 600] [--seed 0]
+    python scripts/margin_band.py results-x/coefficients.json [--map MAP] [--n 600] [--seed 0] [--weight volume]
 
 It draws ``--n`` of the map's ``collision_free`` leaves (certified collision-free, below the
-margin; ``numpy.random.default_rng(seed)``), each draw with a probability in proportion to the leaf's volume
-(with replacement, so that every share below is a share of the volume, whatever the leaves' sizes), and samples at
+margin; ``numpy.random.default_rng(seed)``), each draw with a probability in proportion to the
+leaf's volume (with replacement, so that every share below is a share of the volume, whatever the
+leaves' sizes; ``--weight count``: every leaf alike, without replacement), and samples at
 each leaf's centre
 
 * the regression's clearance along [0, T] at 401 times (analytic distance, the certifiable
@@ -41,6 +42,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--map", default=None, help="region map (default: the one beside the coefficients)")
     parser.add_argument("--n", type=int, default=600, help="leaves drawn [count] (default: 600)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the draw [integer >= 0] (default: 0)")
+    parser.add_argument(
+        "--weight",
+        choices=("volume", "count"),
+        default="volume",
+        help="draw leaves by their volume (with replacement) or alike (default: volume)",
+    )
     args = parser.parse_args(argv)
     if args.n < 1 or args.seed < 0:
         parser.error(f"--n {args.n} and --seed {args.seed}: expected --n >= 1 and --seed >= 0")
@@ -67,8 +74,11 @@ def main(argv: list[str] | None = None) -> int:
     if below.size == 0:
         print("no leaf below the margin that is not proven infeasible")
         return 0
-    weight = volume[below] / volume[below].sum()
-    drawn = np.sort(np.random.default_rng(args.seed).choice(below, args.n, replace=True, p=weight))
+    rng = np.random.default_rng(args.seed)
+    if args.weight == "volume":
+        drawn = np.sort(rng.choice(below, args.n, replace=True, p=volume[below] / volume[below].sum()))
+    else:
+        drawn = np.sort(rng.choice(below, min(args.n, below.size), replace=False))
     centres = region_map.leaf_centres_m()[drawn]
     b = np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
     s = np.linspace(0.0, 1.0, SAMPLES_S)
