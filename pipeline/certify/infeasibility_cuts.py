@@ -77,17 +77,22 @@ def _face_room(
         point = corner.copy()
         for axis, end in zip(others, ends, strict=True):
             point[:, axis] += end * part_r[:, axis]
-        sampled = end_pose_room_m(
-            model,
-            point[:, 0],
-            point[:, 1],
-            tolerance_m,
-            rings=_ROOM_RINGS,
-            angles=_ROOM_ANGLES,
-            **model.obstacle_moves(point),
-        )
-        room = np.maximum(room, sampled)
+        room = np.maximum(room, _sampled_room(model, point, tolerance_m))
     return room
+
+
+def _sampled_room(model: RangeModel, point_m: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """The end poses' sampled room [m] at points (n, k) of the axes (``end_pose_room_m`` with this
+    module's rings and angles, the obstacle moved by x and d where they are axes)."""
+    return end_pose_room_m(
+        model,
+        point_m[:, 0],
+        point_m[:, 1],
+        tolerance_m,
+        rings=_ROOM_RINGS,
+        angles=_ROOM_ANGLES,
+        **model.obstacle_moves(point_m),
+    )
 
 
 def _lowest_short(
@@ -162,21 +167,9 @@ def tilt_axes(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray, tol
     others = [axis for axis in range(model.k) if axis != 1]
     change = np.zeros((center.shape[0], len(others)))
     for column, axis in enumerate(others):
-        rooms = []
-        for sign in (-1.0, 1.0):
-            point = center.copy()
-            point[:, axis] += sign * radius[:, axis]
-            rooms.append(
-                end_pose_room_m(
-                    model,
-                    point[:, 0],
-                    point[:, 1],
-                    tolerance_m,
-                    rings=_ROOM_RINGS,
-                    angles=_ROOM_ANGLES,
-                    **model.obstacle_moves(point),
-                )
-            )
+        step = np.zeros_like(center)
+        step[:, axis] = radius[:, axis]
+        rooms = [_sampled_room(model, center + sign * step, tolerance_m) for sign in (-1.0, 1.0)]
         change[:, column] = np.abs(rooms[1] - rooms[0])
     return np.asarray(others, dtype=np.int64)[np.argmax(change, axis=1)]
 
