@@ -826,7 +826,7 @@ def split_strips(
         settings.max_depth_s,
         settings.second_order,
         progress=progress,
-        stage=PROGRESS_STAGES[4],
+        stage=PROGRESS_STAGES[5],
     )
     s_bound, s_endpoint, s_upper = np.concatenate(parts).T
     keep = ~rows

@@ -7,13 +7,14 @@ obstacle, analytic distance and Coal)."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 import pytest
 
 from pipeline import load_coefficients
 from pipeline.certify.clearance_cuts import coarsest_axes
-from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
+from pipeline.certify.range_certificate import PROGRESS_STAGES, RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import STATUSES, RegionMap, region_map_text
 from pipeline.exceptions import InvalidParameterError
 from pipeline.geometry.clearance import COAL_DISTANCE_ERROR_M, CoalClearance, analytic_link_clearance
@@ -94,6 +95,22 @@ def test_the_cuts_give_the_same_bytes_on_two_workers(eq9_xd: Coefficients) -> No
     config = dataclasses.replace(COARSE, clearance_cuts=4, infeasibility_cuts=5, tilt_cuts=1)
     one, two = (region_map_text(certify_range(eq9_xd, dataclasses.replace(config, jobs=jobs))) for jobs in (1, 2))
     assert one == two
+
+
+def test_the_cuts_report_their_progress_once_each_in_order(eq9_xd: Coefficients) -> None:
+    """Over the rounds each cut stage is reported as one run, from 0 up to its total (which grows by
+    each round's leaves), in the order of PROGRESS_STAGES."""
+    calls: list[tuple[str, int, int]] = []
+    config = dataclasses.replace(COARSE, clearance_cuts=4, infeasibility_cuts=5, tilt_cuts=1)
+    certify_range(eq9_xd, config, progress=lambda *call: calls.append(call))
+    stages = [stage for stage, _, _ in calls]
+    runs = [stage for k, stage in enumerate(stages) if k == 0 or stages[k - 1] != stage]
+    assert runs == sorted(set(runs), key=PROGRESS_STAGES.index)
+    assert {"range map: W cuts", "range map: clearance cuts"} <= set(runs)
+    for stage in runs:
+        mine = [(done, total) for name, done, total in calls if name == stage]
+        assert mine[0][0] == 0 and mine[-1][0] == mine[-1][1] > 0
+        assert all(b[0] >= a[0] and b[1] >= a[1] for a, b in itertools.pairwise(mine))
 
 
 def test_the_setting_is_checked() -> None:
