@@ -28,6 +28,12 @@ proven:
   [0, j) and [j, 2^E) in units of 2^-E of the cell's W interval, each a union of at most E
   dyadic intervals (``dyadic_pieces``). Every piece keeps its cell's clearance and endpoint bounds
   (valid over a subset); the pieces of the upper part get the part's infeasibility bound.
+* Across the contour's tilt (``range_certificate.cut_at_infeasibility``): over (L, W, x, d) the
+  room depends on the near edge d - W, so inside a cell the contour moves along W as d changes,
+  and the part above the lowest level proven leaves a wedge below it unproven. A cell the contour
+  crosses is halved first along the axis other than W across which the sampled room changes most
+  (:func:`tilt_axes`, a choice of work), each half searched as above; a half keeps its cell's
+  clearance, endpoint and infeasibility bounds (valid over a subset).
 """
 
 from __future__ import annotations
