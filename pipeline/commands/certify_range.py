@@ -115,6 +115,18 @@ def _add_cell_options(p: argparse.ArgumentParser) -> None:
         "intersected with the second-order Taylor form (default: mean-value over (L, W), second-order over more axes)",
     )
     p.add_argument(
+        "--boundary-cell",
+        type=_fraction,
+        default=None,
+        help="cell size to which regions that miss the margin are resolved, fraction of the side [-] "
+        f"(default: {DEFAULT_BOUNDARY_CELL})",
+    )
+
+
+def _add_cut_options(p: argparse.ArgumentParser) -> None:
+    """The options that cut the smallest cells further where the map misses the margin: strips along
+    W, cuts at the infeasibility contour and across its tilt, cuts for the clearance."""
+    p.add_argument(
         "--strip-split",
         type=count_argument,
         default=None,
@@ -153,13 +165,6 @@ def _add_cell_options(p: argparse.ArgumentParser) -> None:
         "coarsest axis, R rounds, each half bounded on its own (pipeline.certify.clearance_cuts), 0..8 [count] "
         f"(default: {DEFAULT_CLEARANCE_CUTS[2]} over (L, W), {DEFAULT_CLEARANCE_CUTS[3]} over (L, W, x), "
         f"{DEFAULT_CLEARANCE_CUTS[4]} over (L, W, x, d))",
-    )
-    p.add_argument(
-        "--boundary-cell",
-        type=_fraction,
-        default=None,
-        help="cell size to which regions that miss the margin are resolved, fraction of the side [-] "
-        f"(default: {DEFAULT_BOUNDARY_CELL})",
     )
 
 
@@ -224,6 +229,7 @@ def parser() -> argparse.ArgumentParser:
         help="seed of the witness searches' restarts (numpy.random.default_rng) [integer >= 0] (default: 0)",
     )
     _add_cell_options(p)
+    _add_cut_options(p)
     add_progress_argument(p)
     return p
 
