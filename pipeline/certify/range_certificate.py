@@ -324,6 +324,15 @@ PROGRESS_STAGES = (
     "range map: clearance cuts",
     "range map: strips",
 )
+#: Each stage's name, read by name where it is reported (an index shifts when a stage is inserted).
+(
+    _STAGE_SEARCH,
+    _STAGE_REFINE,
+    _STAGE_SUB_CELLS,
+    _STAGE_W_CUTS,
+    _STAGE_CLEARANCE_CUTS,
+    _STAGE_STRIPS,
+) = PROGRESS_STAGES
 
 
 def _no_progress(_stage: str, _done: int, _total: int) -> None:
@@ -387,7 +396,7 @@ def run_search(
     roots = initial_roots(model.k, settings.initial_depth_lw)
     stripe = np.sum(roots[:, 1:], axis=1) % _SEARCH_GROUPS
     groups = [roots[stripe == k] for k in range(_SEARCH_GROUPS) if np.any(stripe == k)]
-    on_done = _counted(progress, PROGRESS_STAGES[0], [1] * len(groups))
+    on_done = _counted(progress, _STAGE_SEARCH, [1] * len(groups))
     parts = _run_tasks(search, [(model, settings, group) for group in groups], jobs, on_done)
     fields = ("levels", "index", "bound_m", "center_clearance_m")
     merged = {f: np.concatenate([getattr(p, f) for p in parts]) for f in fields}
@@ -452,9 +461,9 @@ def sub_cell_bounds(
     out = np.full(c.shape[0], np.inf)
     todo = np.flatnonzero(~_witnessed(model, c, r, settings))
     if progress is not None and c.shape[0]:
-        progress(PROGRESS_STAGES[2], 0, c.shape[0])
+        progress(_STAGE_SUB_CELLS, 0, c.shape[0])
         if todo.size == 0:
-            progress(PROGRESS_STAGES[2], c.shape[0], c.shape[0])
+            progress(_STAGE_SUB_CELLS, c.shape[0], c.shape[0])
     if todo.size == 0:
         return out
     parts = _in_chunks(
@@ -466,7 +475,7 @@ def sub_cell_bounds(
         settings.endpoint_tolerance_m,
         settings.margin_m,
         progress=progress,
-        stage=PROGRESS_STAGES[2],
+        stage=_STAGE_SUB_CELLS,
         before=c.shape[0] - todo.size,  # the witnessed cells: done
     )
     out[todo] = np.concatenate(parts)
@@ -594,7 +603,7 @@ def refine_leaves(
                 margin_m,
                 settings.second_order,
                 progress=progress,
-                stage=PROGRESS_STAGES[1],
+                stage=_STAGE_REFINE,
                 before=bounded,
             )
             columns = np.concatenate(parts)
@@ -679,7 +688,7 @@ def cut_at_infeasibility(
                 settings.endpoint_tolerance_m,
                 margin_m,
                 progress=progress,
-                stage=PROGRESS_STAGES[3],
+                stage=_STAGE_W_CUTS,
                 before=searched,
             )
         )
@@ -763,7 +772,7 @@ def cut_for_clearance(
                 settings.max_depth_s,
                 settings.second_order,
                 progress=progress,
-                stage=PROGRESS_STAGES[4],
+                stage=_STAGE_CLEARANCE_CUTS,
                 before=bounded,
             )
         )
@@ -826,7 +835,7 @@ def split_strips(
         settings.max_depth_s,
         settings.second_order,
         progress=progress,
-        stage=PROGRESS_STAGES[5],
+        stage=_STAGE_STRIPS,
     )
     s_bound, s_endpoint, s_upper = np.concatenate(parts).T
     keep = ~rows
