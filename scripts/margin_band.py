@@ -19,6 +19,10 @@ in which: the regression's sampled clearance keeps the margin (finer cells could
 end poses leave less than the margin (infeasible, not proven at this cell size); the end poses
 leave at least the margin + 0.1 mm and the regression's clearance is below the margin (the
 regression's share); the rest (room within 0.1 mm above the margin).
+Of the leaves of the first class it samples the 3^k grid of corners, edge and face midpoints
+too: the share the margin's contour crosses (a grid point below the margin: no proof of the
+whole leaf exists, only of a part), and how far the leaf's clearance bound lies below the grid's
+lowest sampled clearance (the bound's gap, where the contour does not decide).
 
 ``--uniform N`` needs no map: it samples N points uniformly in the coefficients' fitted box
 (the same seed) and prints the same classes as shares of the box, with the regression's own cap
@@ -148,7 +152,30 @@ def _leaves(coefficients, region_map, n: int, seed: int, weight: str) -> int:
         f"  W of the drawn leaves' centres: {centres[:, 1].min():.5f} .. {centres[:, 1].max():.5f} m; "
         f"sampled clearance {1e3 * lowest.min():.3f} .. {1e3 * lowest.max():.3f} mm"
     )
+    kept = lowest >= region_map.margin_m
+    if np.any(kept):
+        _crossed(coefficients, region_map, drawn[kept], centres[kept])
     return 0
+
+
+def _crossed(coefficients, region_map, leaves: np.ndarray, centres: np.ndarray) -> None:
+    """Of ``leaves`` whose centre keeps the margin: the share the margin's contour crosses (a point
+    of the 3^k grid of corners, edge and face midpoints below it), and how far the bound lies below
+    the grid's lowest sampled clearance."""
+    import itertools
+
+    k = centres.shape[1]
+    half = region_map.leaf_sizes_m()[leaves] / 2
+    grid = np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=k)))
+    points = (centres[:, None, :] + grid[None] * half[:, None, :]).reshape(-1, k)
+    lowest = _lowest_and_room(coefficients, points, region_map.endpoint_tolerance_m)[0].reshape(len(leaves), -1)
+    crossed = lowest.min(axis=1) < region_map.margin_m
+    gap_mm = 1e3 * (lowest.min(axis=1) - region_map.clearance_bound_m[leaves])
+    print(
+        f"  of the drawn leaves whose centre keeps the margin, {100 * np.mean(crossed):.1f} % are crossed by the "
+        f"margin's contour (a point of their 3^{k} grid below it); the grid's lowest sampled clearance lies "
+        f"{np.median(gap_mm):.3f} mm (median; {gap_mm.min():.3f} .. {gap_mm.max():.3f}) above the leaf's bound"
+    )
 
 
 def _uniform(coefficients, n: int, seed: int) -> int:

@@ -92,10 +92,12 @@ _DEFAULT_FEASIBLE_SLACK_M = 0.0
 #: of tolerance there), so less headroom lets the refit keep the margin closer to the
 #: infeasibility contour; but the errors between the 21 x 21 grid points must stay within the
 #: tolerance for the range certificate to prove it, which 0.005 does and 0.0025 does not. Over
-#: (L, W, x) and (L, W, x, d) the first fit's (``K_ENDPOINT_HEADROOM``): over (L, W, x, d) a refit
-#: at 0.1 keeps the margin on 90.24 % of the box against 90.14 %, but its endpoint bound exceeds
-#: the tolerance on 1.20 % of the box (up to 2.195 mm) at the map's smallest cells (1/32).
-REFIT_ENDPOINT_HEADROOM: Mapping[int, float] = MappingProxyType({2: 0.005, 3: 0.05, 4: 0.35})
+#: (L, W, x) the first fit's (``K_ENDPOINT_HEADROOM``). Over (L, W, x, d), 0.2: the default
+#: map still proves every endpoint within the tolerance on its cells of 1/32, and the margin
+#: gains where the end poses' room lies between the margin at 1.3 mm and at 2 mm of tolerance
+#: (0.35, the first fit's, cost the margin there); at 0.1 the endpoint bound exceeds the
+#: tolerance on 1.20 % of the box (up to 2.195 mm) at those cells (docs/results.md).
+REFIT_ENDPOINT_HEADROOM: Mapping[int, float] = MappingProxyType({2: 0.005, 3: 0.05, 4: 0.2})
 
 
 #: If a refit does not converge, it is tried again without the points whose end poses keep less

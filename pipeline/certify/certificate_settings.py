@@ -35,7 +35,7 @@ class CertificateSettings:
         tilt_cuts: Halvings of a leaf the infeasibility contour crosses, along the axis that tilts
             the contour across it, before it is cut along W (0: none).
         clearance_cuts: Rounds of halving the leaves that miss the margin where their boxes'
-            centres keep it (0: none; ``pipeline.certify.clearance_cuts``).
+            centres keep it, along their steepest axis (0: none; ``pipeline.certify.clearance_cuts``).
         second_order: Bound the clearance and the endpoint errors by the tighter of the
             mean-value and the second-order Taylor forms (``pipeline.certify.clearance_bound``,
             ``pipeline.certify.endpoints``); False: the mean-value form.

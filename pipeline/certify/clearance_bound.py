@@ -89,6 +89,7 @@ __all__ = [
     "BoxBounds",
     "box_clearance_bounds",
     "obstacle_motion_m",
+    "point_clearance_m",
     "tightened_lower_m",
 ]
 
@@ -250,6 +251,21 @@ def box_clearance_bounds(
         split_s=_split_s(model, box, radius, hausdorff),
         axis_gap_m=_axis_gaps(model, box, radius),
     )
+
+
+def point_clearance_m(model: RangeModel, points: np.ndarray) -> np.ndarray:
+    """The analytic clearance of both links (the smaller) at points (N, k + 1) of (v, s) (the axes
+    [m], then s [-]) [m], (N,): the value :func:`box_clearance_bounds` reports at a box centre."""
+    points = np.asarray(points, dtype=float)
+    point = _geometry(model, points, np.zeros_like(points))
+    rect = _core_rectangle(model, points)
+    values = np.empty((points.shape[0], 2))
+    for k in (0, 1):
+        pa, pb = point["links"][k]
+        a = np.stack([pa[0].value.mid, pa[1].value.mid], -1)
+        b = np.stack([pb[0].value.mid, pb[1].value.mid], -1)
+        values[:, k] = segment_rectangle_distance(a, b, *rect) - model.link_radii_m[k]
+    return np.min(values, axis=1) - model.scene.corner_radius_m
 
 
 def tightened_lower_m(

@@ -1,17 +1,20 @@
-"""Cuts of the leaves that miss the margin where the clearance keeps it: each halved along its
-coarsest axis and its halves bounded on their own, a few rounds, where the bound's gap, not the
-clearance, keeps the leaf below the margin.
+"""Cuts of the leaves that miss the margin where the clearance keeps it: each halved along the
+axis across which the clearance changes most and its halves bounded on their own, a few rounds,
+where the margin's contour crosses the leaf or the bound's gap keeps it below the margin.
 
 A leaf certified collision-free below the margin and not proven infeasible whose search found
 the clearance at the centres of its boxes at or above the margin
-(``SearchLeaves.center_clearance_m``) most likely keeps the margin all over: what it misses is
-the bound's gap. Over four axes the search stops at cubes of 1/32, where the second-order form's
-gap below the clearance is a few millimetres, and the cubes it leaves below the margin this way
-are about half of the volume below the margin (``python scripts/margin_band.py``). A cut of every
-axis is 2^k halves; a cut of one axis at a time, kept only where a half is still open, is the
-interval subpaving's way (SIVIA): each round halves every open leaf along its coarsest axis (its
-lowest level, the first such axis: k rounds halve every axis once) and bounds each half over all
-of s by the strips' branch and bound over s
+(``SearchLeaves.center_clearance_m``) keeps the margin over part of it at least. Over four axes
+the search stops at cubes of 1/32, and most such cubes are crossed by the margin's contour: the
+clearance sampled at their corners falls below the margin in nine of ten, while the bound lies a
+few hundredths of a millimetre under the sampled minimum (``python scripts/margin_band.py``).
+What recovers their part above the contour is a cut across it: a cut of every axis is 2^k
+halves; a cut of one axis at a time, kept only where a half is still open, is the interval
+subpaving's way (SIVIA). Each round halves every open leaf along its **steepest axis**
+(:func:`steepest_axes`): the axis along which the regression's clearance, at the time s* of its
+lowest sampled value at the leaf's centre, changes most between the leaf's two faces across it
+(the contour's normal leans most towards that axis, so that cut leaves the largest part of a half
+on one side of it), and bounds each half over all of s by the strips' branch and bound over s
 (:func:`pipeline.certify.strip_split.cell_clearance_bounds`, in the settings' bound form). A half
 is closed once its bound reaches the margin, or once the clearance at the centre of one of its
 boxes is below the margin (a value the clearance takes in it: no cut proves the margin all over
@@ -21,24 +24,43 @@ it); the others are cut again in the next round.
 over the whole leaf, so over a part of it) and gets the larger of its leaf's clearance bound and
 its own: both are lower bounds on the clearance over the half times all of s (the leaf's holds
 over the whole leaf; the half's, by ``clearance_bound``'s derivation, over the boxes that cover
-the half times [0, 1]). Which leaves are cut, along which axis and for how many rounds is a choice
-of work: any choice keeps every bound valid.
+the half times [0, 1]). Which leaves are cut, along which axis (the sampled clearance that picks
+it proves nothing and need not) and for how many rounds is a choice of work: any choice keeps
+every bound valid.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from pipeline.certify.clearance_bound import point_clearance_m
 from pipeline.certify.range_model import RangeModel
 from pipeline.certify.strip_split import cell_clearance_bounds
 
-__all__ = ["coarsest_axes", "half_clearance_bounds"]
+__all__ = ["half_clearance_bounds", "steepest_axes"]
+
+#: Times s sampled at a leaf's centre for the one, s*, at which its clearance is lowest.
+STEEPEST_SAMPLES_S = 33
 
 
-def coarsest_axes(levels: np.ndarray) -> np.ndarray:
-    """Per leaf (levels (n, k)), the axis to halve it along: its coarsest (lowest level), the
-    first such axis on a tie (module docstring)."""
-    return np.argmin(np.asarray(levels), axis=1)
+def steepest_axes(model: RangeModel, center_m: np.ndarray, radius_m: np.ndarray) -> np.ndarray:
+    """Per leaf (centres, half widths (n, k) [m]), the axis to halve it along: the one along which
+    the clearance at s* (the lowest of :data:`STEEPEST_SAMPLES_S` times at the centre) differs most
+    between the leaf's two faces across it, the first such axis on a tie (module docstring)."""
+    center = np.asarray(center_m, dtype=float).reshape(-1, model.k)
+    radius = np.asarray(radius_m, dtype=float).reshape(center.shape)
+    n, k = center.shape
+    s = np.linspace(0.0, 1.0, STEEPEST_SAMPLES_S)
+    at_centre = point_clearance_m(model, np.column_stack([np.repeat(center, s.size, axis=0), np.tile(s, n)]))
+    s_star = s[np.argmin(at_centre.reshape(n, s.size), axis=1)]
+    change = np.empty((n, k))
+    for axis in range(k):
+        ends = [center.copy(), center.copy()]
+        ends[0][:, axis] -= radius[:, axis]
+        ends[1][:, axis] += radius[:, axis]
+        low, high = (point_clearance_m(model, np.column_stack([end, s_star])) for end in ends)
+        change[:, axis] = np.abs(high - low)
+    return np.argmax(np.nan_to_num(change, nan=-1.0), axis=1)
 
 
 def half_clearance_bounds(

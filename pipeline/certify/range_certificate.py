@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.certify.certificate_settings import CertificateSettings
-from pipeline.certify.clearance_cuts import coarsest_axes, half_clearance_bounds
+from pipeline.certify.clearance_cuts import half_clearance_bounds, steepest_axes
 from pipeline.certify.end_pose_room import end_pose_room_m
 from pipeline.certify.endpoints import (
     endpoint_bounds_and_shares,
@@ -190,7 +190,7 @@ class RangeCertificateConfig:
             the contour across it (``infeasibility_cuts.tilt_axes``), before its cut along W, each
             half cut on its own (0: none; with ``infeasibility_cuts`` only).
         clearance_cuts: Rounds of halving the leaves that miss the margin where their boxes'
-            centres keep it, along their coarsest axis, each half bounded on its own (0: none;
+            centres keep it, along their steepest axis, each half bounded on its own (0: none;
             ``pipeline.certify.clearance_cuts``).
         merge_spread_m: Sibling leaves of one status whose clearance bounds, and endpoint bounds,
             differ by at most this are stored as their parent [m] (``pipeline.certify.leaf_merge``;
@@ -743,7 +743,7 @@ def cut_for_clearance(
     progress: ProgressCallback | None = None,
 ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Halve the leaves below the margin, not proven infeasible, whose boxes' centres keep the
-    margin, along their coarsest axis, for ``settings.clearance_cuts`` rounds, each half bounded on
+    margin, along their steepest axis, for ``settings.clearance_cuts`` rounds, each half bounded on
     its own (``pipeline.certify.clearance_cuts``, which derives why that is sound). ``leaves`` =
     [levels (n, k), index (n, k), clearance bound, centre clearance, *further columns the halves
     inherit]; returns the leaves (the same columns; a half's centre clearance is its leaf's, or
@@ -758,7 +758,9 @@ def cut_for_clearance(
         count = int(np.count_nonzero(rows))
         if count == 0:
             break
-        arrays = _split(arrays, rows, coarsest_axes(arrays[0][rows]))
+        c, r = cell_boxes(model, arrays[0][rows], arrays[1][rows])
+        axes = np.concatenate(_in_chunks(steepest_axes, _HALF_CHUNK, settings.run_on, model, (c, r)))
+        arrays = _split(arrays, rows, axes)
         halves = slice(arrays[0].shape[0] - 2 * count, None)
         c, r = cell_boxes(model, arrays[0][halves], arrays[1][halves])
         found = np.concatenate(

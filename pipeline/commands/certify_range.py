@@ -162,7 +162,7 @@ def _add_cut_options(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="R",
         help="halve the leaves that miss the margin where the clearance at their boxes' centres keeps it along their "
-        "coarsest axis, R rounds, each half bounded on its own (pipeline.certify.clearance_cuts), 0..8 [count] "
+        "steepest axis, R rounds, each half bounded on its own (pipeline.certify.clearance_cuts), 0..8 [count] "
         f"(default: {DEFAULT_CLEARANCE_CUTS[2]} over (L, W), {DEFAULT_CLEARANCE_CUTS[3]} over (L, W, x), "
         f"{DEFAULT_CLEARANCE_CUTS[4]} over (L, W, x, d))",
     )
