@@ -90,19 +90,25 @@ def main(argv: list[str] | None = None) -> int:
     return _leaves(coefficients, region_map, args.n, args.seed, args.weight)
 
 
-def _lowest_and_room(coefficients, points: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """The regression's lowest sampled clearance along [0, T] [m] and the end poses' sampled room
-    at ``tolerance_m`` [m], per row of ``points`` (n, k: the coefficients' variables [m])."""
+def _lowest(coefficients, points: np.ndarray) -> np.ndarray:
+    """The regression's lowest sampled clearance along [0, T] [m] per row of ``points`` (n, k: the
+    coefficients' variables [m])."""
     from pipeline.certify.certifiable_regression import clearance_at, clearance_grid
-    from pipeline.certify.end_pose_room import end_pose_room_m
     from pipeline.motion.trajectory import PARAMETER_NAMES
 
     b = np.stack([coefficients.parameters[name] for name in PARAMETER_NAMES], -1).ravel()
     s = np.linspace(0.0, 1.0, SAMPLES_S)
     chunks = np.array_split(points, max(1, len(points) // 2000))  # memory: 401 samples per point
-    lowest = np.concatenate(
+    return np.concatenate(
         [clearance_at(b, clearance_grid(coefficients, c, s), coefficients).reshape(len(c), -1).min(1) for c in chunks]
     )
+
+
+def _lowest_and_room(coefficients, points: np.ndarray, tolerance_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_lowest` and the end poses' sampled room at ``tolerance_m`` [m], per row of ``points``."""
+    from pipeline.certify.end_pose_room import end_pose_room_m
+
+    lowest = _lowest(coefficients, points)
     names = coefficients.variables.names
     x = points[:, names.index("x")] if "x" in names else None
     d = points[:, names.index("d")] if "d" in names else None
@@ -168,7 +174,7 @@ def _crossed(coefficients, region_map, leaves: np.ndarray, centres: np.ndarray) 
     half = region_map.leaf_sizes_m()[leaves] / 2
     grid = np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=k)))
     points = (centres[:, None, :] + grid[None] * half[:, None, :]).reshape(-1, k)
-    lowest = _lowest_and_room(coefficients, points, region_map.endpoint_tolerance_m)[0].reshape(len(leaves), -1)
+    lowest = _lowest(coefficients, points).reshape(len(leaves), -1)
     crossed = lowest.min(axis=1) < region_map.margin_m
     gap_mm = 1e3 * (lowest.min(axis=1) - region_map.clearance_bound_m[leaves])
     print(

@@ -229,13 +229,10 @@ def box_clearance_bounds(
         None if d_col is None else radius[:, d_col],
     )
     link_lower = np.empty((center.shape[0], 2))
-    centre_values = np.empty((center.shape[0], 2))
+    segments, centre_values = _centre_clearances(model, point, rect)
     for k in (0, 1):
-        pa, pb = point["links"][k]
-        a_c = np.stack([pa[0].value.mid, pa[1].value.mid], -1)
-        b_c = np.stack([pb[0].value.mid, pb[1].value.mid], -1)
-        clearance_c = segment_rectangle_distance(a_c, b_c, *rect) - model.link_radii_m[k] - r_corner
-        centre_values[:, k] = clearance_c
+        a_c, b_c = segments[k]
+        clearance_c = centre_values[:, k]
         inflate = model.link_radii_m[k] + r_corner
         bound_a = _separating_direction_bound(point, box, k, (a_c, b_c), rect, radius) - inflate
         bound_b = _supporting_line_bound(point, box, k, radius) - inflate
@@ -258,14 +255,20 @@ def point_clearance_m(model: RangeModel, points: np.ndarray) -> np.ndarray:
     [m], then s [-]) [m], (N,): the value :func:`box_clearance_bounds` reports at a box centre."""
     points = np.asarray(points, dtype=float)
     point = _geometry(model, points, np.zeros_like(points))
-    rect = _core_rectangle(model, points)
-    values = np.empty((points.shape[0], 2))
+    return np.min(_centre_clearances(model, point, _core_rectangle(model, points))[1], axis=1)
+
+
+def _centre_clearances(model: RangeModel, point: dict, rect: tuple) -> tuple[list, np.ndarray]:
+    """Per link, its segment (a, b) at the points of ``point`` (the geometry of zero-width boxes)
+    and its analytic clearance there [m], (N, 2), against the core rectangle ``rect``."""
+    segments, values = [], np.empty((rect[0].shape[0], 2))
     for k in (0, 1):
         pa, pb = point["links"][k]
         a = np.stack([pa[0].value.mid, pa[1].value.mid], -1)
         b = np.stack([pb[0].value.mid, pb[1].value.mid], -1)
-        values[:, k] = segment_rectangle_distance(a, b, *rect) - model.link_radii_m[k]
-    return np.min(values, axis=1) - model.scene.corner_radius_m
+        segments.append((a, b))
+        values[:, k] = segment_rectangle_distance(a, b, *rect) - model.link_radii_m[k] - model.scene.corner_radius_m
+    return segments, values
 
 
 def tightened_lower_m(

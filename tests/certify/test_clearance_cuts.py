@@ -82,24 +82,26 @@ def test_cuts_raise_the_margin_and_change_nothing_else(maps: tuple[RegionMap, Re
     assert int(cut.subpaving.levels.max()) <= 2 + 4  # 4 rounds: one axis halved up to 4 times
 
 
-def _clearance_along(coefficients: Coefficients, arm: PlanarArm, point: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Analytic clearance [m] of both links (the smaller) at each s = t / T at the point (L, W, x, d),
-    from the definitions."""
+def _motion(coefficients: Coefficients, point: np.ndarray) -> tuple[JointTrajectory, Obstacle]:
+    """The regression's trajectory at the point (L, W, x, d) and the obstacle it moves, from the
+    definitions (the regression at the point, the moved path's T, the moved obstacle)."""
     L, W, x, d = (float(v) for v in point)
     scene = dataclasses.replace(coefficients.scene, centre_x_m=x, top_y_m=d)
     obstacle = Obstacle.in_scene(L, W, scene)
     parameters = coefficients.family.expand(coefficients.predict_free(L, W, x=x, d=d), None)
     trajectory = JointTrajectory.trusted(tuple(float(p) for p in parameters), desired_path(obstacle, scene).duration_s)
+    return trajectory, obstacle
+
+
+def _clearance_along(coefficients: Coefficients, arm: PlanarArm, point: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Analytic clearance [m] of both links (the smaller) at each s = t / T at the point (L, W, x, d)."""
+    trajectory, obstacle = _motion(coefficients, point)
     return analytic_link_clearance(trajectory.q(s * trajectory.duration_s), arm, obstacle).min(axis=1)
 
 
 def _clearance(coefficients: Coefficients, arm: PlanarArm, point: np.ndarray, s: np.ndarray) -> tuple:
     """Analytic and Coal clearance of both links along s at the point (L, W, x, d)."""
-    L, W, x, d = (float(v) for v in point)
-    scene = dataclasses.replace(coefficients.scene, centre_x_m=x, top_y_m=d)
-    obstacle = Obstacle.in_scene(L, W, scene)
-    parameters = coefficients.family.expand(coefficients.predict_free(L, W, x=x, d=d), None)
-    trajectory = JointTrajectory.trusted(tuple(float(p) for p in parameters), desired_path(obstacle, scene).duration_s)
+    trajectory, obstacle = _motion(coefficients, point)
     q = trajectory.q(s * trajectory.duration_s)
     coal = CoalClearance(arm, obstacle)
     return analytic_link_clearance(q, arm, obstacle).min(), min(coal.link_clearance(row).min() for row in q)
