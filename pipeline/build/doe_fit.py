@@ -55,7 +55,7 @@ from pipeline.offline.experiment import ExperimentResult, SolverConfig, score_pa
 from pipeline.offline.fitness import FitnessProblem, fitness_problem
 from pipeline.offline.variables import SIZE
 
-__all__ = ["DOE_STAGE", "DoeFit", "check_before_work", "fit_doe", "fit_variables"]
+__all__ = ["DOE_STAGE", "DoeFit", "check_before_work", "fit_doe", "fit_variables", "grid_collisions"]
 
 #: Progress stage name of the DOE.
 DOE_STAGE = "DOE"
@@ -78,6 +78,10 @@ class DoeFit:
         paper_rows: The paper's Table 2 scored on our fitness (None unless the design and scene are the paper's).
         coefficients: The regressed coefficients (marked if the build did not converge).
         problems: What missed the convergence thresholds (empty: converged).
+        collision_grid: The grid on which the written coefficients' trajectories must not collide,
+            when that check waits for the certifiable regression (its coefficients are the ones
+            written; the first fit may cross an obstacle its constraints then move it off);
+            empty when the check ran on these coefficients.
         timing: The DOE's part of build_timing.json: the wall times [s] of its stages
             (``stages_s``: ``checks``, the checks before the work and of its results; ``doe``;
             ``regression``), per experiment, query counts.
@@ -91,6 +95,7 @@ class DoeFit:
     coefficients: Coefficients
     problems: tuple[ConvergenceProblem, ...]
     timing: dict
+    collision_grid: tuple[_GridGroup, ...] = ()
 
 
 def _run_problem(arm: PlanarArm, config: BuildConfig, values: dict[str, float]) -> FitnessProblem:
@@ -295,10 +300,10 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
     regression_s = time.perf_counter() - started
     started = time.perf_counter()
     problems += regression_problems(coefficients.extra["fit"])
-    for values, group in grid:
-        collisions = regression_collisions(lambda L, W, v=values: coefficients.predict_free(L, W, **v), group)
-        where = ", ".join(f"{name} = {value:.3f} m" for name, value in values.items())
-        problems += [replace(p, missed=f"at {where}: {p.missed}") if where else p for p in collisions]
+    collision_grid = tuple(grid)
+    if problems or not config.certifiable_refit:  # otherwise the refit's coefficients are written: checked after it
+        problems += grid_collisions(coefficients, collision_grid)
+        collision_grid = ()
     if problems:
         coefficients = coefficients.marked_unconverged(problems)
     checks_s += time.perf_counter() - started
@@ -306,7 +311,20 @@ def fit_doe(config: BuildConfig, arm: PlanarArm, progress: ProgressCallback | No
     timing = {"stages_s": stages, **_timing_document(results, config.execution.workers, design)}
     if config.execution.scheduler is not None:
         timing["scheduler"] = config.execution.scheduler
-    return DoeFit(tuple(results), document, doe_text, doe, paper_rows, coefficients, tuple(problems), timing)
+    return DoeFit(
+        tuple(results), document, doe_text, doe, paper_rows, coefficients, tuple(problems), timing, collision_grid
+    )
+
+
+def grid_collisions(coefficients: Coefficients, grid: tuple[_GridGroup, ...]) -> list[ConvergenceProblem]:
+    """The sampled collision check of ``coefficients`` on ``grid`` (:func:`check_before_work`'s
+    groups): one problem per group whose trajectories collide, naming the group's values."""
+    problems = []
+    for values, group in grid:
+        collisions = regression_collisions(lambda L, W, v=values: coefficients.predict_free(L, W, **v), group)
+        where = ", ".join(f"{name} = {value:.3f} m" for name, value in values.items())
+        problems += [replace(p, missed=f"at {where}: {p.missed}") if where else p for p in collisions]
+    return problems
 
 
 def _experiment_problems(

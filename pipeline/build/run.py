@@ -16,6 +16,11 @@ The output folder's parent must exist (a mistyped parent is refused, not created
 build runs it holds the folder's lock (:mod:`pipeline.io.folder_lock`): a second build into the
 same folder is refused before any work.
 
+Where the certifiable regression runs, its coefficients are the ones written, and the sampled
+check that the regressed trajectories do not collide (:mod:`pipeline.offline.convergence`) runs
+on them, after it: the first fit may cross an obstacle where an end pose is close to it, and the
+refit's clearance constraints move it off.
+
 A build whose results miss the convergence thresholds writes nothing and raises
 :class:`pipeline.exceptions.BuildNotConvergedError`, unless ``allow_unconverged``: then the
 DOE and coefficients are written, marked (``"converged": false`` and the reasons), without a
@@ -40,7 +45,7 @@ from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 from pipeline.build.config import OPTIONS, BuildConfig
-from pipeline.build.doe_fit import DoeFit, fit_doe
+from pipeline.build.doe_fit import DoeFit, fit_doe, grid_collisions
 from pipeline.build.range_stage import as_written, certify_coefficients
 from pipeline.certify.map_files import table_name
 from pipeline.certify.near_optimal_cells import cells_file_names
@@ -181,6 +186,16 @@ def _locked_build(config: BuildConfig, progress: ProgressCallback | None, starte
         coefficients, text = certified.coefficients, certified.text
         timing["stages_s"].update(certified.timing["stages_s"])
         timing.update({k: v for k, v in certified.timing.items() if k != "stages_s"})
+    problems = fit.problems + _written_collisions(fit, coefficients, timing)
+    if problems != fit.problems:  # the certifiable regression's coefficients collide
+        if not config.regression.allow_unconverged:
+            _close_timing(timing, started)
+            unwritten = BuildResult(
+                config, fit.experiments, fit.doe_document, fit.paper_rows, coefficients, problems, timing
+            )
+            raise BuildNotConvergedError(problems, unwritten)
+        coefficients, text = as_written(coefficients.marked_unconverged(problems), coefficients.source)
+        certified = None
     writing = time.perf_counter()
 
     def timing_text() -> str:  # called once the other files are staged: the writing is timed too
@@ -207,12 +222,23 @@ def _locked_build(config: BuildConfig, progress: ProgressCallback | None, starte
         fit.doe_document,
         fit.paper_rows,
         coefficients,
-        fit.problems,
+        problems,
         timing,
         None if certified is None else certified.region_map,
         None if certified is None else certified.refit_report,
         written,
     )
+
+
+def _written_collisions(fit: DoeFit, coefficients: Coefficients, timing: dict) -> tuple[ConvergenceProblem, ...]:
+    """The sampled collision check that waited for the certifiable regression (``fit.collision_grid``),
+    on the coefficients it gave; its time is added to the ``checks`` stage."""
+    if not fit.collision_grid:
+        return ()
+    started = time.perf_counter()
+    problems = tuple(grid_collisions(coefficients, fit.collision_grid))
+    timing["stages_s"]["checks"] += time.perf_counter() - started
+    return problems
 
 
 def _close_timing(timing: dict, started: float) -> None:

@@ -24,7 +24,10 @@ therefore judges its own results before it writes them:
   trajectory the coefficients give has a positive clearance at 1001 uniform times (a sampled
   check, the configured clearance route; ``python -m verify.sweep`` certifies it in continuous
   time). Holding the endpoints within 2 mm moves the optima, and where the end pose is close to
-  the obstacle it can move them into it.
+  the obstacle it can move them into it. Where the build runs the certifiable regression, the
+  check judges the coefficients it writes, the refit's, after it (:mod:`pipeline.build.run`):
+  over (L, W, x, d) in the arm's window of d the first fit crosses the obstacle near the window's
+  lower edge, and the refit's clearance constraints move it off.
 
 Before any of that, :func:`end_pose_collisions` finds obstacles of the range where the pose at P1
 or P5 itself collides (on the family's elbow branch): there no trajectory that ends at the

@@ -17,6 +17,8 @@ import pytest
 from pipeline import load_coefficients
 from pipeline.build import BuildConfig, run_build
 from pipeline.build import doe_fit as build_library
+from pipeline.build import run as build_run
+from pipeline.build.range_stage import CertifiedCoefficients
 from pipeline.commands import build, regress
 from pipeline.exceptions import (
     BuildNotConvergedError,
@@ -207,12 +209,11 @@ def test_allow_unconverged_writes_marked_files_that_warn(tiny: dict, tmp_path: P
     assert not coefficients.converged and coefficients.unconverged_reasons == tuple(reasons)
 
 
-def test_a_converged_build_carries_no_mark(tiny: dict, tmp_path: Path, monkeypatch) -> None:
-    """Optima that meet the thresholds (the paper's Table 2, whose Eq. 9 is collision-free over
-    the range) give a converged build: no mark, no warning (so the default build's files stay
-    byte-identical to those written before the check existed)."""
+def _table2_optima(tiny: dict) -> list[ExperimentResult]:
+    """The tiny build's experiments with the paper's Table 2 parameters, scored as meeting the
+    thresholds (Eq. 9, their regression, is collision-free over the range)."""
     table2 = load_doe(paper_data_path("paper_table2_doe.json")).parameters
-    good = [
+    return [
         dataclasses.replace(
             r,
             parameters=dict(zip(PARAMETER_NAMES, row, strict=True)),
@@ -223,6 +224,13 @@ def test_a_converged_build_carries_no_mark(tiny: dict, tmp_path: Path, monkeypat
         )
         for r, row in zip(tiny["result"].experiments, table2, strict=True)
     ]
+
+
+def test_a_converged_build_carries_no_mark(tiny: dict, tmp_path: Path, monkeypatch) -> None:
+    """Optima that meet the thresholds (the paper's Table 2, whose Eq. 9 is collision-free over
+    the range) give a converged build: no mark, no warning (so the default build's files stay
+    byte-identical to those written before the check existed)."""
+    good = _table2_optima(tiny)
     monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: good)
     result = run_build(BuildConfig.from_settings(out_folder=tmp_path, range_map=False, **TINY))  # the mark, not the map
     assert result.converged
@@ -247,6 +255,42 @@ def test_regressed_trajectories_that_collide_are_a_problem(arm) -> None:
     assert str(problem).startswith("regression: its trajectories collide at 9 of 9 grid obstacles")
     # Pointing away from the obstacle (down): no collision anywhere.
     assert regression_collisions(lambda L, W: upright * np.array([1, 1, 1, -1, 1, 1, 1, 1]), grid) == []
+
+
+def test_the_collision_check_judges_the_certifiable_regressions_coefficients(
+    tiny: dict, tmp_path: Path, monkeypatch
+) -> None:
+    """Where the certifiable regression runs, its coefficients are written, and the sampled
+    collision check waits for it and judges them: the first fit is not checked (an obstacle it
+    crosses is the refit's to move), and a refit whose trajectories collide is refused, naming
+    them, with nothing written; one that does not collide is written, converged."""
+    monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: _table2_optima(tiny))
+
+    def first_fit_checked(*args):
+        raise AssertionError("the first fit's trajectories were checked before the certifiable regression")
+
+    monkeypatch.setattr(build_library, "grid_collisions", first_fit_checked)
+    # theta1 = pi/2, theta2 = 0 throughout: the arm stands straight up through the obstacle.
+    upright = {name: (0.0,) * 6 for name in PARAMETER_NAMES}
+    upright.update(w1=(1.0,) + (0.0,) * 5, w2=(1.0,) + (0.0,) * 5, gamma1=(np.pi / 2,) + (0.0,) * 5)
+    refit = {}
+
+    def certified(config, doe, coefficients, text, arm, progress):
+        refit["first"] = coefficients
+        written = dataclasses.replace(coefficients, parameters=refit.get("parameters", coefficients.parameters))
+        return CertifiedCoefficients(written, text, None, {}, None, {"stages_s": {}})
+
+    monkeypatch.setattr(build_run, "certify_coefficients", certified)
+    config = BuildConfig.from_settings(out_folder=tmp_path / "out", **{**TINY, "endpoint_tolerance_m": 0.002})
+    assert config.certifiable_refit
+    refit["parameters"] = upright
+    with pytest.raises(BuildNotConvergedError, match=r"regression: its trajectories collide at 441 of 441") as info:
+        run_build(config)
+    assert info.value.result.coefficients.parameters == upright and not (tmp_path / "out").exists()
+    del refit["parameters"]  # the refit keeps the first fit, which Table 2's optima keep off the obstacle
+    result = run_build(config)
+    assert result.converged and result.coefficients.parameters == refit["first"].parameters
+    assert (tmp_path / "out" / "coefficients.json").exists()
 
 
 def test_a_range_whose_end_pose_collides_is_refused_before_any_work(arm) -> None:
