@@ -76,8 +76,9 @@ K_ENDPOINT_FTOL = 1e-9
 #: 2 mm on 100 % of the box (largest 2.000 mm) and, with a refit of 400 points per round and no
 #: strips, the margin holds on 98.60 % of it (98.51 % with 0.1, whose errors the fit holds at
 #: 1.8 mm; docs/results.md, "Over the obstacle's centre x").
-#: k = 4: 0.35; with 0.1 the first fit's trajectories collide on its check (down to -0.32 mm at
-#: x = 0.03 m, d = 0.55 m, L = 0.30 m, W = 0.12 m) and the build refuses. The certifiable
+#: k = 4: 0.35; with 0.1 the first fit over d in [0.55, 0.57] m collides on the sampled check
+#: (down to -0.32 mm at x = 0.03 m, d = 0.55 m, L = 0.30 m, W = 0.12 m), which refuses a build
+#: without the certifiable regression (with it, the check judges the refit). The certifiable
 #: regression's refit, whose clearance constraints keep it off the obstacle, has its own headroom
 #: (``pipeline.certify.certifiable_regression.REFIT_ENDPOINT_HEADROOM``).
 K_ENDPOINT_HEADROOM: Mapping[int, float] = MappingProxyType({3: 0.05, 4: 0.35})
