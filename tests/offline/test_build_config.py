@@ -263,7 +263,8 @@ def test_the_collision_check_judges_the_certifiable_regressions_coefficients(
     """Where the certifiable regression runs, its coefficients are written, and the sampled
     collision check waits for it and judges them: the first fit is not checked (an obstacle it
     crosses is the refit's to move), and a refit whose trajectories collide is refused, naming
-    them, with nothing written; one that does not collide is written, converged."""
+    them, with nothing written (with ``allow_unconverged``: written marked, without a map); one
+    that does not collide is written, converged."""
     monkeypatch.setattr(build_library, "run_doe", lambda *args, **kwargs: _table2_optima(tiny))
 
     def first_fit_checked(*args):
@@ -287,6 +288,11 @@ def test_the_collision_check_judges_the_certifiable_regressions_coefficients(
     with pytest.raises(BuildNotConvergedError, match=r"regression: its trajectories collide at 441 of 441") as info:
         run_build(config)
     assert info.value.result.coefficients.parameters == upright and not (tmp_path / "out").exists()
+    marked = run_build(config.with_settings(allow_unconverged=True))  # written marked, without a map
+    assert not marked.converged and marked.region_map is None
+    document = json.loads((tmp_path / "out" / "coefficients.json").read_text())
+    assert document["converged"] is False and "collide at 441 of 441" in document["unconverged_reasons"][0]
+    assert not (tmp_path / "out" / "region_map.json").exists()
     del refit["parameters"]  # the refit keeps the first fit, which Table 2's optima keep off the obstacle
     result = run_build(config)
     assert result.converged and result.coefficients.parameters == refit["first"].parameters
