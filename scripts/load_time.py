@@ -11,7 +11,9 @@ loads RESULTS, and asks for the trajectory at the centre of the fitted box
 asks the same query (what a running process pays for a map once the package has started); it
 reports the four wall times, ``resource.getrusage``'s peak resident size and which machine code
 answered (the extension module compiled with the package, or Numba's JIT: ``pipeline.native``).
-The script prints each run and the median of each column. A measurement, not part of the test
+The script prints each run and the median of each column. Python's bytecode cache should be in
+place (as after an install, or after one run without ``PYTHONDONTWRITEBYTECODE``): without it every
+import compiles its source, and the first load pays for it. A measurement, not part of the test
 suite.
 """
 
