@@ -462,7 +462,8 @@ def _print_summary(summary: dict, elapsed_s: float, jobs: int) -> None:
 
 def _write_cells(name: str, folder: str, jobs: int) -> str:
     """Make the near-optimal cells of limit set ``name`` and write them into ``folder``; their path."""
-    from pipeline.certify.near_optimal_cells import cells_files, near_optimal_cells
+    from pipeline.certify.cell_timings import near_optimal_cells
+    from pipeline.certify.near_optimal_cells import cells_files
 
     started = time.perf_counter()
     limits = _WORKER["limits"][name]

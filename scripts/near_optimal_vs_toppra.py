@@ -125,10 +125,10 @@ def _format_excess(value: float | None) -> str:
 
 def _map_ratios(coefficients, dynamics, limits, lengths, widths, peer, row) -> list[float]:
     """T'/T_TOPP-RA of the map's near-optimal timing, made for these limits: the cells holding the
-    obstacles (:func:`pipeline.certify.near_optimal_cells.near_optimal_cells`, only those cells),
+    obstacles (:func:`pipeline.certify.cell_timings.near_optimal_cells`, only those cells),
     each obstacle's T' the T' of its cell, on the paths TOPP-RA timed (the regression's answers)."""
     from pipeline import generate
-    from pipeline.certify.near_optimal_cells import near_optimal_cells
+    from pipeline.certify.cell_timings import near_optimal_cells
 
     points = np.column_stack([lengths, widths])
     probe = near_optimal_cells(coefficients, dynamics, limits, only=np.array([], dtype=np.int64))

@@ -293,7 +293,7 @@ class RangeMapSettings:
     Attributes:
         enabled: Certify the coefficients over their fitted range and write region_map.json.
         near_optimal_cells: Cells per axis of the map's near-optimal timings [count]
-            (:mod:`pipeline.certify.near_optimal_cells`); None: 64 over (L, W), 16 over three axes,
+            (:mod:`pipeline.certify.cell_timings`); None: 64 over (L, W), 16 over three axes,
             8 over four; 0: none.
     """
 

@@ -13,6 +13,7 @@ import time
 from dataclasses import dataclass, replace
 
 from pipeline.build.config import BuildConfig
+from pipeline.certify.cell_timings import near_optimal_cells
 from pipeline.certify.certifiable_regression import (
     REFIT_ENDPOINT_HEADROOM,
     REFIT_MIN_CELLS,
@@ -22,7 +23,7 @@ from pipeline.certify.certifiable_regression import (
 )
 from pipeline.certify.map_files import region_map_files
 from pipeline.certify.map_for_coefficients import default_config, with_execution_bounds
-from pipeline.certify.near_optimal_cells import cells_files, near_optimal_cells
+from pipeline.certify.near_optimal_cells import cells_files
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import RegionMap
 from pipeline.io.jsonio import dumps

@@ -1,24 +1,17 @@
-"""Near-optimal timings from the map: one certified timing per cell of a grid over the fitted range.
+"""Near-optimal timings from the map: one certified timing per cell of a grid over the fitted
+range, as a table with its files and its lookups.
 
-The near time-optimal timing (:mod:`pipeline.motion.near_optimal`) of one path costs about a
-millisecond. Over a small box of obstacles the regression's paths differ little, and in the
-normalised path time u = s / T they share one timing (:mod:`pipeline.motion.path_box`): the
-box's parameters and T are enclosed like a region map leaf's, with their gradients over the box
-and their values at its centre (:func:`pipeline.certify.execution_range.leaf_jets`), so that the
-path's derivatives are enclosed both in intervals and in the mean-value form; the profile is
-built on the box's worst-case constraints, and the execution certificate proves its bounds for
-every path of the box over all of [0, T'] in continuous time. The regression's answer and its T,
-as the online core computes them, lie in those enclosures (they carry their rounding bounds:
-:mod:`pipeline.certify.execution_range`).
-A query of the cell then executes ``T sigma``: its T' and its bounds are the cell's, read off a
-table (a lookup); its timing is rebuilt from the stored profile when the motion is asked for.
+The cells are certified by :mod:`pipeline.certify.cell_timings` (the build's step; its derivation
+is there): every path of a cell's box of obstacles shares the cell's timing in the normalised path
+time u = s / T, proven within the limits over all of [0, T'] in continuous time. A query of the
+cell then executes ``T sigma``: its T' and its bounds are the cell's, read off the table (a
+lookup); its timing is rebuilt from the stored profile when the motion is asked for. This module
+is what a loaded map needs, without the build's machinery.
 
 **The grid.** ``cells_per_axis`` equal cells per axis of the fitted box (any axes the
 coefficients vary), indexed in C order; a point on a shared face belongs to the cell above it,
-the fitted box's upper faces to the last cell. Each cell is enclosed 1e-9 of its side wider than
-it is, so that a point the lookup's floating-point arithmetic assigns to it lies in the box
-enclosed. A cell whose timing is not certified within the attempts holds NaN: its queries are
-timed per query.
+the fitted box's upper faces to the last cell. A cell whose timing is not certified holds NaN:
+its queries are timed per query.
 
 **Stored.** ``near_optimal_cells.json`` (format :data:`FORMAT`: the sha256 link to the
 coefficients, the axes, the fitted box, the grid, the limits and inertias the timings were made
@@ -32,29 +25,22 @@ same cells give the same bytes.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from types import MappingProxyType
 
 import numpy as np
 
 from pipeline.certify.execution_bounds import dynamics_json, limits_json
-from pipeline.certify.execution_range import LeafJets, leaf_jets
-from pipeline.certify.range_model import RangeModel
-from pipeline.exceptions import DataFileError, InvalidParameterError, TimingRefusedError
-from pipeline.io.executor import Executor, map_tasks
+from pipeline.exceptions import DataFileError, InvalidParameterError
 from pipeline.io.jsonio import dumps, read_json
 from pipeline.model.dynamics import PlanarDynamics
 from pipeline.model.limits import ArmLimits
 from pipeline.motion.execution_certificate import ExecutionCertificate
-from pipeline.motion.near_optimal import NearOptimalSettings, near_optimal_box_timing, profile_timing
-from pipeline.motion.path_box import PathBox, normalised_mean_value
+from pipeline.motion.near_optimal import NearOptimalSettings, profile_timing
 from pipeline.motion.smooth_timing import SmoothTiming
-from pipeline.offline.coefficients import Coefficients
 
 __all__ = [
     "CELLS_NAME",
@@ -63,21 +49,11 @@ __all__ = [
     "cells_file_names",
     "cells_files",
     "load_near_optimal_cells",
-    "near_optimal_cells",
+    "uncertified_rows",
 ]
 
 FORMAT = "twolink-near-optimal-cells/1"
 CELLS_NAME = "near_optimal_cells.json"
-#: Cells per axis by the number of axes (the table's size grows as its power).
-DEFAULT_CELLS_PER_AXIS = MappingProxyType({2: 64, 3: 16, 4: 8})
-#: Pieces of each cell's profile.
-DEFAULT_PIECES = NearOptimalSettings().pieces
-#: How each cell's timing is built by default.
-CELL_SETTINGS = NearOptimalSettings(pieces=DEFAULT_PIECES)
-_CHUNK = 128
-#: Each cell's box is enclosed this much wider (relative) than its side: a point the lookup's
-#: rounded arithmetic puts in the cell lies within the box enclosed.
-_FACE_SLACK = 1e-9
 
 
 def _limits_json(limits: ArmLimits) -> dict:
@@ -110,8 +86,9 @@ def _dtype(pieces: int) -> np.dtype:
     )
 
 
-def _uncertified(rows: int, pieces: int) -> np.ndarray:
-    """``rows`` table rows holding no certified timing (T' and the bounds NaN)."""
+def uncertified_rows(rows: int, pieces: int) -> np.ndarray:
+    """``rows`` table rows of profiles of ``pieces`` pieces holding no certified timing (T' and the
+    bounds NaN)."""
     table = np.zeros(rows, dtype=_dtype(pieces))
     table["duration_s"], table["bounds"] = np.nan, np.nan
     return table
@@ -244,99 +221,6 @@ class NearOptimalCells:
                 "pieces": self.settings.pieces,
             },
         }
-
-
-def _cell_box(jets: LeafJets, n: int, half_m: np.ndarray) -> PathBox | None:
-    """Cell n's box of paths with its mean-value form, or None where its enclosures are not finite."""
-    lower = np.array([p.lo[n] for p in jets.parameters])
-    upper = np.array([p.hi[n] for p in jets.parameters])
-    point = (np.array([p.lo[n] for p in jets.point]), np.array([p.hi[n] for p in jets.point]))
-    duration = (float(jets.duration.lo[n]), float(jets.duration.hi[n]))
-    point_T = (float(jets.point_duration.lo[n]), float(jets.point_duration.hi[n]))
-    gradient = (np.array([g.lo[n] for g in jets.gradients]), np.array([g.hi[n] for g in jets.gradients]))
-    finite = [lower, upper, *point, *gradient, np.array([*duration, *point_T])]
-    if not all(np.all(np.isfinite(v)) for v in finite):
-        return None
-    form = normalised_mean_value(
-        point,
-        gradient,
-        (point_T, duration),
-        (jets.duration_gradient.lo[n], jets.duration_gradient.hi[n]),
-        (lower, upper),
-        half_m,
-    )
-    centre = 0.5 * (point[0] + point[1])
-    return PathBox.of_intervals(lower, upper, duration, centre, 0.5 * (point_T[0] + point_T[1]), form)
-
-
-def _cell_rows(
-    model: RangeModel, dynamics: PlanarDynamics, limits: ArmLimits, settings: NearOptimalSettings, chunk
-) -> np.ndarray:
-    """The table rows of a chunk of cells (centres, half widths (n, k))."""
-    centres, halves = chunk
-    jets = leaf_jets(model, centres, halves)
-    rows = _uncertified(centres.shape[0], settings.pieces)
-    for n in range(centres.shape[0]):
-        try:
-            box = _cell_box(jets, n, halves[n])
-            if box is None:
-                continue
-            result = near_optimal_box_timing(box, dynamics, limits, settings)
-        except (TimingRefusedError, InvalidParameterError):
-            continue
-        c = result.certificate
-        (lo1, hi1), (lo2, hi2) = c.angle_range_rad
-        rows["x"][n], rows["windows_s"][n] = result.profile
-        rows["duration_s"][n] = result.executed.duration_s
-        rows["bounds"][n] = np.concatenate(
-            [[hi1, hi2, -lo1, -lo2], c.speed_bound_rad_s, c.acceleration_bound_rad_s2]
-            + [c.torque_bound_n_m, c.jerk_bound_rad_s3]
-        )
-    return rows
-
-
-def near_optimal_cells(
-    coefficients: Coefficients,
-    dynamics: PlanarDynamics,
-    limits: ArmLimits,
-    cells_per_axis: int | None = None,
-    settings: NearOptimalSettings = CELL_SETTINGS,
-    executor: int | Executor = 1,
-    only: np.ndarray | None = None,
-) -> NearOptimalCells:
-    """The certified near-optimal timing of every cell of the grid (module docstring).
-
-    Args:
-        coefficients: The coefficients (read from a file: the cells link to its sha256).
-        dynamics: The arm's dynamics.
-        limits: The limits to keep, with finite jerk limits (:meth:`ArmLimits.with_servo_defaults`).
-        cells_per_axis: Cells along each axis (default :data:`DEFAULT_CELLS_PER_AXIS` by the axes' count).
-        settings: How each cell's timing is built.
-        executor: Where the fixed chunks of cells run (local processes or an executor); the rows
-            do not depend on it.
-        only: Compute only these cells (indices); the others hold NaN, as cells without a
-            certified timing do (for a question about a few obstacles).
-    """
-    model = RangeModel.from_coefficients(coefficients)
-    k = model.k
-    grid_n = DEFAULT_CELLS_PER_AXIS.get(k, 4) if cells_per_axis is None else cells_per_axis
-    if not (isinstance(grid_n, int) and not isinstance(grid_n, bool) and grid_n >= 1):
-        raise InvalidParameterError("cells_per_axis", grid_n, "an integer >= 1")
-    grid = (grid_n,) * k
-    index = np.stack(np.unravel_index(np.arange(grid_n**k), grid), axis=1)
-    size = model.range_size / grid_n
-    centres = model.range_lo + (index + 0.5) * size
-    halves = np.broadcast_to(size / 2.0 * (1.0 + _FACE_SLACK), centres.shape).copy()
-    wanted = np.arange(centres.shape[0]) if only is None else np.unique(np.asarray(only, dtype=np.int64))
-    chunks = [(centres[wanted[i : i + _CHUNK]], halves[wanted[i : i + _CHUNK]]) for i in range(0, wanted.size, _CHUNK)]
-    task = functools.partial(_cell_rows, model, dynamics, limits, settings)
-    table = _uncertified(centres.shape[0], settings.pieces)
-    if chunks:
-        table[wanted] = np.concatenate(map_tasks(executor, task, chunks, chunk_size=1))
-    return NearOptimalCells(
-        coefficients.source_sha256, tuple(model.axes.names), model.range_lo.copy(), model.range_size.copy(),
-        grid, limits, dynamics, settings, table,
-    )  # fmt: skip
 
 
 def cells_file_names(header_name: str = CELLS_NAME) -> tuple[str, str]:

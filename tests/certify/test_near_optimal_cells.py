@@ -16,13 +16,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pipeline import load_coefficients
+from pipeline.certify.cell_timings import near_optimal_cells
 from pipeline.certify.map_for_coefficients import with_execution_bounds
 from pipeline.certify.near_optimal_cells import (
     FORMAT,
     cells_file_names,
     cells_files,
     load_near_optimal_cells,
-    near_optimal_cells,
 )
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.exceptions import DataFileError

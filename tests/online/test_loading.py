@@ -24,10 +24,13 @@ from pipeline import (
     generate_batch,
     load_coefficients,
 )
+from pipeline.certify.cell_timings import near_optimal_cells
 from pipeline.certify.map_files import save_region_map, table_name
+from pipeline.certify.near_optimal_cells import cells_files
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.certify.region_map import DEFAULT_MAP_NAME
 from pipeline.offline.coefficients import paper_data_path
+from pipeline.online.query_state import state_of
 
 COARSE = RangeCertificateConfig(min_cell=1 / 16, boundary_cell=1 / 8, strip_split=0)
 
@@ -136,6 +139,27 @@ def test_the_online_step_needs_neither_pinocchio_nor_coal(built: Path, tmp_path:
     cell = load_coefficients(built / "coefficients.json").region_map.cell_at(0.27, 0.09)
     assert float(bound) == cell.clearance_bound_m
     assert heavy.strip() == "[]"
+
+
+def test_loading_cells_leaves_the_builds_machinery_out(built: Path, tmp_path: Path) -> None:
+    """A results folder with near-optimal cells beside its map: ``pipeline.load`` attaches the
+    cells, and neither their certification nor the worker pools it runs on are imported."""
+    folder = tmp_path / "results"
+    shutil.copytree(built, folder)
+    coefficients = load_coefficients(folder / "coefficients.json")
+    state = state_of(coefficients)
+    cells = near_optimal_cells(coefficients, state.dynamics, state.limits.with_servo_defaults(), cells_per_axis=2)
+    for name, data in cells_files(cells).items():
+        (folder / name).write_bytes(data)
+    build_only = ("pipeline.certify.cell_timings", "pipeline.certify.execution_range", "pipeline.io.executor")
+    code = (
+        f"import sys, pipeline\ng = pipeline.load({str(folder)!r})\n"
+        "print(g.coefficients.region_map.near_optimal_cells is not None, "
+        f"sorted(m for m in {build_only!r} if m in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "True []"
 
 
 def test_the_heavy_names_load_on_first_use() -> None:

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from pipeline import NEAR_OPTIMAL, load_coefficients
+from pipeline.certify.cell_timings import near_optimal_cells
 from pipeline.certify.map_for_coefficients import with_execution_bounds
-from pipeline.certify.near_optimal_cells import near_optimal_cells
 from pipeline.certify.range_certificate import RangeCertificateConfig, certify_range
 from pipeline.exceptions import ExecutionRefusedError, InvalidParameterError
 from pipeline.model.arm import PlanarArm

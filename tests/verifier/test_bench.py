@@ -19,9 +19,10 @@ import numpy as np
 import pytest
 
 from pipeline import load_coefficients
+from pipeline.certify.cell_timings import near_optimal_cells
 from pipeline.certify.map_files import load_region_map, save_region_map
 from pipeline.certify.map_for_coefficients import DEFAULT_MAP_NAME, default_config
-from pipeline.certify.near_optimal_cells import cells_files, near_optimal_cells
+from pipeline.certify.near_optimal_cells import cells_files
 from pipeline.certify.range_certificate import RangeCertificateConfig
 from pipeline.cli import EXIT_OK, EXIT_USAGE, HelpFormatter
 from pipeline.exceptions import (
