@@ -135,9 +135,23 @@ class BuildResult:
         return "the build did not converge"
 
 
-def _unwritten(config: BuildConfig, fit: DoeFit, timing: dict) -> BuildResult:
+def _unwritten(
+    config: BuildConfig,
+    fit: DoeFit,
+    timing: dict,
+    coefficients: Coefficients | None = None,
+    problems: tuple[ConvergenceProblem, ...] | None = None,
+) -> BuildResult:
+    """The result of a build that writes nothing: ``fit``'s, or the ``coefficients`` and
+    ``problems`` it came to after the certifiable regression."""
     return BuildResult(
-        config, fit.experiments, fit.doe_document, fit.paper_rows, fit.coefficients, fit.problems, timing
+        config,
+        fit.experiments,
+        fit.doe_document,
+        fit.paper_rows,
+        fit.coefficients if coefficients is None else coefficients,
+        fit.problems if problems is None else problems,
+        timing,
     )
 
 
@@ -186,14 +200,12 @@ def _locked_build(config: BuildConfig, progress: ProgressCallback | None, starte
         coefficients, text = certified.coefficients, certified.text
         timing["stages_s"].update(certified.timing["stages_s"])
         timing.update({k: v for k, v in certified.timing.items() if k != "stages_s"})
-    problems = fit.problems + _written_collisions(fit, coefficients, timing)
-    if problems != fit.problems:  # the certifiable regression's coefficients collide
+    collisions = _written_collisions(fit, coefficients, timing)
+    problems = fit.problems + collisions
+    if collisions:  # the certifiable regression's coefficients collide
         if not config.regression.allow_unconverged:
             _close_timing(timing, started)
-            unwritten = BuildResult(
-                config, fit.experiments, fit.doe_document, fit.paper_rows, coefficients, problems, timing
-            )
-            raise BuildNotConvergedError(problems, unwritten)
+            raise BuildNotConvergedError(problems, _unwritten(config, fit, timing, coefficients, problems))
         coefficients, text = as_written(coefficients.marked_unconverged(problems), coefficients.source)
         certified = None
     writing = time.perf_counter()
